@@ -1,0 +1,23 @@
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <span>
+#include <string>
+
+namespace kiln {
+
+// Called after each chunk is written: (bytes written, total bytes).
+using WriteProgress = std::function<void(std::size_t, std::size_t)>;
+
+// Writes `bytes` to a temporary file in the target's folder, fsyncs it and renames it over
+// `path`, so readers see the old file or the whole new one, never a partial one. On any
+// failure the temporary is removed and std::runtime_error names the path.
+void write_file_atomically(const std::string& path, std::span<const std::byte> bytes,
+                           const WriteProgress& progress = {});
+
+// Makes SIGINT, SIGTERM and SIGHUP remove an in-flight temporary before the process dies.
+// (SIGKILL cannot be caught; the output path is untouched then, a stray temporary may remain.)
+void install_temp_file_cleanup_on_signals();
+
+}  // namespace kiln

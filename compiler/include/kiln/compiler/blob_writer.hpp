@@ -1,0 +1,32 @@
+// Lays out sections after the header and table, compresses and checksums them, and produces
+// the blob's bytes. Knows nothing of what the sections mean.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace kiln {
+
+struct SectionPayload {
+  std::uint32_t kind = 0;
+  std::uint16_t flags = 0;
+  std::uint32_t element_size = 1;
+  std::uint64_t element_count = 0;
+  std::span<const std::byte> bytes;  // raw (uncompressed) bytes
+  bool compressible = true;          // the manifest is never compressed
+};
+
+struct CompressionOptions {
+  bool enabled = false;
+  int level = 9;  // single-threaded zstd at a fixed level: reproducible bytes
+};
+
+// sections[0] must be the manifest. Sections are compressed in parallel over `threads`; the
+// output does not depend on the thread count. A compressed section that would not be smaller
+// is stored raw.
+std::vector<std::byte> serialize_blob(std::span<const SectionPayload> sections,
+                                      const CompressionOptions& compression, unsigned threads);
+
+}  // namespace kiln

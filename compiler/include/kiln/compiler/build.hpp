@@ -1,0 +1,39 @@
+// `kiln build` as a library: import inputs, assemble the scene, write the blob.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "kiln/compiler/blob_writer.hpp"
+#include "kiln/compiler/scene.hpp"
+
+namespace kiln {
+
+inline constexpr const char* kToolName = "kiln";
+extern const char* const kToolVersion;
+
+struct BuildOptions {
+  std::vector<std::string> inputs;
+  CompressionOptions compression;
+  unsigned threads = 0;  // 0 = all hardware threads; never affects the output
+};
+
+// (stage, done, total): called from the calling thread only.
+using BuildProgress = std::function<void(std::string_view, std::uint64_t, std::uint64_t)>;
+
+// Imports every input (in parallel, one task per file) and flattens them in input order.
+// Throws ImportError naming the first failing input in command-line order.
+Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
+                   const BuildProgress& progress = {});
+
+// The complete blob for a scene: manifest (section 0), then the geometry sections.
+std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options);
+
+// import_scene + compile_blob + an atomic write to `output`.
+void build_blob_file(const BuildOptions& options, const std::string& output,
+                     const BuildProgress& progress = {});
+
+}  // namespace kiln

@@ -1,0 +1,68 @@
+// The in-memory scene the compiler builds from its inputs and writes into a blob.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "kiln/compiler/transform.hpp"
+#include "kiln/formats/geometry.hpp"
+
+namespace kiln {
+
+// One mesh instance as an importer produces it: triangulated, in the mesh's own space with the
+// instance's node transform beside it (applied by assemble_scene), indices local to this mesh.
+struct ImportedMesh {
+  std::string name;
+  std::vector<format::Float3> positions;
+  std::vector<format::Float3> normals;  // empty, or one per position
+  std::vector<format::Triangle> triangles;
+  Matrix4 transform = kIdentity;  // mesh space to world space
+};
+
+struct SourceFile {
+  std::string path;  // as given on the command line
+  std::uint64_t size = 0;
+  std::uint64_t xxh3 = 0;
+};
+
+struct ImportedFile {
+  SourceFile source;
+  std::vector<ImportedMesh> meshes;  // in the file's documented traversal order
+};
+
+struct SceneMesh {
+  std::string name;
+  std::uint32_t source_file = 0;
+  std::uint64_t first_triangle = 0;
+  std::uint64_t triangle_count = 0;
+  std::uint64_t first_vertex = 0;
+  std::uint64_t vertex_count = 0;
+};
+
+struct Bounds3 {
+  format::Float3 min{0, 0, 0};
+  format::Float3 max{0, 0, 0};
+};
+
+// The flattened scene: every mesh's kept triangles, in input order, with global vertex indices.
+struct Scene {
+  std::vector<format::Float3> positions;
+  std::vector<format::Float3> normals;  // empty unless every mesh had normals
+  std::vector<format::Triangle> triangles;
+  std::vector<std::uint32_t> triangle_mesh;  // mesh index per triangle
+  std::vector<SceneMesh> meshes;
+  std::vector<SourceFile> sources;
+  std::uint64_t input_triangle_count = 0;
+  std::uint64_t degenerate_triangles_dropped = 0;
+  Bounds3 bounds;
+};
+
+// Concatenates imported files in order, drops degenerate triangles (zero area in the mesh's own
+// space, or a non-finite corner in either space), drops vertices no kept triangle uses (order
+// preserved), applies each instance's transform (mirroring ones flip the winding), and computes
+// the bounds.
+// Throws ImportError when more than 2^32 - 1 vertices result.
+Scene assemble_scene(std::vector<ImportedFile> files);
+
+}  // namespace kiln

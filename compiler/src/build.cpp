@@ -1,0 +1,68 @@
+#include "kiln/compiler/build.hpp"
+
+#include <mutex>
+
+#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/compiler/import.hpp"
+#include "kiln/compiler/parallel.hpp"
+#include "kiln/formats/section_kinds.hpp"
+#include "kiln/runtime/blob.hpp"
+#include "manifest_builder.hpp"
+
+namespace kiln {
+
+namespace {
+
+template <class T>
+std::span<const std::byte> as_bytes(const std::vector<T>& values) {
+  return std::as_bytes(std::span<const T>(values));
+}
+
+}  // namespace
+
+Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
+                   const BuildProgress& progress) {
+  std::vector<ImportedFile> files(inputs.size());
+  if (progress) progress("import", 0, inputs.size());
+  parallel_for(inputs.size(), threads, [&](std::size_t i) { files[i] = import_file(inputs[i]); });
+  if (progress) progress("import", inputs.size(), inputs.size());
+  return assemble_scene(std::move(files));
+}
+
+std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options) {
+  constexpr auto kRequired = std::uint16_t(format::SectionFlag::kRequired);
+  std::vector<SectionPayload> sections;
+  sections.push_back({});  // the manifest, filled in once the other indices are known
+  auto add = [&](std::uint32_t kind, std::uint32_t element_size, std::uint64_t count,
+                 std::span<const std::byte> bytes) {
+    sections.push_back({kind, kRequired, element_size, count, bytes, true});
+    return std::uint32_t(sections.size() - 1);
+  };
+  GeometrySectionIndices indices{};
+  indices.positions = add(format::kSectionPositions, sizeof(format::Float3), scene.positions.size(),
+                          as_bytes(scene.positions));
+  indices.triangles = add(format::kSectionTriangles, sizeof(format::Triangle),
+                          scene.triangles.size(), as_bytes(scene.triangles));
+  indices.triangle_mesh = add(format::kSectionTriangleMesh, sizeof(std::uint32_t),
+                              scene.triangle_mesh.size(), as_bytes(scene.triangle_mesh));
+  indices.normals = scene.normals.empty()
+                        ? kNoSection
+                        : add(format::kSectionNormals, sizeof(format::Float3), scene.normals.size(),
+                              as_bytes(scene.normals));
+  const std::vector<std::byte> manifest = build_manifest(scene, options, indices);
+  sections[0] = {format::kSectionManifest, kRequired, 1, manifest.size(), manifest, false};
+  return serialize_blob(sections, options.compression, options.threads);
+}
+
+void build_blob_file(const BuildOptions& options, const std::string& output,
+                     const BuildProgress& progress) {
+  const Scene scene = import_scene(options.inputs, options.threads, progress);
+  if (progress) progress("compile", 0, 1);
+  const std::vector<std::byte> blob = compile_blob(scene, options);
+  if (progress) progress("compile", 1, 1);
+  write_file_atomically(output, blob, [&](std::size_t done, std::size_t total) {
+    if (progress) progress("write", done, total);
+  });
+}
+
+}  // namespace kiln

@@ -1,0 +1,98 @@
+// Semantic checks of the manifest's geometry references, and the typed views they guard.
+#include <string>
+
+#include "kiln/formats/section_kinds.hpp"
+#include "kiln/runtime/blob.hpp"
+
+namespace kiln {
+
+namespace {
+
+std::string kind_name(std::uint32_t kind) { return format::fourcc_to_string(kind); }
+
+}  // namespace
+
+void Blob::validate_geometry() {
+  const schema::Manifest& m = *manifest_;
+  const auto* scene = m.scene();
+  const auto* geometry = m.geometry();
+  if (scene == nullptr || geometry == nullptr) fail_section(0, "manifest lacks scene or geometry");
+  const std::uint64_t vertex_count = scene->vertex_count();
+  const std::uint64_t triangle_count = scene->triangle_count();
+
+  // A geometry array: the right kind, element size and count, or absent when optional.
+  auto check = [&](const char* what, std::uint32_t index, std::uint32_t kind,
+                   std::uint32_t element_size, std::uint64_t count, bool optional) {
+    if (index == kNoSection) {
+      if (optional) return;
+      fail_section(0, std::string("manifest names no ") + what + " section");
+    }
+    if (index >= sections_.size() || index == 0)
+      fail_section(0, std::string("manifest's ") + what + " section index " +
+                          std::to_string(index) + " is out of range");
+    const auto& s = sections_[index];
+    if (s.kind != kind)
+      fail_section(index, std::string("manifest names it as ") + what + " but its kind is not " +
+                              kind_name(kind));
+    if (s.element_size != element_size)
+      fail_section(index, "element size " + std::to_string(s.element_size) + ", expected " +
+                              std::to_string(element_size));
+    if (s.element_count != count)
+      fail_section(index, std::to_string(s.element_count) + " elements, the manifest says " +
+                              std::to_string(count));
+  };
+  check("positions", geometry->positions(), format::kSectionPositions, sizeof(format::Float3),
+        vertex_count, false);
+  check("triangles", geometry->triangles(), format::kSectionTriangles, sizeof(format::Triangle),
+        triangle_count, false);
+  check("triangle-mesh", geometry->triangle_mesh(), format::kSectionTriangleMesh,
+        sizeof(std::uint32_t), triangle_count, false);
+  check("normals", geometry->normals(), format::kSectionNormals, sizeof(format::Float3),
+        vertex_count, true);
+  if (scene->has_normals() != (geometry->normals() != kNoSection))
+    fail_section(0, "scene.has_normals disagrees with the geometry's normals section");
+
+  const std::uint32_t source_count = m.sources() ? m.sources()->size() : 0;
+  if (m.meshes() != nullptr) {
+    for (std::uint32_t i = 0; i < m.meshes()->size(); ++i) {
+      const auto* mesh = m.meshes()->Get(i);
+      const auto where = "mesh " + std::to_string(i);
+      if (mesh->source_file() >= source_count)
+        fail_section(0, where + " names source file " + std::to_string(mesh->source_file()) +
+                            " of " + std::to_string(source_count));
+      if (mesh->first_triangle() > triangle_count ||
+          mesh->triangle_count() > triangle_count - mesh->first_triangle())
+        fail_section(0, where + " triangle range is out of bounds");
+      if (mesh->first_vertex() > vertex_count ||
+          mesh->vertex_count() > vertex_count - mesh->first_vertex())
+        fail_section(0, where + " vertex range is out of bounds");
+    }
+  }
+  if (m.accelerations() != nullptr) {
+    for (const auto* accel : *m.accelerations()) {
+      if (accel->sections() == nullptr) continue;
+      for (const std::uint32_t index : *accel->sections())
+        if (index == 0 || index >= sections_.size())
+          fail_section(0, "acceleration '" + accel->kind()->str() + "' names section " +
+                              std::to_string(index) + ", out of range");
+    }
+  }
+}
+
+std::span<const format::Float3> Blob::positions() const {
+  return section_view<format::Float3>(manifest_->geometry()->positions());
+}
+
+std::span<const format::Float3> Blob::normals() const {
+  return section_view<format::Float3>(manifest_->geometry()->normals());
+}
+
+std::span<const format::Triangle> Blob::triangles() const {
+  return section_view<format::Triangle>(manifest_->geometry()->triangles());
+}
+
+std::span<const std::uint32_t> Blob::triangle_mesh_ids() const {
+  return section_view<std::uint32_t>(manifest_->geometry()->triangle_mesh());
+}
+
+}  // namespace kiln

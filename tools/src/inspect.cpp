@@ -1,0 +1,229 @@
+#include "kiln/tools/inspect.hpp"
+
+#include <cinttypes>
+#include <cstdio>
+#include <string>
+
+#include "kiln/formats/section_kinds.hpp"
+#include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/error.hpp"
+#include "kiln/tools/json_writer.hpp"
+
+namespace kiln {
+
+namespace {
+
+constexpr std::size_t kMeshesShown = 32;
+
+std::string hex64(std::uint64_t value) {
+  char text[20];
+  std::snprintf(text, sizeof(text), "%016" PRIx64, value);
+  return text;
+}
+
+const char* codec_name(std::uint8_t codec) {
+  switch (format::Codec(codec)) {
+    case format::Codec::kNone: return "none";
+    case format::Codec::kZstd: return "zstd";
+  }
+  return "?";
+}
+
+std::string str(const flatbuffers::String* s) { return s ? s->str() : std::string(); }
+
+std::string printf_string(const char* format, auto... args) {
+  char text[512];
+  std::snprintf(text, sizeof(text), format, args...);
+  return text;
+}
+
+void write_json(const Blob& blob, std::ostream& out) {
+  const auto& h = blob.header();
+  const auto& m = blob.manifest();
+  JsonWriter j(out);
+  j.begin_object();
+  j.field("file", blob.name());
+  j.key("header").begin_object();
+  j.field("version", std::to_string(h.version_major) + "." + std::to_string(h.version_minor));
+  j.field("header_size", h.header_size).field("flags", h.flags).field("file_size", h.file_size);
+  j.field("section_table_offset", h.section_table_offset).field("section_count", h.section_count);
+  j.field("section_entry_size", h.section_entry_size);
+  j.field("section_table_checksum", hex64(h.section_table_checksum));
+  j.field("header_checksum", hex64(h.header_checksum));
+  j.end_object();
+
+  j.key("sections").begin_array();
+  for (const auto& s : blob.sections()) {
+    j.begin_object();
+    j.field("kind", format::fourcc_to_string(s.kind));
+    j.field("required", (s.flags & std::uint16_t(format::SectionFlag::kRequired)) != 0);
+    j.field("codec", codec_name(s.codec));
+    j.field("alignment", std::uint64_t{1} << s.alignment_log2);
+    j.field("offset", s.offset).field("stored_size", s.stored_size).field("raw_size", s.raw_size);
+    j.field("element_count", s.element_count).field("element_size", s.element_size);
+    j.field("xxh3", hex64(s.checksum));
+    j.end_object();
+  }
+  j.end_array();
+
+  j.key("manifest").begin_object();
+  j.field("tool_name", str(m.tool_name())).field("tool_version", str(m.tool_version()));
+  j.key("options").begin_object();
+  if (m.options())
+    for (const auto* o : *m.options()) j.field(o->key()->str(), o->value()->str());
+  j.end_object();
+  j.key("sources").begin_array();
+  if (m.sources())
+    for (const auto* s : *m.sources())
+      j.begin_object().field("path", str(s->path())).field("size", s->size()).field("xxh3", hex64(s->xxh3())).end_object();
+  j.end_array();
+  const auto* scene = m.scene();
+  const auto& b = *scene->bounds();
+  j.key("scene").begin_object();
+  j.field("vertex_count", scene->vertex_count()).field("triangle_count", scene->triangle_count());
+  j.field("input_triangle_count", scene->input_triangle_count());
+  j.field("degenerate_triangles_dropped", scene->degenerate_triangles_dropped());
+  j.field("has_normals", scene->has_normals());
+  j.field("mesh_count", std::uint64_t(m.meshes() ? m.meshes()->size() : 0));
+  j.key("bounds").begin_object();
+  j.key("min").begin_array().value(double(b.min().x())).value(double(b.min().y())).value(double(b.min().z())).end_array();
+  j.key("max").begin_array().value(double(b.max().x())).value(double(b.max().y())).value(double(b.max().z())).end_array();
+  j.end_object();
+  j.end_object();
+  j.key("meshes").begin_array();
+  if (m.meshes())
+    for (const auto* mesh : *m.meshes()) {
+      j.begin_object().field("name", str(mesh->name())).field("source_file", mesh->source_file());
+      j.field("first_triangle", mesh->first_triangle()).field("triangle_count", mesh->triangle_count());
+      j.field("first_vertex", mesh->first_vertex()).field("vertex_count", mesh->vertex_count());
+      j.end_object();
+    }
+  j.end_array();
+  const auto* g = m.geometry();
+  auto section_or_null = [&](const char* name, std::uint32_t index) {
+    j.key(name);
+    if (index == kNoSection) j.null();
+    else j.value(index);
+  };
+  j.key("geometry").begin_object();
+  section_or_null("positions", g->positions());
+  section_or_null("triangles", g->triangles());
+  section_or_null("triangle_mesh", g->triangle_mesh());
+  section_or_null("normals", g->normals());
+  j.end_object();
+  j.key("accelerations").begin_array();
+  if (m.accelerations())
+    for (const auto* a : *m.accelerations()) {
+      j.begin_object().field("kind", str(a->kind()));
+      j.key("sections").begin_array();
+      if (a->sections())
+        for (const auto index : *a->sections()) j.value(index);
+      j.end_array().end_object();
+    }
+  j.end_array();
+  j.end_object();
+  j.end_object();
+  out << '\n';
+}
+
+void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out) {
+  const auto& h = blob.header();
+  const auto& m = blob.manifest();
+  out << "kiln blob " << blob.name() << "\n";
+  out << "  format " << h.version_major << "." << h.version_minor << ", " << h.file_size
+      << " bytes, " << h.section_count << " sections, written by " << str(m.tool_name()) << " "
+      << str(m.tool_version()) << "\n\n";
+  out << "sections\n";
+  out << printf_string("  %3s  %-4s  %-4s  %-4s  %6s  %12s  %12s  %12s  %14s  %-16s\n", "#", "kind",
+                       "req", "codec", "align", "offset", "stored", "raw", "elements x size", "xxh3");
+  for (std::uint32_t i = 0; i < blob.sections().size(); ++i) {
+    const auto& s = blob.sections()[i];
+    const std::string elements = std::to_string(s.element_count) + " x " + std::to_string(s.element_size);
+    out << printf_string("  %3u  %-4s  %-4s  %-5s  %5llu  %12llu  %12llu  %12llu  %15s  %s\n", i,
+                         format::fourcc_to_string(s.kind).c_str(),
+                         (s.flags & std::uint16_t(format::SectionFlag::kRequired)) ? "yes" : "no",
+                         codec_name(s.codec), 1ull << s.alignment_log2,
+                         (unsigned long long)s.offset, (unsigned long long)s.stored_size,
+                         (unsigned long long)s.raw_size, elements.c_str(), hex64(s.checksum).c_str());
+  }
+  out << "\noptions\n";
+  if (m.options())
+    for (const auto* o : *m.options()) out << "  " << o->key()->str() << " = " << o->value()->str() << "\n";
+  out << "\nsources\n";
+  if (m.sources())
+    for (std::uint32_t i = 0; i < m.sources()->size(); ++i) {
+      const auto* s = m.sources()->Get(i);
+      out << printf_string("  [%u] %s  (%llu bytes, xxh3 %s)\n", i, str(s->path()).c_str(),
+                           (unsigned long long)s->size(), hex64(s->xxh3()).c_str());
+    }
+  const auto* scene = m.scene();
+  const auto& b = *scene->bounds();
+  out << "\nscene\n";
+  out << "  triangles  " << scene->triangle_count() << "  (imported " << scene->input_triangle_count()
+      << ", degenerate dropped " << scene->degenerate_triangles_dropped() << ")\n";
+  out << "  vertices   " << scene->vertex_count() << (scene->has_normals() ? "  (with normals)" : "") << "\n";
+  out << printf_string("  bounds     (%g, %g, %g) .. (%g, %g, %g)\n", b.min().x(), b.min().y(),
+                       b.min().z(), b.max().x(), b.max().y(), b.max().z());
+  const std::size_t mesh_count = m.meshes() ? m.meshes()->size() : 0;
+  out << "\nmeshes (" << mesh_count << ")\n";
+  out << printf_string("  %5s  %-32s  %4s  %12s  %10s  %12s  %10s\n", "#", "name", "src",
+                       "first tri", "tris", "first vert", "verts");
+  for (std::size_t i = 0; i < mesh_count; ++i) {
+    if (!options.all_meshes && i == kMeshesShown) {
+      out << "  ... " << (mesh_count - i) << " more (--all-meshes lists them)\n";
+      break;
+    }
+    const auto* mesh = m.meshes()->Get(std::uint32_t(i));
+    out << printf_string("  %5zu  %-32.32s  %4u  %12llu  %10llu  %12llu  %10llu\n", i,
+                         str(mesh->name()).c_str(), mesh->source_file(),
+                         (unsigned long long)mesh->first_triangle(), (unsigned long long)mesh->triangle_count(),
+                         (unsigned long long)mesh->first_vertex(), (unsigned long long)mesh->vertex_count());
+  }
+  out << "\naccelerations\n";
+  if (!m.accelerations() || m.accelerations()->size() == 0) out << "  (none)\n";
+  else
+    for (const auto* a : *m.accelerations()) out << "  " << str(a->kind()) << "\n";
+}
+
+}  // namespace
+
+int run_dump(const std::string& path, const DumpOptions& options, std::ostream& out, std::ostream& err) {
+  std::string error;
+  const auto blob = Blob::try_open_file(path, error);
+  if (!blob) {
+    err << "kiln dump: " << error << "\n";
+    return 1;
+  }
+  if (options.json) write_json(*blob, out);
+  else write_human(*blob, options, out);
+  return 0;
+}
+
+int run_verify(const std::string& path, bool json, std::ostream& out, std::ostream& err) {
+  std::string error;
+  auto blob = Blob::try_open_file(path, error);
+  if (blob) {
+    try {
+      blob->verify();
+    } catch (const BlobError& e) {
+      error = e.what();
+    }
+  }
+  if (json) {
+    JsonWriter j(out);
+    j.begin_object().field("file", path).field("ok", error.empty());
+    if (!error.empty()) j.field("error", error);
+    j.end_object();
+    out << "\n";
+  } else if (error.empty()) {
+    out << "ok: " << path << " (" << blob->sections().size() << " sections, "
+        << blob->header().file_size << " bytes, all checksums match)\n";
+  }
+  if (!error.empty()) {
+    err << "kiln verify: " << error << "\n";
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace kiln
