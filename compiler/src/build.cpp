@@ -26,7 +26,13 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
   if (progress) progress("import", 0, inputs.size());
   parallel_for(inputs.size(), threads, [&](std::size_t i) { files[i] = import_file(inputs[i]); });
   if (progress) progress("import", inputs.size(), inputs.size());
-  return assemble_scene(std::move(files));
+  Scene scene = assemble_scene(std::move(files));
+  // An empty scene is almost surely a broken input; an asset pipeline should hear about it.
+  if (scene.triangles.empty())
+    throw ImportError(inputs.front() + (inputs.size() > 1 ? " (and the other inputs)" : "") +
+                      ": no triangles left: all " + std::to_string(scene.input_triangle_count) +
+                      " are degenerate (zero area or non-finite)");
+  return scene;
 }
 
 std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options) {

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <sstream>
 #include <utility>
 
 #include "kiln/compiler/import.hpp"
@@ -23,6 +24,28 @@ bool is_ply_with_tristrips(std::span<const std::byte> bytes) {
   return header.find("element tristrips") < end;
 }
 
+// Assimp 5.2.5 believes an OFF header's counts and spends tens of seconds (or aborts under
+// ASan) reserving memory for 10^11 vertices. Each text vertex needs at least 6 bytes ("0 0 0\n")
+// and each face 2, so counts the file cannot hold are refused up front.
+void check_off_counts(const std::string& path, std::span<const std::byte> bytes) {
+  const std::string head(reinterpret_cast<const char*>(bytes.data()), std::min<std::size_t>(bytes.size(), 4096));
+  std::istringstream in(head);
+  std::string token;
+  in >> token;
+  if (token.empty() || token.find("OFF") == std::string::npos || token.find("OFF") + 3 != token.size())
+    return;  // binary or unusual: Assimp's problem
+  for (char c = char(in.peek()); in && (c == ' ' || c == '\n' || c == '\r' || c == '#'); c = char(in.peek())) {
+    if (c == '#') std::getline(in, token);
+    else in.get();
+  }
+  unsigned long long vertices = 0, faces = 0;
+  if (!(in >> vertices >> faces)) return;
+  if (vertices > bytes.size() / 6 || faces > bytes.size() / 2 || vertices * 6 + faces * 2 > bytes.size())
+    throw ImportError(path + ": OFF header claims " + std::to_string(vertices) + " vertices and " +
+                      std::to_string(faces) + " faces, more than its " + std::to_string(bytes.size()) +
+                      " bytes can hold");
+}
+
 Matrix4 to_matrix4(const aiMatrix4x4& m) {
   // Assimp is row-major (a1..a4 is the first row); Matrix4 is column-major.
   return {m.a1, m.b1, m.c1, m.d1, m.a2, m.b2, m.c2, m.d2,
@@ -31,6 +54,9 @@ Matrix4 to_matrix4(const aiMatrix4x4& m) {
 
 ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const std::string& path) {
   ImportedMesh out;
+  if (mesh.mNumVertices == 0 || mesh.mNumFaces == 0) return out;
+  if (mesh.mVertices == nullptr || mesh.mFaces == nullptr)
+    throw ImportError(path + ": Assimp returned a mesh without vertex or face arrays");
   out.name = mesh.mName.length > 0 ? std::string(mesh.mName.C_Str()) : std::string();
   out.transform = to_matrix4(world);
   out.positions.reserve(mesh.mNumVertices);
@@ -44,7 +70,7 @@ ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const st
   out.triangles.reserve(mesh.mNumFaces);
   for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
     const aiFace& face = mesh.mFaces[f];
-    if (face.mNumIndices != 3) continue;  // points and lines carry no surface
+    if (face.mNumIndices != 3 || face.mIndices == nullptr) continue;  // points and lines carry no surface
     format::Triangle t{};
     for (int i = 0; i < 3; ++i) {
       if (face.mIndices[i] >= mesh.mNumVertices)
@@ -58,23 +84,49 @@ ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const st
   return out;
 }
 
+void check_raw_scene(const aiScene& scene, const std::string& path) {
+  if (scene.mNumMeshes > 0 && scene.mMeshes == nullptr) throw ImportError(path + ": mesh array missing");
+  for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
+    const aiMesh* mesh = scene.mMeshes[m];
+    if (mesh == nullptr) throw ImportError(path + ": mesh " + std::to_string(m) + " is missing");
+    if ((mesh->mNumVertices > 0 && mesh->mVertices == nullptr) ||
+        (mesh->mNumFaces > 0 && mesh->mFaces == nullptr))
+      throw ImportError(path + ": mesh " + std::to_string(m) + " lacks its vertex or face array");
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices == 0 || face.mIndices == nullptr)
+        throw ImportError(path + ": face " + std::to_string(f) + " has no vertices");
+      for (unsigned i = 0; i < face.mNumIndices; ++i)
+        if (face.mIndices[i] >= mesh->mNumVertices)
+          throw ImportError(path + ": face " + std::to_string(f) + " names vertex " +
+                            std::to_string(face.mIndices[i]) + " of " + std::to_string(mesh->mNumVertices));
+    }
+  }
+}
+
 }  // namespace
 
 std::vector<ImportedMesh> import_with_assimp(const std::string& path, std::span<const std::byte> bytes,
                                              const std::string& extension, bool bytes_are_file) {
   if (extension == ".ply" && is_ply_with_tristrips(bytes))
     throw ImportError(path + ": PLY triangle strips are not supported (Assimp 5.2.5 misreads them)");
+  if (extension == ".off") check_off_counts(path, bytes);
 
   Assimp::Importer importer;
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   // No aiProcess_PreTransformVertices: it merges meshes by material and reorders triangles.
-  const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                         aiProcess_SortByPType | aiProcess_ValidateDataStructure;
+  // Read without post-processing, check the raw arrays ourselves, then triangulate: Assimp's
+  // post-processing steps assert (abort) on inconsistent faces, and its own validation step
+  // rejects a whole file for one empty mesh (an STL with an empty solid), as does SortByPType;
+  // points and lines are skipped face by face in convert_mesh instead.
   // Reading from the path lets Assimp find companion files; inflated bytes have no path.
   const aiScene* scene =
-      bytes_are_file ? importer.ReadFile(path, flags)
-                     : importer.ReadFileFromMemory(bytes.data(), bytes.size(), flags,
+      bytes_are_file ? importer.ReadFile(path, 0)
+                     : importer.ReadFileFromMemory(bytes.data(), bytes.size(), 0,
                                                    extension.empty() ? "" : extension.c_str() + 1);
+  if (scene != nullptr) {
+    check_raw_scene(*scene, path);
+    scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_JoinIdenticalVertices);
+  }
   if (scene == nullptr) {
     std::string reason = importer.GetErrorString();
     if (reason.empty()) reason = "unknown Assimp error";
@@ -94,12 +146,18 @@ std::vector<ImportedMesh> import_with_assimp(const std::string& path, std::span<
     for (unsigned i = 0; i < node->mNumMeshes; ++i) {
       if (node->mMeshes[i] >= scene->mNumMeshes)
         throw ImportError(path + ": node references a missing mesh");
+      if (scene->mMeshes == nullptr || scene->mMeshes[node->mMeshes[i]] == nullptr)
+        throw ImportError(path + ": node references a missing mesh");
       const aiMesh& mesh = *scene->mMeshes[node->mMeshes[i]];
-      if ((mesh.mPrimitiveTypes & aiPrimitiveType_TRIANGLE) == 0) continue;
       meshes.push_back(convert_mesh(mesh, world, path));
+      if (meshes.back().triangles.empty()) {
+        meshes.pop_back();
+        continue;
+      }
       if (meshes.back().name.empty()) meshes.back().name = node->mName.C_Str();
     }
-    for (unsigned c = node->mNumChildren; c-- > 0;) stack.emplace_back(node->mChildren[c], world);
+    for (unsigned c = node->mNumChildren; c-- > 0;)
+      if (node->mChildren[c] != nullptr) stack.emplace_back(node->mChildren[c], world);
   }
   return meshes;
 }

@@ -84,7 +84,7 @@ void Blob::validate_header() {
   std::memcpy(&header_, bytes_.data(), sizeof(FileHeader));
   const auto& id = format::kIdentifier;
   if (std::memcmp(header_.identifier, id.data(), id.size()) != 0) {
-    // The first five bytes survive a text-mode transfer; the line-ending bytes do not.
+    // The first eight bytes survive a text-mode transfer; the line-ending bytes do not.
     if (std::memcmp(header_.identifier, id.data(), 8) == 0)
       fail("identifier damaged after byte 8: the file went through a text-mode (line-ending) "
            "conversion");
@@ -144,7 +144,7 @@ void Blob::validate_section_table() {
     if (s.offset < previous_end)
       fail_section(i, "offset " + std::to_string(s.offset) +
                           " overlaps the previous section or the section table");
-    if (s.stored_size > file_size - s.offset)
+    if (s.offset > file_size || s.stored_size > file_size - s.offset)
       fail_section(i, "offset " + std::to_string(s.offset) + " + size " +
                           std::to_string(s.stored_size) + " runs past the end of the file (" +
                           std::to_string(file_size) + " bytes)");

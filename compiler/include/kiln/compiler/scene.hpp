@@ -58,8 +58,8 @@ struct Scene {
   Bounds3 bounds;
 };
 
-// Concatenates imported files in order, drops degenerate triangles (zero area in the mesh's own
-// space, or a non-finite corner in either space), drops vertices no kept triangle uses (order
+// Concatenates imported files in order, drops degenerate triangles (zero area on the world-space
+// corners evaluated in double, or a non-finite corner), drops vertices no kept triangle uses (order
 // preserved), applies each instance's transform (mirroring ones flip the winding), and computes
 // the bounds.
 // Throws ImportError when more than 2^32 - 1 vertices result.

@@ -1,0 +1,52 @@
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cstddef>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace kiln::test {
+
+// Absolute path of a corpus file (../shared/data/meshes/...).
+std::string mesh_path(const std::string& relative);
+bool corpus_present();
+
+#define KILN_REQUIRE_CORPUS()                                                              \
+  do {                                                                                     \
+    if (!::kiln::test::corpus_present())                                                   \
+      GTEST_SKIP() << "mesh corpus " KILN_MESH_DIR " is absent: corpus test skipped";     \
+  } while (0)
+
+// A fresh directory, removed with everything in it at scope exit.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  std::filesystem::path path() const { return path_; }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  std::filesystem::path path_;
+};
+
+std::vector<std::byte> read_file(const std::string& path);
+void write_file(const std::string& path, std::span<const std::byte> bytes);
+
+// Opens a copy of `bytes` (aligned) and runs verify(); returns "" when both succeed, else the
+// error message.
+std::string open_and_verify(std::span<const std::byte> bytes);
+// Only the open (O(sections)) checks.
+std::string open_only(std::span<const std::byte> bytes);
+
+struct CommandResult {
+  int exit_code = -1;  // -1 when killed by a signal
+  int signal = 0;
+  std::string out, err;
+};
+// Runs the kiln CLI with the given argument string (shell-quoted by the caller).
+CommandResult run_kiln(const std::string& arguments);
+
+}  // namespace kiln::test
