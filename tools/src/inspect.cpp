@@ -134,7 +134,7 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
       << " bytes, " << h.section_count << " sections, written by " << str(m.tool_name()) << " "
       << str(m.tool_version()) << "\n\n";
   out << "sections\n";
-  out << printf_string("  %3s  %-4s  %-4s  %-4s  %6s  %12s  %12s  %12s  %14s  %-16s\n", "#", "kind",
+  out << printf_string("  %3s  %-4s  %-4s  %-5s  %5s  %12s  %12s  %12s  %15s  %s\n", "#", "kind",
                        "req", "codec", "align", "offset", "stored", "raw", "elements x size", "xxh3");
   for (std::uint32_t i = 0; i < blob.sections().size(); ++i) {
     const auto& s = blob.sections()[i];
