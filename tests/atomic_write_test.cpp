@@ -20,7 +20,8 @@ int write_and_die(const std::string& path, int signal_number, bool install_clean
   if (child == 0) {
     if (install_cleanup) install_temp_file_cleanup_on_signals();
     const std::vector<std::byte> bytes(64u << 20, std::byte{0x5A});
-    write_file_atomically(path, bytes, [&](std::size_t, std::size_t) { std::raise(signal_number); });
+    write_file_atomically(path, bytes,
+                          [&](std::size_t, std::size_t) { std::raise(signal_number); });
     ::_exit(0);  // not reached
   }
   int status = 0;

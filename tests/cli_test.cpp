@@ -9,7 +9,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string quoted(const std::string& s) { return "'" + s + "'"; }
+std::string quoted(const std::string& s) {
+  return "'" + s + "'";
+}
 
 TEST(Cli, EveryCommandHasHelp) {
   for (const char* command : {"--help", "build --help", "dump --help", "verify --help"}) {
@@ -47,8 +49,14 @@ TEST(Cli, ThreadCountDoesNotChangeTheBlob) {
   const std::string inputs = quoted(test::mesh_path("stanford/bun_zipper.ply.zst")) + " " +
                              quoted(test::mesh_path("classic/spot.obj"));
   for (const char* extra : {"", " --compress"}) {
-    ASSERT_EQ(test::run_kiln("build " + inputs + " -o " + quoted(dir.file("a.kiln")) + " --threads 1" + extra).exit_code, 0);
-    ASSERT_EQ(test::run_kiln("build " + inputs + " -o " + quoted(dir.file("b.kiln")) + " --threads 2" + extra).exit_code, 0);
+    ASSERT_EQ(test::run_kiln("build " + inputs + " -o " + quoted(dir.file("a.kiln")) +
+                             " --threads 1" + extra)
+                  .exit_code,
+              0);
+    ASSERT_EQ(test::run_kiln("build " + inputs + " -o " + quoted(dir.file("b.kiln")) +
+                             " --threads 2" + extra)
+                  .exit_code,
+              0);
     EXPECT_EQ(test::read_file(dir.file("a.kiln")), test::read_file(dir.file("b.kiln"))) << extra;
   }
 }
@@ -57,7 +65,10 @@ TEST(Cli, VerifyRejectsTruncatedAndFlippedBlobsWithOneLine) {
   KILN_REQUIRE_CORPUS();
   test::TempDir dir;
   const std::string blob = dir.file("teapot.kiln");
-  ASSERT_EQ(test::run_kiln("build " + quoted(test::mesh_path("classic/teapot.obj")) + " -o " + quoted(blob)).exit_code, 0);
+  ASSERT_EQ(test::run_kiln("build " + quoted(test::mesh_path("classic/teapot.obj")) + " -o " +
+                           quoted(blob))
+                .exit_code,
+            0);
   auto bytes = test::read_file(blob);
 
   const std::string truncated = dir.file("truncated.kiln");
@@ -84,8 +95,10 @@ TEST(Cli, AbsurdOptionsAreRefused) {
   KILN_REQUIRE_CORPUS();
   test::TempDir dir;
   const std::string input = quoted(test::mesh_path("assimp/OBJ/box.obj"));
-  for (const char* options : {"--threads 100000", "--threads -3", "--compression-level 99", "--bogus"}) {
-    const auto result = test::run_kiln("build " + input + " -o " + quoted(dir.file("x.kiln")) + " " + options);
+  for (const char* options :
+       {"--threads 100000", "--threads -3", "--compression-level 99", "--bogus"}) {
+    const auto result =
+        test::run_kiln("build " + input + " -o " + quoted(dir.file("x.kiln")) + " " + options);
     EXPECT_NE(result.exit_code, 0) << options;
     EXPECT_FALSE(fs::exists(dir.file("x.kiln"))) << options;
   }

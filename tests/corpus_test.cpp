@@ -68,7 +68,9 @@ const CorpusMesh kCorpus[] = {
     {"stanford/stanford-bunny.obj.zst", 69451, 69451},
 };
 
-void PrintTo(const CorpusMesh& mesh, std::ostream* out) { *out << mesh.path; }
+void PrintTo(const CorpusMesh& mesh, std::ostream* out) {
+  *out << mesh.path;
+}
 
 void expect_blob_matches_scene(const Scene& scene, const Blob& blob) {
   const auto& m = blob.manifest();
@@ -78,14 +80,19 @@ void expect_blob_matches_scene(const Scene& scene, const Blob& blob) {
   EXPECT_EQ(m.scene()->degenerate_triangles_dropped(), scene.degenerate_triangles_dropped);
   EXPECT_EQ(m.scene()->has_normals(), !scene.normals.empty());
   ASSERT_EQ(blob.positions().size(), scene.positions.size());
-  EXPECT_EQ(0, std::memcmp(blob.positions().data(), scene.positions.data(), scene.positions.size() * 12));
+  EXPECT_EQ(
+      0, std::memcmp(blob.positions().data(), scene.positions.data(), scene.positions.size() * 12));
   ASSERT_EQ(blob.triangles().size(), scene.triangles.size());
-  EXPECT_EQ(0, std::memcmp(blob.triangles().data(), scene.triangles.data(), scene.triangles.size() * 12));
+  EXPECT_EQ(
+      0, std::memcmp(blob.triangles().data(), scene.triangles.data(), scene.triangles.size() * 12));
   ASSERT_EQ(blob.triangle_mesh_ids().size(), scene.triangle_mesh.size());
-  EXPECT_TRUE(std::equal(scene.triangle_mesh.begin(), scene.triangle_mesh.end(), blob.triangle_mesh_ids().begin()));
+  EXPECT_TRUE(std::equal(scene.triangle_mesh.begin(), scene.triangle_mesh.end(),
+                         blob.triangle_mesh_ids().begin()));
   ASSERT_EQ(blob.normals().size(), scene.normals.size());
-  if (!scene.normals.empty())
-    EXPECT_EQ(0, std::memcmp(blob.normals().data(), scene.normals.data(), scene.normals.size() * 12));
+  if (!scene.normals.empty()) {
+    EXPECT_EQ(0,
+              std::memcmp(blob.normals().data(), scene.normals.data(), scene.normals.size() * 12));
+  }
   ASSERT_EQ(m.meshes()->size(), scene.meshes.size());
   for (std::uint32_t i = 0; i < scene.meshes.size(); ++i) {
     const auto* mesh = m.meshes()->Get(i);
@@ -139,9 +146,10 @@ INSTANTIATE_TEST_SUITE_P(Corpus, CorpusTest, ::testing::ValuesIn(kCorpus), test_
 // Several inputs flatten in command-line order: mesh table, source indices and triangle ranges.
 TEST(CorpusTest, SeveralInputsFlattenInOrder) {
   KILN_REQUIRE_CORPUS();
-  const std::vector<std::string> inputs = {test::mesh_path("classic/teapot.obj"),
-                                           test::mesh_path("gltf/Box-glTF-Draco-Binary/Box_Draco.glb"),
-                                           test::mesh_path("assimp/STL/Spider_binary.stl")};
+  const std::vector<std::string> inputs = {
+      test::mesh_path("classic/teapot.obj"),
+      test::mesh_path("gltf/Box-glTF-Draco-Binary/Box_Draco.glb"),
+      test::mesh_path("assimp/STL/Spider_binary.stl")};
   const Scene scene = import_scene(inputs, 2);
   EXPECT_EQ(scene.triangles.size(), 6320u + 12u + 1312u);
   ASSERT_EQ(scene.sources.size(), 3u);
@@ -158,7 +166,8 @@ TEST(CorpusTest, SeveralInputsFlattenInOrder) {
   EXPECT_EQ(scene.meshes.back().source_file, 2u);
   // The teapot alone gives the same first 6320 triangles: order does not depend on company.
   const Scene teapot = import_scene({inputs[0]}, 1);
-  EXPECT_EQ(0, std::memcmp(teapot.triangles.data(), scene.triangles.data(), teapot.triangles.size() * 12));
+  EXPECT_EQ(0, std::memcmp(teapot.triangles.data(), scene.triangles.data(),
+                           teapot.triangles.size() * 12));
 }
 
 }  // namespace

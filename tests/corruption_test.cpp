@@ -44,7 +44,8 @@ void forge(std::vector<std::byte>& blob, const format::FileHeader& header) {
   std::memcpy(blob.data(), &h, sizeof(h));
 }
 
-void forge_entry(std::vector<std::byte>& blob, std::uint32_t index, const format::SectionEntry& entry) {
+void forge_entry(std::vector<std::byte>& blob, std::uint32_t index,
+                 const format::SectionEntry& entry) {
   std::memcpy(blob.data() + 64 + 64 * index, &entry, sizeof(entry));
   forge(blob, header_of(blob));
 }
@@ -71,7 +72,8 @@ TEST(Corruption, EverySingleBitFlipIsCaught) {
     for (int bit = 0; bit < 8; ++bit) {
       blob[byte] ^= std::byte(1u << bit);
       // Header and table flips must be refused by open itself, payload flips at least by verify.
-      const std::string error = byte < table_end ? test::open_only(blob) : test::open_and_verify(blob);
+      const std::string error =
+          byte < table_end ? test::open_only(blob) : test::open_and_verify(blob);
       blob[byte] ^= std::byte(1u << bit);
       ASSERT_NE(error, "") << "flip of bit " << bit << " at byte " << byte << " went unnoticed";
     }
@@ -108,10 +110,12 @@ TEST(Corruption, WrongIdentifierAndTextModeDamage) {
   // A text-mode transfer turns CR LF into LF: the identifier is the first thing to notice.
   std::vector<std::byte> text_mode;
   for (std::size_t i = 0; i < blob.size(); ++i) {
-    if (blob[i] == std::byte('\r') && i + 1 < blob.size() && blob[i + 1] == std::byte('\n')) continue;
+    if (blob[i] == std::byte('\r') && i + 1 < blob.size() && blob[i + 1] == std::byte('\n'))
+      continue;
     text_mode.push_back(blob[i]);
   }
-  EXPECT_NE(test::open_only(text_mode).find("text-mode"), std::string::npos) << test::open_only(text_mode);
+  EXPECT_NE(test::open_only(text_mode).find("text-mode"), std::string::npos)
+      << test::open_only(text_mode);
 }
 
 TEST(Corruption, ForgedVersionsAreRefused) {
@@ -138,7 +142,8 @@ TEST(Corruption, AbsurdCountsWithValidChecksumsAreRefused) {
     auto h = header_of(forged);
     h.section_count = 0xFFFFFFFFu;
     forge(forged, h);
-    EXPECT_NE(test::open_only(forged).find("section count"), std::string::npos) << test::open_only(forged);
+    EXPECT_NE(test::open_only(forged).find("section count"), std::string::npos)
+        << test::open_only(forged);
   }
   {
     auto forged = blob;
@@ -204,7 +209,8 @@ TEST(Corruption, UnknownSectionKindsAreSkippedUnlessRequired) {
   for (std::uint32_t s = 0; s < header.section_count; ++s) {
     const auto e = entry_of(geometry, s);
     sections.push_back({e.kind, e.flags, e.element_size, e.element_count,
-                        std::span<const std::byte>(geometry).subspan(e.offset, e.stored_size), false});
+                        std::span<const std::byte>(geometry).subspan(e.offset, e.stored_size),
+                        false});
   }
   const std::vector<std::byte> extra(100, std::byte{7});
   sections.push_back({format::fourcc('X', 'T', 'R', 'A'), 0, 1, extra.size(), extra, false});

@@ -5,7 +5,8 @@
 namespace kiln {
 namespace {
 
-std::vector<std::byte> build_bytes(const std::vector<std::string>& inputs, unsigned threads, bool compress) {
+std::vector<std::byte> build_bytes(const std::vector<std::string>& inputs, unsigned threads,
+                                   bool compress) {
   BuildOptions options;
   options.inputs = inputs;
   options.threads = threads;

@@ -83,11 +83,14 @@ TEST(InvalidInput, SpecificReasonsAreReported) {
     }
     return std::string("no error");
   };
-  EXPECT_NE(reason("invalid/glTF2/IndexOutOfRange/IndexOutOfRange.gltf").find("out of range"), std::string::npos);
-  EXPECT_NE(reason("invalid/glTF2/MissingBin/BoxTextured.gltf").find("BoxTextured0.bin"), std::string::npos);
-  EXPECT_NE(reason("invalid/assimp-invalid/empty.obj").find("empty"), std::string::npos);
-  EXPECT_NE(reason("invalid/glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb").find("degenerate"),
+  EXPECT_NE(reason("invalid/glTF2/IndexOutOfRange/IndexOutOfRange.gltf").find("out of range"),
             std::string::npos);
+  EXPECT_NE(reason("invalid/glTF2/MissingBin/BoxTextured.gltf").find("BoxTextured0.bin"),
+            std::string::npos);
+  EXPECT_NE(reason("invalid/assimp-invalid/empty.obj").find("empty"), std::string::npos);
+  EXPECT_NE(
+      reason("invalid/glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb").find("degenerate"),
+      std::string::npos);
   EXPECT_NE(reason("assimp/OBJ/point_cloud.obj").find("no triangles"), std::string::npos);
   EXPECT_NE(reason("does/not/exist.obj").find("no such file"), std::string::npos);
 }
@@ -97,7 +100,8 @@ TEST(InvalidInput, HostileDracoExtensionIsRefused) {
   // The Draco glTF with its extension pointing at a buffer view that does not exist: tinygltf
   // would index out of range; the pre-check refuses it.
   test::TempDir dir;
-  const auto source = test::read_file(test::mesh_path("gltf/2CylinderEngine-glTF-Draco/2CylinderEngine.gltf"));
+  const auto source =
+      test::read_file(test::mesh_path("gltf/2CylinderEngine-glTF-Draco/2CylinderEngine.gltf"));
   std::string text(reinterpret_cast<const char*>(source.data()), source.size());
   const std::string needle = "\"KHR_draco_mesh_compression\":{\"bufferView\":";
   auto at = text.find(needle);
@@ -123,7 +127,8 @@ TEST(InvalidInput, HostileDracoExtensionIsRefused) {
     import_scene({path}, 1);
     FAIL() << "hostile file imported";
   } catch (const ImportError& e) {
-    EXPECT_NE(std::string(e.what()).find("KHR_draco_mesh_compression"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("KHR_draco_mesh_compression"), std::string::npos)
+        << e.what();
   }
 }
 

@@ -19,7 +19,9 @@ std::string mesh_path(const std::string& relative) {
   return (std::filesystem::path(KILN_MESH_DIR) / relative).string();
 }
 
-bool corpus_present() { return std::filesystem::is_directory(KILN_MESH_DIR); }
+bool corpus_present() {
+  return std::filesystem::is_directory(KILN_MESH_DIR);
+}
 
 TempDir::TempDir() {
   std::string pattern = (std::filesystem::temp_directory_path() / "kiln-test-XXXXXX").string();
@@ -69,14 +71,18 @@ std::string slurp(const std::string& path) {
 
 }  // namespace
 
-std::string open_and_verify(std::span<const std::byte> bytes) { return open_impl(bytes, true); }
-std::string open_only(std::span<const std::byte> bytes) { return open_impl(bytes, false); }
+std::string open_and_verify(std::span<const std::byte> bytes) {
+  return open_impl(bytes, true);
+}
+std::string open_only(std::span<const std::byte> bytes) {
+  return open_impl(bytes, false);
+}
 
 CommandResult run_kiln(const std::string& arguments) {
   TempDir dir;
   const std::string out = dir.file("stdout"), err = dir.file("stderr");
-  const std::string command = std::string("'") + KILN_CLI + "' " + arguments + " >'" + out +
-                              "' 2>'" + err + "' </dev/null";
+  const std::string command =
+      std::string("'") + KILN_CLI + "' " + arguments + " >'" + out + "' 2>'" + err + "' </dev/null";
   const int status = std::system(command.c_str());
   CommandResult result;
   if (WIFEXITED(status)) {

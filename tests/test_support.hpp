@@ -14,10 +14,10 @@ namespace kiln::test {
 std::string mesh_path(const std::string& relative);
 bool corpus_present();
 
-#define KILN_REQUIRE_CORPUS()                                                              \
-  do {                                                                                     \
-    if (!::kiln::test::corpus_present())                                                   \
-      GTEST_SKIP() << "mesh corpus " KILN_MESH_DIR " is absent: corpus test skipped";     \
+#define KILN_REQUIRE_CORPUS()                                                         \
+  do {                                                                                \
+    if (!::kiln::test::corpus_present())                                              \
+      GTEST_SKIP() << "mesh corpus " KILN_MESH_DIR " is absent: corpus test skipped"; \
   } while (0)
 
 // A fresh directory, removed with everything in it at scope exit.

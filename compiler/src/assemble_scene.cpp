@@ -28,7 +28,9 @@ bool is_degenerate(const Double3& a, const Double3& b, const Double3& c) {
   return nx == 0.0 && ny == 0.0 && nz == 0.0;
 }
 
-format::Float3 to_float(const Double3& p) { return {float(p[0]), float(p[1]), float(p[2])}; }
+format::Float3 to_float(const Double3& p) {
+  return {float(p[0]), float(p[1]), float(p[2])};
+}
 
 bool is_finite(const format::Float3& p) {
   return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
@@ -61,7 +63,8 @@ Scene assemble_scene(std::vector<ImportedFile> files) {
       kept.reserve(mesh.triangles.size());
       const bool mirrored = determinant3(mesh.transform) < 0.0;
       std::vector<Double3> world(mesh.positions.size());
-      for (std::size_t v = 0; v < world.size(); ++v) world[v] = transform_point(mesh.transform, mesh.positions[v]);
+      for (std::size_t v = 0; v < world.size(); ++v)
+        world[v] = transform_point(mesh.transform, mesh.positions[v]);
       for (const auto& t : mesh.triangles) {
         const auto &a = world[t.v[0]], &b = world[t.v[1]], &c = world[t.v[2]];
         if (is_degenerate(a, b, c) || !is_finite(to_float(a)) || !is_finite(to_float(b)) ||
@@ -79,7 +82,8 @@ Scene assemble_scene(std::vector<ImportedFile> files) {
           throw ImportError(scene.sources.back().path + ": scene exceeds 2^32-1 vertices");
         remap[v] = std::uint32_t(scene.positions.size());
         scene.positions.push_back(to_float(world[v]));
-        if (every_mesh_has_normals) scene.normals.push_back(transform_normal(mesh.transform, mesh.normals[v]));
+        if (every_mesh_has_normals)
+          scene.normals.push_back(transform_normal(mesh.transform, mesh.normals[v]));
       }
       for (auto t : kept) {
         for (auto& v : t.v) v = remap[v];

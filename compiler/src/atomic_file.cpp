@@ -36,8 +36,13 @@ class TempFile {
     const std::filesystem::path target_path(target);
     auto dir = target_path.parent_path();
     if (dir.empty()) dir = ".";
-    temp_ = (dir / ("." + target_path.filename().string() + ".tmp.XXXXXX")).string();
-    if (temp_.size() >= sizeof(g_pending_temp)) throw std::runtime_error(target + ": path too long");
+    // Built by appending: GCC 12 warns falsely (-Wrestrict, bug 105329) on "." + string.
+    std::string name = ".";
+    name += target_path.filename().string();
+    name += ".tmp.XXXXXX";
+    temp_ = (dir / name).string();
+    if (temp_.size() >= sizeof(g_pending_temp))
+      throw std::runtime_error(target + ": path too long");
     fd_ = ::mkstemp(temp_.data());
     if (fd_ < 0) throw write_error(target, "cannot create a temporary file beside it");
     std::memcpy(g_pending_temp, temp_.c_str(), temp_.size() + 1);

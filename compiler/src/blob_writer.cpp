@@ -25,7 +25,8 @@ std::vector<std::byte> zstd_compress(std::span<const std::byte> raw, int level) 
   ZSTD_CCtx_setParameter(context.get(), ZSTD_c_compressionLevel, level);
   ZSTD_CCtx_setParameter(context.get(), ZSTD_c_checksumFlag, 0);  // the table has XXH3
   ZSTD_CCtx_setParameter(context.get(), ZSTD_c_contentSizeFlag, 1);
-  const std::size_t size = ZSTD_compress2(context.get(), out.data(), out.size(), raw.data(), raw.size());
+  const std::size_t size =
+      ZSTD_compress2(context.get(), out.data(), out.size(), raw.data(), raw.size());
   if (ZSTD_isError(size)) throw std::runtime_error(std::string("zstd: ") + ZSTD_getErrorName(size));
   out.resize(size);
   return out;
@@ -67,7 +68,8 @@ std::vector<std::byte> serialize_blob(std::span<const SectionPayload> sections,
 
   std::vector<std::byte> blob(offset);  // zero-filled: every padding byte is zero
   parallel_for(count, threads, [&](std::size_t i) {
-    const auto stored = compressed[i].empty() ? sections[i].bytes : std::span<const std::byte>(compressed[i]);
+    const auto stored =
+        compressed[i].empty() ? sections[i].bytes : std::span<const std::byte>(compressed[i]);
     if (!stored.empty()) std::memcpy(blob.data() + table[i].offset, stored.data(), stored.size());
     table[i].checksum = xxh3_64(stored);
   });
@@ -86,7 +88,8 @@ std::vector<std::byte> serialize_blob(std::span<const SectionPayload> sections,
   header.section_table_checksum =
       xxh3_64(std::span<const std::byte>(blob).subspan(sizeof(format::FileHeader), table_bytes));
   std::memcpy(blob.data(), &header, sizeof(header));
-  header.header_checksum = xxh3_64(std::span<const std::byte>(blob).first(format::kHeaderChecksummedBytes));
+  header.header_checksum =
+      xxh3_64(std::span<const std::byte>(blob).first(format::kHeaderChecksummedBytes));
   std::memcpy(blob.data(), &header, sizeof(header));
   return blob;
 }

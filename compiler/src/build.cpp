@@ -51,10 +51,9 @@ std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& opti
                           scene.triangles.size(), as_bytes(scene.triangles));
   indices.triangle_mesh = add(format::kSectionTriangleMesh, sizeof(std::uint32_t),
                               scene.triangle_mesh.size(), as_bytes(scene.triangle_mesh));
-  indices.normals = scene.normals.empty()
-                        ? kNoSection
-                        : add(format::kSectionNormals, sizeof(format::Float3), scene.normals.size(),
-                              as_bytes(scene.normals));
+  indices.normals = scene.normals.empty() ? kNoSection
+                                          : add(format::kSectionNormals, sizeof(format::Float3),
+                                                scene.normals.size(), as_bytes(scene.normals));
   const std::vector<std::byte> manifest = build_manifest(scene, options, indices);
   sections[0] = {format::kSectionManifest, kRequired, 1, manifest.size(), manifest, false};
   return serialize_blob(sections, options.compression, options.threads);

@@ -55,7 +55,8 @@ GlbChunks split_glb(const std::string& path, std::span<const std::byte> bytes) {
   while (offset + 8 <= bytes.size()) {
     const std::uint32_t length = read_u32(bytes, offset);
     const std::uint32_t type = read_u32(bytes, offset + 4);
-    if (length > bytes.size() - offset - 8) throw ImportError(path + ": GLB chunk runs past the end");
+    if (length > bytes.size() - offset - 8)
+      throw ImportError(path + ": GLB chunk runs past the end");
     const auto data = bytes.subspan(offset + 8, length);
     if (type == 0x4E4F534Au && chunks.json.empty())
       chunks.json = {reinterpret_cast<const char*>(data.data()), data.size()};
@@ -98,7 +99,8 @@ void check_draco_extensions(const std::string& path, std::string_view text,
       if (primitive.contains("indices") && !is_index(primitive["indices"], accessor_count))
         fail("indices accessor out of range");
       const auto attributes = primitive.find("attributes");
-      if (attributes == primitive.end() || !attributes->is_object()) fail("primitive has no attributes");
+      if (attributes == primitive.end() || !attributes->is_object())
+        fail("primitive has no attributes");
 
       const auto& view = root["bufferViews"][draco_ext["bufferView"].get<std::size_t>()];
       if (!view.is_object() || !view.contains("buffer") || !is_index(view["buffer"], buffer_count))
@@ -108,7 +110,8 @@ void check_draco_extensions(const std::string& path, std::string_view text,
       std::span<const std::byte> buffer_bytes = glb_bin;
       if (buffer.is_object() && buffer.contains("uri") && buffer["uri"].is_string()) {
         if (companions[buffer_index].empty())
-          companions[buffer_index] = read_companion(path, base_dir, buffer["uri"].get<std::string>());
+          companions[buffer_index] =
+              read_companion(path, base_dir, buffer["uri"].get<std::string>());
         buffer_bytes = companions[buffer_index];
       }
       const auto offset = view.value("byteOffset", json(0));

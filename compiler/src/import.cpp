@@ -20,8 +20,8 @@ constexpr unsigned long long kMaxInflatedInput = 8ull << 30;
 std::vector<std::byte> read_whole_file(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
-    throw ImportError(path + ": " + (std::filesystem::exists(path, ec) ? "not a regular file"
-                                                                        : "no such file"));
+    throw ImportError(path + ": " +
+                      (std::filesystem::exists(path, ec) ? "not a regular file" : "no such file"));
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ImportError(path + ": cannot open for reading");
   const auto size = std::filesystem::file_size(path, ec);
@@ -91,7 +91,8 @@ std::vector<std::byte> utf16_to_utf8(std::span<const std::byte> bytes) {
     } else if (c < 0x10000) {
       put(0xE0 | c >> 12), put(0x80 | (c >> 6 & 0x3F)), put(0x80 | (c & 0x3F));
     } else {
-      put(0xF0 | c >> 18), put(0x80 | (c >> 12 & 0x3F)), put(0x80 | (c >> 6 & 0x3F)), put(0x80 | (c & 0x3F));
+      put(0xF0 | c >> 18), put(0x80 | (c >> 12 & 0x3F)), put(0x80 | (c >> 6 & 0x3F)),
+          put(0x80 | (c & 0x3F));
     }
   }
   return out;
@@ -99,7 +100,8 @@ std::vector<std::byte> utf16_to_utf8(std::span<const std::byte> bytes) {
 
 std::string lower_extension(const std::string& name) {
   std::string ext = std::filesystem::path(name).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   return ext;
 }
 
@@ -142,13 +144,15 @@ ImportedFile import_file(const std::string& path) {
   for (const auto& mesh : file.meshes) {
     triangles += mesh.triangles.size();
     if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
-      throw ImportError(path + ": mesh '" + mesh.name + "' has " + std::to_string(mesh.normals.size()) +
-                        " normals for " + std::to_string(mesh.positions.size()) + " vertices");
+      throw ImportError(path + ": mesh '" + mesh.name + "' has " +
+                        std::to_string(mesh.normals.size()) + " normals for " +
+                        std::to_string(mesh.positions.size()) + " vertices");
     for (const auto& t : mesh.triangles)
       for (const auto v : t.v)
         if (v >= mesh.positions.size())
-          throw ImportError(path + ": mesh '" + mesh.name + "' has vertex index " + std::to_string(v) +
-                            " of " + std::to_string(mesh.positions.size()) + " vertices");
+          throw ImportError(path + ": mesh '" + mesh.name + "' has vertex index " +
+                            std::to_string(v) + " of " + std::to_string(mesh.positions.size()) +
+                            " vertices");
   }
   if (triangles == 0) throw ImportError(path + ": contains no triangles");
   return file;

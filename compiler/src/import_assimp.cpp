@@ -1,8 +1,8 @@
 // Assimp importer: node hierarchy walked in pre-order (children in file order), each node's
 // meshes in its list order, faces in mesh order. Point and line primitives are discarded.
-#include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/Importer.hpp>
 
 #include <cmath>
 #include <cstring>
@@ -28,22 +28,28 @@ bool is_ply_with_tristrips(std::span<const std::byte> bytes) {
 // ASan) reserving memory for 10^11 vertices. Each text vertex needs at least 6 bytes ("0 0 0\n")
 // and each face 2, so counts the file cannot hold are refused up front.
 void check_off_counts(const std::string& path, std::span<const std::byte> bytes) {
-  const std::string head(reinterpret_cast<const char*>(bytes.data()), std::min<std::size_t>(bytes.size(), 4096));
+  const std::string head(reinterpret_cast<const char*>(bytes.data()),
+                         std::min<std::size_t>(bytes.size(), 4096));
   std::istringstream in(head);
   std::string token;
   in >> token;
-  if (token.empty() || token.find("OFF") == std::string::npos || token.find("OFF") + 3 != token.size())
+  if (token.empty() || token.find("OFF") == std::string::npos ||
+      token.find("OFF") + 3 != token.size())
     return;  // binary or unusual: Assimp's problem
-  for (char c = char(in.peek()); in && (c == ' ' || c == '\n' || c == '\r' || c == '#'); c = char(in.peek())) {
-    if (c == '#') std::getline(in, token);
-    else in.get();
+  for (char c = char(in.peek()); in && (c == ' ' || c == '\n' || c == '\r' || c == '#');
+       c = char(in.peek())) {
+    if (c == '#')
+      std::getline(in, token);
+    else
+      in.get();
   }
   unsigned long long vertices = 0, faces = 0;
   if (!(in >> vertices >> faces)) return;
-  if (vertices > bytes.size() / 6 || faces > bytes.size() / 2 || vertices * 6 + faces * 2 > bytes.size())
+  if (vertices > bytes.size() / 6 || faces > bytes.size() / 2 ||
+      vertices * 6 + faces * 2 > bytes.size())
     throw ImportError(path + ": OFF header claims " + std::to_string(vertices) + " vertices and " +
-                      std::to_string(faces) + " faces, more than its " + std::to_string(bytes.size()) +
-                      " bytes can hold");
+                      std::to_string(faces) + " faces, more than its " +
+                      std::to_string(bytes.size()) + " bytes can hold");
 }
 
 Matrix4 to_matrix4(const aiMatrix4x4& m) {
@@ -70,7 +76,8 @@ ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const st
   out.triangles.reserve(mesh.mNumFaces);
   for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
     const aiFace& face = mesh.mFaces[f];
-    if (face.mNumIndices != 3 || face.mIndices == nullptr) continue;  // points and lines carry no surface
+    if (face.mNumIndices != 3 || face.mIndices == nullptr)
+      continue;  // points and lines carry no surface
     format::Triangle t{};
     for (int i = 0; i < 3; ++i) {
       if (face.mIndices[i] >= mesh.mNumVertices)
@@ -85,7 +92,8 @@ ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const st
 }
 
 void check_raw_scene(const aiScene& scene, const std::string& path) {
-  if (scene.mNumMeshes > 0 && scene.mMeshes == nullptr) throw ImportError(path + ": mesh array missing");
+  if (scene.mNumMeshes > 0 && scene.mMeshes == nullptr)
+    throw ImportError(path + ": mesh array missing");
   for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
     const aiMesh* mesh = scene.mMeshes[m];
     if (mesh == nullptr) throw ImportError(path + ": mesh " + std::to_string(m) + " is missing");
@@ -99,17 +107,20 @@ void check_raw_scene(const aiScene& scene, const std::string& path) {
       for (unsigned i = 0; i < face.mNumIndices; ++i)
         if (face.mIndices[i] >= mesh->mNumVertices)
           throw ImportError(path + ": face " + std::to_string(f) + " names vertex " +
-                            std::to_string(face.mIndices[i]) + " of " + std::to_string(mesh->mNumVertices));
+                            std::to_string(face.mIndices[i]) + " of " +
+                            std::to_string(mesh->mNumVertices));
     }
   }
 }
 
 }  // namespace
 
-std::vector<ImportedMesh> import_with_assimp(const std::string& path, std::span<const std::byte> bytes,
+std::vector<ImportedMesh> import_with_assimp(const std::string& path,
+                                             std::span<const std::byte> bytes,
                                              const std::string& extension, bool bytes_are_file) {
   if (extension == ".ply" && is_ply_with_tristrips(bytes))
-    throw ImportError(path + ": PLY triangle strips are not supported (Assimp 5.2.5 misreads them)");
+    throw ImportError(path +
+                      ": PLY triangle strips are not supported (Assimp 5.2.5 misreads them)");
   if (extension == ".off") check_off_counts(path, bytes);
 
   Assimp::Importer importer;
@@ -130,7 +141,8 @@ std::vector<ImportedMesh> import_with_assimp(const std::string& path, std::span<
   if (scene == nullptr) {
     std::string reason = importer.GetErrorString();
     if (reason.empty()) reason = "unknown Assimp error";
-    if (const auto newline = reason.find('\n'); newline != std::string::npos) reason.resize(newline);
+    if (const auto newline = reason.find('\n'); newline != std::string::npos)
+      reason.resize(newline);
     throw ImportError(path + ": " + reason);
   }
   if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0 || scene->mRootNode == nullptr)

@@ -1,13 +1,14 @@
 // Raw Draco bitstreams (.drc), decoded with Draco itself (Assimp cannot read them).
 #include <draco/compression/decode.h>
 
-#include "kiln/compiler/import.hpp"
 #include "import_draco_mesh.hpp"
+#include "kiln/compiler/import.hpp"
 
 namespace kiln {
 
 ImportedMesh convert_draco_mesh(const draco::Mesh& mesh, const std::string& path) {
-  const draco::PointAttribute* position = mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);
+  const draco::PointAttribute* position =
+      mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);
   if (position == nullptr || position->num_components() != 3)
     throw ImportError(path + ": Draco mesh has no 3-component POSITION attribute");
   const draco::PointAttribute* normal = mesh.GetNamedAttribute(draco::GeometryAttribute::NORMAL);
@@ -40,7 +41,8 @@ std::vector<ImportedMesh> import_draco(const std::string& path, std::span<const 
   draco::DecoderBuffer buffer;
   buffer.Init(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   const auto type = draco::Decoder::GetEncodedGeometryType(&buffer);
-  if (!type.ok()) throw ImportError(path + ": not a Draco bitstream: " + type.status().error_msg_string());
+  if (!type.ok())
+    throw ImportError(path + ": not a Draco bitstream: " + type.status().error_msg_string());
   if (type.value() != draco::TRIANGULAR_MESH)
     throw ImportError(path + ": Draco point cloud has no triangles");
   draco::Decoder decoder;

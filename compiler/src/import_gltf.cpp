@@ -35,10 +35,22 @@ Matrix4 local_transform(const tinygltf::Node& node) {
   if (node.rotation.size() == 4) {
     const double x = node.rotation[0], y = node.rotation[1], z = node.rotation[2],
                  w = node.rotation[3];
-    const Matrix4 r = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w), 0,
-                       2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w), 0,
-                       2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y), 0,
-                       0, 0, 0, 1};
+    const Matrix4 r = {1 - 2 * (y * y + z * z),
+                       2 * (x * y + z * w),
+                       2 * (x * z - y * w),
+                       0,
+                       2 * (x * y - z * w),
+                       1 - 2 * (x * x + z * z),
+                       2 * (y * z + x * w),
+                       0,
+                       2 * (x * z + y * w),
+                       2 * (y * z - x * w),
+                       1 - 2 * (x * x + y * y),
+                       0,
+                       0,
+                       0,
+                       0,
+                       1};
     m = multiply(r, m);
   }
   if (node.translation.size() == 3) {
@@ -74,7 +86,8 @@ AccessorView view_accessor(const tinygltf::Model& model, int index, const std::s
   const auto& buffer = model.buffers[std::size_t(view.buffer)].data;
   if (view.byteOffset > buffer.size() || view.byteLength > buffer.size() - view.byteOffset)
     fail("buffer view lies outside its buffer");
-  const int component_size = tinygltf::GetComponentSizeInBytes(std::uint32_t(accessor.componentType));
+  const int component_size =
+      tinygltf::GetComponentSizeInBytes(std::uint32_t(accessor.componentType));
   const int components = tinygltf::GetNumComponentsInType(std::uint32_t(accessor.type));
   if (component_size <= 0 || components <= 0) fail("invalid component type or type");
   const std::size_t element = std::size_t(component_size) * std::size_t(components);
@@ -94,7 +107,8 @@ std::vector<format::Float3> read_vec3(const tinygltf::Model& model, int index,
                                       const std::string& path, const std::string& what) {
   const AccessorView view = view_accessor(model, index, path, what);
   if (view.component_type != TINYGLTF_COMPONENT_TYPE_FLOAT || view.components != 3)
-    throw ImportError(path + ": " + what + " must be float VEC3 (quantized attributes are not supported)");
+    throw ImportError(path + ": " + what +
+                      " must be float VEC3 (quantized attributes are not supported)");
   std::vector<format::Float3> values(view.count);
   for (std::size_t i = 0; i < view.count; ++i)
     std::memcpy(&values[i], view.data + i * view.stride, sizeof(format::Float3));
@@ -109,15 +123,20 @@ std::vector<std::uint32_t> read_indices(const tinygltf::Model& model, int index,
   for (std::size_t i = 0; i < view.count; ++i) {
     const unsigned char* p = view.data + i * view.stride;
     switch (view.component_type) {
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: indices[i] = *p; break;
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+        indices[i] = *p;
+        break;
       case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
         std::uint16_t v;
         std::memcpy(&v, p, 2);
         indices[i] = v;
         break;
       }
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: std::memcpy(&indices[i], p, 4); break;
-      default: throw ImportError(path + ": indices must be unsigned byte, short or int");
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+        std::memcpy(&indices[i], p, 4);
+        break;
+      default:
+        throw ImportError(path + ": indices must be unsigned byte, short or int");
     }
   }
   return indices;
@@ -127,13 +146,15 @@ std::vector<std::uint32_t> read_indices(const tinygltf::Model& model, int index,
 std::vector<format::Triangle> assemble_triangles(const std::vector<std::uint32_t>& idx, int mode) {
   std::vector<format::Triangle> triangles;
   if (mode == TINYGLTF_MODE_TRIANGLES) {
-    for (std::size_t i = 0; i + 2 < idx.size(); i += 3) triangles.push_back({idx[i], idx[i + 1], idx[i + 2]});
+    for (std::size_t i = 0; i + 2 < idx.size(); i += 3)
+      triangles.push_back({idx[i], idx[i + 1], idx[i + 2]});
   } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
     for (std::size_t i = 0; i + 2 < idx.size(); ++i)
       triangles.push_back(i % 2 == 0 ? format::Triangle{idx[i], idx[i + 1], idx[i + 2]}
                                      : format::Triangle{idx[i + 1], idx[i], idx[i + 2]});
   } else if (mode == TINYGLTF_MODE_TRIANGLE_FAN) {
-    for (std::size_t i = 1; i + 1 < idx.size(); ++i) triangles.push_back({idx[0], idx[i], idx[i + 1]});
+    for (std::size_t i = 1; i + 1 < idx.size(); ++i)
+      triangles.push_back({idx[0], idx[i], idx[i + 1]});
   }
   return triangles;
 }
@@ -156,7 +177,8 @@ void append_mesh(const tinygltf::Model& model, int mesh_index, const Matrix4& wo
     part.name = mesh.name + (mesh.primitives.size() > 1 ? "/" + std::to_string(p) : "");
     part.transform = world;
     part.positions = read_vec3(model, position->second, path, "POSITION");
-    if (const auto normal = primitive.attributes.find("NORMAL"); normal != primitive.attributes.end()) {
+    if (const auto normal = primitive.attributes.find("NORMAL");
+        normal != primitive.attributes.end()) {
       part.normals = read_vec3(model, normal->second, path, "NORMAL");
       if (part.normals.size() != part.positions.size())
         throw ImportError(path + ": NORMAL has " + std::to_string(part.normals.size()) +
@@ -211,9 +233,10 @@ std::vector<ImportedMesh> import_gltf(const std::string& path, std::span<const s
   std::string error, warning;
   const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
   const auto size = static_cast<unsigned int>(bytes.size());
-  const bool ok = binary ? loader.LoadBinaryFromMemory(&model, &error, &warning, data, size, base_dir)
-                         : loader.LoadASCIIFromString(&model, &error, &warning,
-                                                      reinterpret_cast<const char*>(data), size, base_dir);
+  const bool ok =
+      binary ? loader.LoadBinaryFromMemory(&model, &error, &warning, data, size, base_dir)
+             : loader.LoadASCIIFromString(&model, &error, &warning,
+                                          reinterpret_cast<const char*>(data), size, base_dir);
   if (!ok) {
     if (error.empty()) error = "tinygltf failed without a reason";
     while (!error.empty() && (error.back() == '\n' || error.back() == ' ')) error.pop_back();
@@ -224,11 +247,13 @@ std::vector<ImportedMesh> import_gltf(const std::string& path, std::span<const s
 
   std::vector<ImportedMesh> meshes;
   if (model.scenes.empty()) {
-    for (std::size_t m = 0; m < model.meshes.size(); ++m) append_mesh(model, int(m), kIdentity, path, meshes);
+    for (std::size_t m = 0; m < model.meshes.size(); ++m)
+      append_mesh(model, int(m), kIdentity, path, meshes);
     return meshes;
   }
   const std::size_t scene_index = model.defaultScene >= 0 ? std::size_t(model.defaultScene) : 0;
-  if (scene_index >= model.scenes.size()) throw ImportError(path + ": default scene is out of range");
+  if (scene_index >= model.scenes.size())
+    throw ImportError(path + ": default scene is out of range");
   struct Pending {
     int node;
     Matrix4 parent;

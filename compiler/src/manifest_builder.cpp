@@ -15,9 +15,8 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
 
   // Options that shape the output; thread counts do not, so they are not recorded.
   std::map<std::string, std::string> recorded;  // sorted by key
-  recorded["compress"] = options.compression.enabled
-                             ? "zstd:" + std::to_string(options.compression.level)
-                             : "none";
+  recorded["compress"] =
+      options.compression.enabled ? "zstd:" + std::to_string(options.compression.level) : "none";
   if (options.compression.enabled) recorded["zstd_version"] = ZSTD_versionString();
   std::vector<flatbuffers::Offset<schema::BuildOption>> option_offsets;
   for (const auto& [key, value] : recorded)
@@ -32,17 +31,18 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
     meshes.push_back(schema::CreateMeshDirect(fbb, m.name.c_str(), m.source_file, m.first_triangle,
                                               m.triangle_count, m.first_vertex, m.vertex_count));
 
-  const schema::Bounds bounds(schema::Vec3(scene.bounds.min.x, scene.bounds.min.y, scene.bounds.min.z),
-                              schema::Vec3(scene.bounds.max.x, scene.bounds.max.y, scene.bounds.max.z));
-  const auto stats = schema::CreateSceneStats(fbb, scene.positions.size(), scene.triangles.size(),
-                                              &bounds, scene.input_triangle_count,
-                                              scene.degenerate_triangles_dropped,
-                                              !scene.normals.empty());
+  const schema::Bounds bounds(
+      schema::Vec3(scene.bounds.min.x, scene.bounds.min.y, scene.bounds.min.z),
+      schema::Vec3(scene.bounds.max.x, scene.bounds.max.y, scene.bounds.max.z));
+  const auto stats = schema::CreateSceneStats(
+      fbb, scene.positions.size(), scene.triangles.size(), &bounds, scene.input_triangle_count,
+      scene.degenerate_triangles_dropped, !scene.normals.empty());
   const auto geometry = schema::CreateGeometry(fbb, sections.positions, sections.triangles,
                                                sections.triangle_mesh, sections.normals);
   const std::vector<flatbuffers::Offset<schema::Acceleration>> accelerations;
-  const auto manifest = schema::CreateManifestDirect(fbb, kToolName, kToolVersion, &option_offsets,
-                                                     &sources, stats, &meshes, geometry, &accelerations);
+  const auto manifest =
+      schema::CreateManifestDirect(fbb, kToolName, kToolVersion, &option_offsets, &sources, stats,
+                                   &meshes, geometry, &accelerations);
   schema::FinishManifestBuffer(fbb, manifest);
 
   std::vector<std::byte> bytes(fbb.GetSize());

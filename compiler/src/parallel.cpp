@@ -13,7 +13,8 @@ unsigned resolve_thread_count(unsigned requested) {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
-void parallel_for(std::size_t count, unsigned threads, const std::function<void(std::size_t)>& body) {
+void parallel_for(std::size_t count, unsigned threads,
+                  const std::function<void(std::size_t)>& body) {
   std::vector<std::exception_ptr> errors(count);
   std::atomic<std::size_t> next{0};
   auto worker = [&] {

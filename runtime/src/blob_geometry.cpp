@@ -8,7 +8,9 @@ namespace kiln {
 
 namespace {
 
-std::string kind_name(std::uint32_t kind) { return format::fourcc_to_string(kind); }
+std::string kind_name(std::uint32_t kind) {
+  return format::fourcc_to_string(kind);
+}
 
 }  // namespace
 

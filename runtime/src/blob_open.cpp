@@ -62,7 +62,9 @@ std::optional<Blob> Blob::try_open_file(const std::string& path, std::string& er
   return std::nullopt;
 }
 
-void Blob::fail(const std::string& what) const { throw BlobError(name_ + ": " + what); }
+void Blob::fail(const std::string& what) const {
+  throw BlobError(name_ + ": " + what);
+}
 
 void Blob::fail_section(std::uint32_t index, const std::string& what) const {
   std::string kind = "?";
@@ -86,8 +88,9 @@ void Blob::validate_header() {
   if (std::memcmp(header_.identifier, id.data(), id.size()) != 0) {
     // The first eight bytes survive a text-mode transfer; the line-ending bytes do not.
     if (std::memcmp(header_.identifier, id.data(), 8) == 0)
-      fail("identifier damaged after byte 8: the file went through a text-mode (line-ending) "
-           "conversion");
+      fail(
+          "identifier damaged after byte 8: the file went through a text-mode (line-ending) "
+          "conversion");
     fail("not a kiln blob (wrong identifier)");
   }
   if (header_.version_major != format::kVersionMajor)
@@ -131,7 +134,8 @@ void Blob::validate_section_table() {
     const SectionEntry& s = sections_[i];
     if ((s.flags & ~format::kKnownSectionFlags) != 0) fail_section(i, "unknown section flags");
     if (s.reserved0 != 0 || s.reserved1 != 0) fail_section(i, "reserved fields are not zero");
-    if (s.codec != std::uint8_t(format::Codec::kNone) && s.codec != std::uint8_t(format::Codec::kZstd))
+    if (s.codec != std::uint8_t(format::Codec::kNone) &&
+        s.codec != std::uint8_t(format::Codec::kZstd))
       fail_section(i, "unknown codec " + std::to_string(s.codec));
     if (s.alignment_log2 < format::kMinSectionAlignmentLog2 ||
         s.alignment_log2 > format::kMaxSectionAlignmentLog2)
@@ -161,8 +165,7 @@ void Blob::validate_section_table() {
       fail_section(i, "unknown section kind marked REQUIRED (written by a newer tool)");
   }
   if (previous_end != file_size)
-    fail("file has " + std::to_string(file_size - previous_end) +
-         " bytes after the last section");
+    fail("file has " + std::to_string(file_size - previous_end) + " bytes after the last section");
 }
 
 void Blob::decode_sections() {
@@ -180,7 +183,8 @@ void Blob::decode_sections() {
     if (ZSTD_findFrameCompressedSize(stored.data(), stored.size()) != stored.size())
       fail_section(i, "zstd frame does not span the stored bytes");
     AlignedBuffer buffer(s.raw_size, std::size_t{1} << s.alignment_log2);
-    const std::size_t got = ZSTD_decompress(buffer.data(), buffer.size(), stored.data(), stored.size());
+    const std::size_t got =
+        ZSTD_decompress(buffer.data(), buffer.size(), stored.data(), stored.size());
     if (ZSTD_isError(got)) fail_section(i, std::string("zstd: ") + ZSTD_getErrorName(got));
     if (got != s.raw_size) fail_section(i, "zstd inflated to the wrong size");
     decoded_[i] = std::move(buffer);
@@ -196,15 +200,18 @@ std::span<const std::byte> Blob::section_bytes(std::uint32_t index) const {
 void Blob::validate_manifest() {
   const SectionEntry& s = sections_[0];
   if (s.kind != format::kSectionManifest) fail_section(0, "section 0 is not the manifest");
-  if (s.codec != std::uint8_t(format::Codec::kNone)) fail_section(0, "manifest must not be compressed");
+  if (s.codec != std::uint8_t(format::Codec::kNone))
+    fail_section(0, "manifest must not be compressed");
   if (s.element_size != 1) fail_section(0, "manifest element size must be 1");
-  if (s.raw_size > kManifestMaxSize || s.raw_size < 8) fail_section(0, "manifest size out of range");
+  if (s.raw_size > kManifestMaxSize || s.raw_size < 8)
+    fail_section(0, "manifest size out of range");
   const auto bytes = section_bytes(0);
   const auto* data = reinterpret_cast<const std::uint8_t*>(bytes.data());
   if (!flatbuffers::BufferHasIdentifier(data, schema::ManifestIdentifier()))
     fail_section(0, "manifest has the wrong FlatBuffers identifier");
   flatbuffers::Verifier verifier(data, bytes.size(), kManifestMaxDepth, kManifestMaxTables);
-  if (!schema::VerifyManifestBuffer(verifier)) fail_section(0, "manifest FlatBuffer fails verification");
+  if (!schema::VerifyManifestBuffer(verifier))
+    fail_section(0, "manifest FlatBuffer fails verification");
   manifest_ = schema::GetManifest(data);
   for (std::uint32_t i = 1; i < sections_.size(); ++i)
     if (sections_[i].kind == format::kSectionManifest) fail_section(i, "a second manifest");

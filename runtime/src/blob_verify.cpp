@@ -9,7 +9,8 @@
 namespace kiln {
 
 void Blob::verify() const {
-  std::uint64_t previous_end = header_.section_table_offset + sections_.size() * sizeof(format::SectionEntry);
+  std::uint64_t previous_end =
+      header_.section_table_offset + sections_.size() * sizeof(format::SectionEntry);
   for (std::uint32_t i = 0; i < sections_.size(); ++i) {
     const auto& s = sections_[i];
     for (std::uint64_t p = previous_end; p < s.offset; ++p)
@@ -33,9 +34,9 @@ void Blob::verify() const {
   for (std::size_t t = 0; t < scene_triangles.size(); ++t)
     for (const std::uint32_t v : scene_triangles[t].v)
       if (v >= vertex_count)
-        fail_section(manifest_->geometry()->triangles(),
-                     "triangle " + std::to_string(t) + " names vertex " + std::to_string(v) +
-                         " of " + std::to_string(vertex_count));
+        fail_section(manifest_->geometry()->triangles(), "triangle " + std::to_string(t) +
+                                                             " names vertex " + std::to_string(v) +
+                                                             " of " + std::to_string(vertex_count));
 
   // Each mesh owns its triangle range, and its triangles index only its own vertices.
   const auto mesh_ids = triangle_mesh_ids();
@@ -45,8 +46,9 @@ void Blob::verify() const {
     const std::uint32_t id = mesh_ids[t];
     const auto where = "triangle " + std::to_string(t);
     if (id >= mesh_count)
-      fail_section(manifest_->geometry()->triangle_mesh(),
-                   where + " names mesh " + std::to_string(id) + " of " + std::to_string(mesh_count));
+      fail_section(
+          manifest_->geometry()->triangle_mesh(),
+          where + " names mesh " + std::to_string(id) + " of " + std::to_string(mesh_count));
     const auto* mesh = meshes->Get(id);
     if (t < mesh->first_triangle() || t - mesh->first_triangle() >= mesh->triangle_count())
       fail_section(manifest_->geometry()->triangle_mesh(),

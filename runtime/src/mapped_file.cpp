@@ -28,7 +28,8 @@ MappedFile::MappedFile(const std::string& path) {
   FileDescriptor file{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
   if (file.fd < 0) throw BlobError(path + ": cannot open: " + std::strerror(errno));
   struct stat info {};
-  if (::fstat(file.fd, &info) != 0) throw BlobError(path + ": cannot stat: " + std::strerror(errno));
+  if (::fstat(file.fd, &info) != 0)
+    throw BlobError(path + ": cannot stat: " + std::strerror(errno));
   if (!S_ISREG(info.st_mode)) throw BlobError(path + ": not a regular file");
   size_ = std::size_t(info.st_size);
   if (size_ == 0) return;  // mmap of zero bytes fails; an empty span is the honest answer
@@ -49,7 +50,9 @@ MappedFile& MappedFile::operator=(MappedFile&& other) noexcept {
   return *this;
 }
 
-MappedFile::~MappedFile() { release(); }
+MappedFile::~MappedFile() {
+  release();
+}
 
 void MappedFile::release() {
   if (data_ != nullptr) ::munmap(const_cast<std::byte*>(data_), size_);

@@ -23,13 +23,17 @@ std::string hex64(std::uint64_t value) {
 
 const char* codec_name(std::uint8_t codec) {
   switch (format::Codec(codec)) {
-    case format::Codec::kNone: return "none";
-    case format::Codec::kZstd: return "zstd";
+    case format::Codec::kNone:
+      return "none";
+    case format::Codec::kZstd:
+      return "zstd";
   }
   return "?";
 }
 
-std::string str(const flatbuffers::String* s) { return s ? s->str() : std::string(); }
+std::string str(const flatbuffers::String* s) {
+  return s ? s->str() : std::string();
+}
 
 std::string printf_string(const char* format, auto... args) {
   char text[512];
@@ -75,7 +79,11 @@ void write_json(const Blob& blob, std::ostream& out) {
   j.key("sources").begin_array();
   if (m.sources())
     for (const auto* s : *m.sources())
-      j.begin_object().field("path", str(s->path())).field("size", s->size()).field("xxh3", hex64(s->xxh3())).end_object();
+      j.begin_object()
+          .field("path", str(s->path()))
+          .field("size", s->size())
+          .field("xxh3", hex64(s->xxh3()))
+          .end_object();
   j.end_array();
   const auto* scene = m.scene();
   const auto& b = *scene->bounds();
@@ -86,15 +94,26 @@ void write_json(const Blob& blob, std::ostream& out) {
   j.field("has_normals", scene->has_normals());
   j.field("mesh_count", std::uint64_t(m.meshes() ? m.meshes()->size() : 0));
   j.key("bounds").begin_object();
-  j.key("min").begin_array().value(double(b.min().x())).value(double(b.min().y())).value(double(b.min().z())).end_array();
-  j.key("max").begin_array().value(double(b.max().x())).value(double(b.max().y())).value(double(b.max().z())).end_array();
+  j.key("min")
+      .begin_array()
+      .value(double(b.min().x()))
+      .value(double(b.min().y()))
+      .value(double(b.min().z()))
+      .end_array();
+  j.key("max")
+      .begin_array()
+      .value(double(b.max().x()))
+      .value(double(b.max().y()))
+      .value(double(b.max().z()))
+      .end_array();
   j.end_object();
   j.end_object();
   j.key("meshes").begin_array();
   if (m.meshes())
     for (const auto* mesh : *m.meshes()) {
       j.begin_object().field("name", str(mesh->name())).field("source_file", mesh->source_file());
-      j.field("first_triangle", mesh->first_triangle()).field("triangle_count", mesh->triangle_count());
+      j.field("first_triangle", mesh->first_triangle())
+          .field("triangle_count", mesh->triangle_count());
       j.field("first_vertex", mesh->first_vertex()).field("vertex_count", mesh->vertex_count());
       j.end_object();
     }
@@ -102,8 +121,10 @@ void write_json(const Blob& blob, std::ostream& out) {
   const auto* g = m.geometry();
   auto section_or_null = [&](const char* name, std::uint32_t index) {
     j.key(name);
-    if (index == kNoSection) j.null();
-    else j.value(index);
+    if (index == kNoSection)
+      j.null();
+    else
+      j.value(index);
   };
   j.key("geometry").begin_object();
   section_or_null("positions", g->positions());
@@ -135,20 +156,24 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
       << str(m.tool_version()) << "\n\n";
   out << "sections\n";
   out << printf_string("  %3s  %-4s  %-4s  %-5s  %5s  %12s  %12s  %12s  %15s  %s\n", "#", "kind",
-                       "req", "codec", "align", "offset", "stored", "raw", "elements x size", "xxh3");
+                       "req", "codec", "align", "offset", "stored", "raw", "elements x size",
+                       "xxh3");
   for (std::uint32_t i = 0; i < blob.sections().size(); ++i) {
     const auto& s = blob.sections()[i];
-    const std::string elements = std::to_string(s.element_count) + " x " + std::to_string(s.element_size);
+    const std::string elements =
+        std::to_string(s.element_count) + " x " + std::to_string(s.element_size);
     out << printf_string("  %3u  %-4s  %-4s  %-5s  %5llu  %12llu  %12llu  %12llu  %15s  %s\n", i,
                          format::fourcc_to_string(s.kind).c_str(),
                          (s.flags & std::uint16_t(format::SectionFlag::kRequired)) ? "yes" : "no",
                          codec_name(s.codec), 1ull << s.alignment_log2,
                          (unsigned long long)s.offset, (unsigned long long)s.stored_size,
-                         (unsigned long long)s.raw_size, elements.c_str(), hex64(s.checksum).c_str());
+                         (unsigned long long)s.raw_size, elements.c_str(),
+                         hex64(s.checksum).c_str());
   }
   out << "\noptions\n";
   if (m.options())
-    for (const auto* o : *m.options()) out << "  " << o->key()->str() << " = " << o->value()->str() << "\n";
+    for (const auto* o : *m.options())
+      out << "  " << o->key()->str() << " = " << o->value()->str() << "\n";
   out << "\nsources\n";
   if (m.sources())
     for (std::uint32_t i = 0; i < m.sources()->size(); ++i) {
@@ -159,9 +184,11 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
   const auto* scene = m.scene();
   const auto& b = *scene->bounds();
   out << "\nscene\n";
-  out << "  triangles  " << scene->triangle_count() << "  (imported " << scene->input_triangle_count()
-      << ", degenerate dropped " << scene->degenerate_triangles_dropped() << ")\n";
-  out << "  vertices   " << scene->vertex_count() << (scene->has_normals() ? "  (with normals)" : "") << "\n";
+  out << "  triangles  " << scene->triangle_count() << "  (imported "
+      << scene->input_triangle_count() << ", degenerate dropped "
+      << scene->degenerate_triangles_dropped() << ")\n";
+  out << "  vertices   " << scene->vertex_count()
+      << (scene->has_normals() ? "  (with normals)" : "") << "\n";
   out << printf_string("  bounds     (%g, %g, %g) .. (%g, %g, %g)\n", b.min().x(), b.min().y(),
                        b.min().z(), b.max().x(), b.max().y(), b.max().z());
   const std::size_t mesh_count = m.meshes() ? m.meshes()->size() : 0;
@@ -174,28 +201,33 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
       break;
     }
     const auto* mesh = m.meshes()->Get(std::uint32_t(i));
-    out << printf_string("  %5zu  %-32.32s  %4u  %12llu  %10llu  %12llu  %10llu\n", i,
-                         str(mesh->name()).c_str(), mesh->source_file(),
-                         (unsigned long long)mesh->first_triangle(), (unsigned long long)mesh->triangle_count(),
-                         (unsigned long long)mesh->first_vertex(), (unsigned long long)mesh->vertex_count());
+    out << printf_string(
+        "  %5zu  %-32.32s  %4u  %12llu  %10llu  %12llu  %10llu\n", i, str(mesh->name()).c_str(),
+        mesh->source_file(), (unsigned long long)mesh->first_triangle(),
+        (unsigned long long)mesh->triangle_count(), (unsigned long long)mesh->first_vertex(),
+        (unsigned long long)mesh->vertex_count());
   }
   out << "\naccelerations\n";
-  if (!m.accelerations() || m.accelerations()->size() == 0) out << "  (none)\n";
+  if (!m.accelerations() || m.accelerations()->size() == 0)
+    out << "  (none)\n";
   else
     for (const auto* a : *m.accelerations()) out << "  " << str(a->kind()) << "\n";
 }
 
 }  // namespace
 
-int run_dump(const std::string& path, const DumpOptions& options, std::ostream& out, std::ostream& err) {
+int run_dump(const std::string& path, const DumpOptions& options, std::ostream& out,
+             std::ostream& err) {
   std::string error;
   const auto blob = Blob::try_open_file(path, error);
   if (!blob) {
     err << "kiln dump: " << error << "\n";
     return 1;
   }
-  if (options.json) write_json(*blob, out);
-  else write_human(*blob, options, out);
+  if (options.json)
+    write_json(*blob, out);
+  else
+    write_human(*blob, options, out);
   return 0;
 }
 

@@ -57,13 +57,16 @@ int run_build(const BuildArgs& args) {
     return 1;
   }
   if (args.stats) {
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const auto blob = kiln::Blob::open_file(args.output);
     const auto* scene = blob.manifest().scene();
-    std::fprintf(stderr, "kiln build: %s: %llu triangles, %llu vertices, %llu bytes in %.3f s (%u threads)\n",
-                 args.output.c_str(), (unsigned long long)scene->triangle_count(),
-                 (unsigned long long)scene->vertex_count(), (unsigned long long)blob.header().file_size,
-                 seconds, kiln::resolve_thread_count(args.threads));
+    std::fprintf(
+        stderr,
+        "kiln build: %s: %llu triangles, %llu vertices, %llu bytes in %.3f s (%u threads)\n",
+        args.output.c_str(), (unsigned long long)scene->triangle_count(),
+        (unsigned long long)scene->vertex_count(), (unsigned long long)blob.header().file_size,
+        seconds, kiln::resolve_thread_count(args.threads));
   }
   return 0;
 }
@@ -78,17 +81,22 @@ int main(int argc, char** argv) {
 
   BuildArgs build;
   auto* build_cmd = app.add_subcommand("build", "Import meshes and write a .kiln blob");
-  build_cmd->add_option("inputs", build.inputs,
-                        "Mesh files (OBJ, PLY, STL, FBX, DAE, 3DS, OFF, 3MF, glTF/GLB, DRC; "
-                        "a .zst suffix is inflated first)")
+  build_cmd
+      ->add_option("inputs", build.inputs,
+                   "Mesh files (OBJ, PLY, STL, FBX, DAE, 3DS, OFF, 3MF, glTF/GLB, DRC; "
+                   "a .zst suffix is inflated first)")
       ->required();
   build_cmd->add_option("-o,--output", build.output, "The blob to write (atomically)")->required();
   build_cmd->add_flag("--compress", build.compress,
                       "zstd-compress each section (trades zero-copy mapping for size)");
   build_cmd->add_option("--compression-level", build.level, "zstd level")
-      ->check(CLI::Range(1, 22))->capture_default_str();
-  build_cmd->add_option("--threads", build.threads, "Worker threads (0 = all cores); never changes the output")
-      ->check(CLI::Range(0u, kMaxThreads))->capture_default_str();
+      ->check(CLI::Range(1, 22))
+      ->capture_default_str();
+  build_cmd
+      ->add_option("--threads", build.threads,
+                   "Worker threads (0 = all cores); never changes the output")
+      ->check(CLI::Range(0u, kMaxThreads))
+      ->capture_default_str();
   build_cmd->add_flag("--stats", build.stats, "Print build time and sizes to stderr");
 
   std::string dump_path;
@@ -100,7 +108,8 @@ int main(int argc, char** argv) {
 
   std::string verify_path;
   bool verify_json = false;
-  auto* verify_cmd = app.add_subcommand("verify", "Check a blob completely, every checksum included");
+  auto* verify_cmd =
+      app.add_subcommand("verify", "Check a blob completely, every checksum included");
   verify_cmd->add_option("blob", verify_path, "The .kiln file")->required();
   verify_cmd->add_flag("--json", verify_json, "Machine-readable JSON on stdout");
 

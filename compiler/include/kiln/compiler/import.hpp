@@ -23,7 +23,8 @@ ImportedFile import_file(const std::string& path);
 
 // Importers over bytes already in memory. `path` names the file in errors and locates companion
 // files (a glTF's .bin buffers, an OBJ's .mtl); `extension` is lower-case with its dot.
-std::vector<ImportedMesh> import_with_assimp(const std::string& path, std::span<const std::byte> bytes,
+std::vector<ImportedMesh> import_with_assimp(const std::string& path,
+                                             std::span<const std::byte> bytes,
                                              const std::string& extension, bool bytes_are_file);
 std::vector<ImportedMesh> import_gltf(const std::string& path, std::span<const std::byte> bytes,
                                       bool binary);

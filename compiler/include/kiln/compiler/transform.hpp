@@ -8,7 +8,8 @@
 
 namespace kiln {
 
-using Matrix4 = std::array<double, 16>;  // column-major (glTF's order): element (r, c) = m[c * 4 + r]
+using Matrix4 =
+    std::array<double, 16>;  // column-major (glTF's order): element (r, c) = m[c * 4 + r]
 
 inline constexpr Matrix4 kIdentity = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
 

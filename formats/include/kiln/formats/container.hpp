@@ -14,8 +14,8 @@ static_assert(std::endian::native == std::endian::little,
 
 // PNG/KTX-style identifier: the high bytes catch 7-bit transfers, CR LF / LF catch
 // text-mode line-ending conversion, 0x1A stops DOS `type`.
-inline constexpr std::array<std::uint8_t, 12> kIdentifier = {
-    0xAB, 'K', 'I', 'L', 'N', ' ', '1', 0xBB, '\r', '\n', 0x1A, '\n'};
+inline constexpr std::array<std::uint8_t, 12> kIdentifier = {0xAB, 'K',  'I',  'L',  'N',  ' ',
+                                                             '1',  0xBB, '\r', '\n', 0x1A, '\n'};
 
 inline constexpr std::uint16_t kVersionMajor = 1;
 inline constexpr std::uint16_t kVersionMinor = 0;
@@ -29,7 +29,7 @@ struct FileHeader {
   std::uint64_t file_size;    // the whole blob, in bytes
   std::uint64_t section_table_offset;
   std::uint32_t section_count;
-  std::uint32_t section_entry_size;  // sizeof(SectionEntry)
+  std::uint32_t section_entry_size;      // sizeof(SectionEntry)
   std::uint64_t section_table_checksum;  // XXH3-64 of the section table bytes
   std::uint64_t header_checksum;         // XXH3-64 of bytes [0, 56) of this header
 };

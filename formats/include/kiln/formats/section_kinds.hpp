@@ -9,7 +9,7 @@
 
 namespace kiln::format {
 
-inline constexpr std::uint32_t kSectionManifest = fourcc('M', 'A', 'N', 'I');  // FlatBuffer
+inline constexpr std::uint32_t kSectionManifest = fourcc('M', 'A', 'N', 'I');   // FlatBuffer
 inline constexpr std::uint32_t kSectionPositions = fourcc('V', 'P', 'O', 'S');  // Float3 per vertex
 inline constexpr std::uint32_t kSectionNormals = fourcc('V', 'N', 'R', 'M');    // Float3 per vertex
 inline constexpr std::uint32_t kSectionTriangles = fourcc('T', 'R', 'I', 'S');  // Triangle

@@ -12,7 +12,8 @@ struct DumpOptions {
 };
 
 // Returns the process exit code; errors go to `err` as one line.
-int run_dump(const std::string& path, const DumpOptions& options, std::ostream& out, std::ostream& err);
+int run_dump(const std::string& path, const DumpOptions& options, std::ostream& out,
+             std::ostream& err);
 int run_verify(const std::string& path, bool json, std::ostream& out, std::ostream& err);
 
 }  // namespace kiln
