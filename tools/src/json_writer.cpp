@@ -49,10 +49,44 @@ JsonWriter& JsonWriter::key(std::string_view name) {
   return *this;
 }
 
+namespace {
+
+// Length of the valid UTF-8 sequence starting at text[i], or 0 when it is not valid (strings
+// in a blob's manifest are bytes: a hostile or odd mesh name must not break the JSON).
+std::size_t utf8_sequence_length(std::string_view text, std::size_t i) {
+  const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(text[k]); };
+  const unsigned char lead = byte(i);
+  std::size_t length = lead < 0x80           ? 1
+                       : (lead >> 5) == 0x6  ? 2
+                       : (lead >> 4) == 0xE  ? 3
+                       : (lead >> 3) == 0x1E ? 4
+                                             : 0;
+  if (length == 0 || i + length > text.size()) return 0;
+  for (std::size_t k = 1; k < length; ++k)
+    if ((byte(i + k) & 0xC0) != 0x80) return 0;
+  if (length == 2 && lead < 0xC2) return 0;  // overlong
+  return length;
+}
+
+}  // namespace
+
 JsonWriter& JsonWriter::value(std::string_view text) {
   separate();
   out_ << '"';
-  for (const char c : text) {
+  for (std::size_t i = 0; i < text.size();) {
+    const char c = text[i];
+    const std::size_t length = utf8_sequence_length(text, i);
+    if (length == 0) {
+      out_ << "\\ufffd";  // U+FFFD for an invalid byte
+      i += 1;
+      continue;
+    }
+    if (length > 1) {
+      out_ << text.substr(i, length);
+      i += length;
+      continue;
+    }
+    i += 1;
     switch (c) {
       case '"':
         out_ << "\\\"";
