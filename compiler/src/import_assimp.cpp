@@ -78,14 +78,8 @@ ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const st
     const aiFace& face = mesh.mFaces[f];
     if (face.mNumIndices != 3 || face.mIndices == nullptr)
       continue;  // points and lines carry no surface
-    format::Triangle t{};
-    for (int i = 0; i < 3; ++i) {
-      if (face.mIndices[i] >= mesh.mNumVertices)
-        throw ImportError(path + ": face " + std::to_string(f) + " names vertex " +
-                          std::to_string(face.mIndices[i]) + " of " +
-                          std::to_string(mesh.mNumVertices));
-      t.v[i] = face.mIndices[i];
-    }
+    // Index ranges are checked once for every importer, in import_file.
+    const format::Triangle t{{face.mIndices[0], face.mIndices[1], face.mIndices[2]}};
     out.triangles.push_back(t);
   }
   return out;
