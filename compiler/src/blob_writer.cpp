@@ -6,9 +6,9 @@
 #include <memory>
 #include <stdexcept>
 
-#include "kiln/compiler/parallel.hpp"
 #include "kiln/formats/container.hpp"
 #include "kiln/runtime/checksum.hpp"
+#include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
 

@@ -1,12 +1,12 @@
 #include "kiln/compiler/build.hpp"
 
-#include <mutex>
+#include <chrono>
 
 #include "kiln/compiler/atomic_file.hpp"
 #include "kiln/compiler/import.hpp"
-#include "kiln/compiler/parallel.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/parallel.hpp"
 #include "manifest_builder.hpp"
 
 namespace kiln {
@@ -35,7 +35,8 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
   return scene;
 }
 
-std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options) {
+std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
+                                    std::vector<AccelReport>* reports) {
   constexpr auto kRequired = std::uint16_t(format::SectionFlag::kRequired);
   std::vector<SectionPayload> sections;
   sections.push_back({});  // the manifest, filled in once the other indices are known
@@ -54,16 +55,38 @@ std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& opti
   indices.normals = scene.normals.empty() ? kNoSection
                                           : add(format::kSectionNormals, sizeof(format::Float3),
                                                 scene.normals.size(), as_bytes(scene.normals));
-  const std::vector<std::byte> manifest = build_manifest(scene, options, indices);
+  // Each structure is built in turn (each build is parallel inside) and kept alive until the
+  // blob is serialised, since sections only borrow their bytes.
+  std::vector<FlatBvh> flat(options.accels.size());
+  std::vector<BuiltBvh> built;
+  for (std::size_t i = 0; i < options.accels.size(); ++i) {
+    const AccelRequest& request = options.accels[i];
+    const auto start = std::chrono::steady_clock::now();
+    BvhBuildOptions bvh_options = request.bvh;
+    bvh_options.threads = options.threads;
+    flat[i] = build_bvh(scene, bvh_options);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (reports) reports->push_back({request.kind, flat[i].stats, seconds});
+    BuiltBvh b{request.kind, &request.bvh, flat[i].stats, 0, 0, 0};
+    b.nodes = add(format::kSectionBvhNodes, sizeof(format::BvhNode), flat[i].nodes.size(),
+                  as_bytes(flat[i].nodes));
+    b.triangles = add(format::kSectionBvhTriangles, sizeof(format::BvhTriangle),
+                      flat[i].triangles.size(), as_bytes(flat[i].triangles));
+    b.prim_ids = add(format::kSectionBvhPrimIds, sizeof(std::uint32_t), flat[i].prim_ids.size(),
+                     as_bytes(flat[i].prim_ids));
+    built.push_back(b);
+  }
+  const std::vector<std::byte> manifest = build_manifest(scene, options, indices, built);
   sections[0] = {format::kSectionManifest, kRequired, 1, manifest.size(), manifest, false};
   return serialize_blob(sections, options.compression, options.threads);
 }
 
 void build_blob_file(const BuildOptions& options, const std::string& output,
-                     const BuildProgress& progress) {
+                     const BuildProgress& progress, std::vector<AccelReport>* reports) {
   const Scene scene = import_scene(options.inputs, options.threads, progress);
   if (progress) progress("compile", 0, 1);
-  const std::vector<std::byte> blob = compile_blob(scene, options);
+  const std::vector<std::byte> blob = compile_blob(scene, options, reports);
   if (progress) progress("compile", 1, 1);
   write_file_atomically(output, blob, [&](std::size_t done, std::size_t total) {
     if (progress) progress("write", done, total);

@@ -1,6 +1,7 @@
 // Semantic checks of the manifest's geometry references, and the typed views they guard.
 #include <string>
 
+#include "kiln/formats/bvh.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 
@@ -72,11 +73,22 @@ void Blob::validate_geometry() {
   }
   if (m.accelerations() != nullptr) {
     for (const auto* accel : *m.accelerations()) {
-      if (accel->sections() == nullptr) continue;
-      for (const std::uint32_t index : *accel->sections())
-        if (index == 0 || index >= sections_.size())
-          fail_section(0, "acceleration '" + accel->kind()->str() + "' names section " +
-                              std::to_string(index) + ", out of range");
+      const std::string kind = accel->kind()->str();
+      if (accel->sections() != nullptr)
+        for (const std::uint32_t index : *accel->sections())
+          if (index == 0 || index >= sections_.size())
+            fail_section(0, "acceleration '" + kind + "' names section " + std::to_string(index) +
+                                ", out of range");
+      if (const auto* bvh = accel->bvh()) {
+        const auto where = "acceleration '" + kind + "' ";
+        check((where + "nodes").c_str(), bvh->nodes(), format::kSectionBvhNodes,
+              sizeof(format::BvhNode), bvh->node_count(), false);
+        check((where + "triangles").c_str(), bvh->triangles(), format::kSectionBvhTriangles,
+              sizeof(format::BvhTriangle), bvh->reference_count(), false);
+        check((where + "primitive ids").c_str(), bvh->prim_ids(), format::kSectionBvhPrimIds,
+              sizeof(std::uint32_t), bvh->reference_count(), false);
+        if (bvh->node_count() == 0) fail_section(0, where + "has no nodes");
+      }
     }
   }
 }

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 
+#include "kiln/formats/bvh.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/checksum.hpp"
@@ -27,7 +28,8 @@ constexpr std::uint64_t kManifestMaxSize = 1u << 30;
 bool is_known_kind(std::uint32_t kind) {
   return kind == format::kSectionManifest || kind == format::kSectionPositions ||
          kind == format::kSectionNormals || kind == format::kSectionTriangles ||
-         kind == format::kSectionTriangleMesh;
+         kind == format::kSectionTriangleMesh || kind == format::kSectionBvhNodes ||
+         kind == format::kSectionBvhTriangles || kind == format::kSectionBvhPrimIds;
 }
 
 }  // namespace

@@ -1,8 +1,10 @@
 // The deep check behind `kiln verify`: everything open() skipped because it is O(bytes).
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/checksum.hpp"
 #include "kiln/runtime/error.hpp"
 
@@ -57,6 +59,46 @@ void Blob::verify() const {
       if (v < mesh->first_vertex() || v - mesh->first_vertex() >= mesh->vertex_count())
         fail_section(manifest_->geometry()->triangles(),
                      where + " names vertex " + std::to_string(v) + " outside its mesh");
+  }
+  verify_accelerations();
+}
+
+void Blob::verify_accelerations() const {
+  const auto* accels = manifest_->accelerations();
+  if (accels == nullptr) return;
+  const auto positions_view = positions();
+  const auto triangles_view = triangles();
+  for (const auto* accel : *accels) {
+    if (accel->bvh() == nullptr) continue;
+    const std::string name = accel->kind()->str();
+    const BvhView bvh = BvhView::from_blob(*this, name);  // structure: order, ranges, depth
+    const auto nodes = bvh.nodes();
+    auto contains = [](const format::BvhNode& outer, const format::BvhNode& inner) {
+      for (int a = 0; a < 3; ++a)
+        if (!(outer.min[a] <= inner.min[a] && inner.max[a] <= outer.max[a])) return false;
+      return true;
+    };
+    for (std::uint32_t i = 0; i < nodes.size(); ++i) {
+      const auto& n = nodes[i];
+      if (n.count > 0) continue;
+      if (!contains(n, nodes[i + 1]) || !contains(n, nodes[n.offset]))
+        fail_section(accel->bvh()->nodes(),
+                     name + " node " + std::to_string(i) + " does not contain its children");
+    }
+    const auto prim_ids = bvh.prim_ids();
+    const auto leaf_triangles = bvh.triangles();
+    for (std::size_t r = 0; r < prim_ids.size(); ++r) {
+      if (prim_ids[r] >= triangles_view.size())
+        fail_section(accel->bvh()->prim_ids(), name + " reference " + std::to_string(r) +
+                                                   " names triangle " +
+                                                   std::to_string(prim_ids[r]));
+      const auto& t = triangles_view[prim_ids[r]];
+      const format::BvhTriangle expected{positions_view[t.v[0]], positions_view[t.v[1]],
+                                         positions_view[t.v[2]]};
+      if (std::memcmp(&expected, &leaf_triangles[r], sizeof(expected)) != 0)
+        fail_section(accel->bvh()->triangles(), name + " reference " + std::to_string(r) +
+                                                    " does not match its triangle's corners");
+    }
   }
 }
 

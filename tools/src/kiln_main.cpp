@@ -9,9 +9,10 @@
 #include "kiln/compiler/atomic_file.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/import.hpp"
-#include "kiln/compiler/parallel.hpp"
 #include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/inspect.hpp"
+#include "kiln/tools/trace_command.hpp"
 #include "progress.hpp"
 
 namespace {
@@ -25,6 +26,9 @@ struct BuildArgs {
   int level = 9;
   unsigned threads = 0;
   bool stats = false;
+  std::vector<std::string> accels;
+  kiln::BvhBuildOptions bvh;
+  std::string bvh_builder = "binned";
 };
 
 int run_build(const BuildArgs& args) {
@@ -37,15 +41,30 @@ int run_build(const BuildArgs& args) {
     }
   kiln::BuildOptions options;
   options.inputs = args.inputs;
+  for (const auto& kind : args.accels) {
+    for (const auto& request : options.accels)
+      if (request.kind == kind) {
+        std::cerr << "kiln build: --accel " << kind << " given twice\n";
+        return 2;
+      }
+    kiln::AccelRequest request{kind, args.bvh};
+    request.bvh.builder = kind == "sbvh"                ? kiln::BvhBuilder::kSpatial
+                          : args.bvh_builder == "sweep" ? kiln::BvhBuilder::kSweep
+                                                        : kiln::BvhBuilder::kBinned;
+    options.accels.push_back(request);
+  }
+  std::vector<kiln::AccelReport> reports;
   options.compression = {args.compress, args.level};
   options.threads = args.threads;
   const auto start = std::chrono::steady_clock::now();
   try {
     kiln::TerminalProgress progress;
-    kiln::build_blob_file(options, args.output,
-                          [&](std::string_view stage, std::uint64_t done, std::uint64_t total) {
-                            progress.update(stage, done, total);
-                          });
+    kiln::build_blob_file(
+        options, args.output,
+        [&](std::string_view stage, std::uint64_t done, std::uint64_t total) {
+          progress.update(stage, done, total);
+        },
+        &reports);
   } catch (const kiln::ImportError& e) {
     std::cerr << "kiln build: " << e.what() << "\n";
     return 1;
@@ -67,6 +86,14 @@ int run_build(const BuildArgs& args) {
         args.output.c_str(), (unsigned long long)scene->triangle_count(),
         (unsigned long long)scene->vertex_count(), (unsigned long long)blob.header().file_size,
         seconds, kiln::resolve_thread_count(args.threads));
+    for (const auto& r : reports)
+      std::fprintf(stderr,
+                   "kiln build: %s: built in %.3f s (%.2f Mtris/s), %llu nodes, depth %u, SAH cost "
+                   "%.3f, %.3f references/triangle, %.1f bytes/triangle\n",
+                   r.kind.c_str(), r.build_seconds,
+                   double(scene->triangle_count()) / r.build_seconds * 1e-6,
+                   (unsigned long long)r.stats.node_count, r.stats.max_depth, r.stats.sah_cost,
+                   r.stats.duplication_factor, r.stats.bytes_per_triangle);
   }
   return 0;
 }
@@ -98,6 +125,37 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0u, kMaxThreads))
       ->capture_default_str();
   build_cmd->add_flag("--stats", build.stats, "Print build time and sizes to stderr");
+  build_cmd->add_option("--accel", build.accels, "Acceleration structures to build (repeatable)")
+      ->check(CLI::IsMember({"bvh", "sbvh"}))
+      ->allow_extra_args(false);
+  build_cmd->add_option("--bvh-builder", build.bvh_builder, "Builder for --accel bvh")
+      ->check(CLI::IsMember({"binned", "sweep"}))
+      ->capture_default_str();
+  build_cmd
+      ->add_option("--bvh-bins", build.bvh.bins, "SAH bins (binned builder, SBVH spatial splits)")
+      ->check(CLI::Range(2u, 1024u))
+      ->capture_default_str();
+  build_cmd
+      ->add_option("--bvh-max-leaf", build.bvh.max_leaf_size,
+                   "Leaves larger than this are always split")
+      ->check(CLI::Range(1u, 255u))
+      ->capture_default_str();
+  build_cmd->add_option("--bvh-traversal-cost", build.bvh.traversal_cost, "SAH node cost")
+      ->check(CLI::Range(0.0f, 1000.0f))
+      ->capture_default_str();
+  build_cmd->add_option("--bvh-intersection-cost", build.bvh.intersection_cost, "SAH triangle cost")
+      ->check(CLI::Range(0.001f, 1000.0f))
+      ->capture_default_str();
+  build_cmd
+      ->add_option("--sbvh-alpha", build.bvh.sbvh_alpha,
+                   "Try spatial splits when child overlap exceeds alpha x root area")
+      ->check(CLI::Range(0.0f, 1.0f))
+      ->capture_default_str();
+  build_cmd
+      ->add_option("--sbvh-max-duplication", build.bvh.sbvh_max_duplication,
+                   "At most (1 + this) x triangles references")
+      ->check(CLI::Range(0.0f, 16.0f))
+      ->capture_default_str();
 
   std::string dump_path;
   kiln::DumpOptions dump_options;
@@ -113,6 +171,37 @@ int main(int argc, char** argv) {
   verify_cmd->add_option("blob", verify_path, "The .kiln file")->required();
   verify_cmd->add_flag("--json", verify_json, "Machine-readable JSON on stdout");
 
+  kiln::TraceArgs trace;
+  auto* trace_cmd = app.add_subcommand("trace", "Trace a RAYS file against a structure in a blob");
+  trace_cmd->add_option("blob", trace.blob, "The .kiln file")->required();
+  trace_cmd->add_option("--rays", trace.rays, "RAYS file: 8 float32 per ray (org, tmin, dir, tmax)")
+      ->required();
+  trace_cmd
+      ->add_option("--out", trace.out, "HITS file: float32 t, uint32 prim, float32 u, v per ray")
+      ->required();
+  trace_cmd->add_option("--accel", trace.accel,
+                        "Structure to use (default: the first in the blob)");
+  trace_cmd->add_flag("--any-hit", trace.any_hit, "Occlusion: stop at the first hit found");
+  trace_cmd->add_option("--threads", trace.threads, "Worker threads (0 = all cores)")
+      ->check(CLI::Range(0u, kMaxThreads));
+
+  kiln::RaysArgs rays;
+  auto* rays_cmd =
+      app.add_subcommand("rays", "Generate a reproducible RAYS file for a mesh or blob");
+  rays_cmd->add_option("input", rays.input, "A mesh file or a .kiln blob with a BVH")->required();
+  rays_cmd->add_option("--kind", rays.kind, "primary, diffuse or shadow")
+      ->check(CLI::IsMember({"primary", "diffuse", "shadow"}))
+      ->capture_default_str();
+  rays_cmd->add_option("--count", rays.count, "Number of rays")
+      ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 28))
+      ->capture_default_str();
+  rays_cmd->add_option("--seed", rays.seed, "Random seed")->capture_default_str();
+  rays_cmd->add_option("-o,--output", rays.out, "RAYS file to write")->required();
+  rays_cmd
+      ->add_option("--threads", rays.threads,
+                   "Worker threads (0 = all cores); never changes the output")
+      ->check(CLI::Range(0u, kMaxThreads));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -121,5 +210,7 @@ int main(int argc, char** argv) {
   if (*build_cmd) return run_build(build);
   if (*dump_cmd) return kiln::run_dump(dump_path, dump_options, std::cout, std::cerr);
   if (*verify_cmd) return kiln::run_verify(verify_path, verify_json, std::cout, std::cerr);
+  if (*trace_cmd) return kiln::run_trace(trace);
+  if (*rays_cmd) return kiln::run_rays(rays);
   return 2;
 }

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "kiln/compiler/blob_writer.hpp"
+#include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/scene.hpp"
 
 namespace kiln {
@@ -15,8 +16,23 @@ namespace kiln {
 inline constexpr const char* kToolName = "kiln";
 extern const char* const kToolVersion;
 
+// One acceleration structure to build: kind "bvh" (binned or sweep builder) or "sbvh".
+struct AccelRequest {
+  std::string kind;
+  BvhBuildOptions bvh;
+};
+
+// What building one structure produced, for `kiln build --stats` (never stored: timing would
+// break determinism).
+struct AccelReport {
+  std::string kind;
+  BvhStatistics stats;
+  double build_seconds = 0;
+};
+
 struct BuildOptions {
   std::vector<std::string> inputs;
+  std::vector<AccelRequest> accels;
   CompressionOptions compression;
   unsigned threads = 0;  // 0 = all hardware threads; never affects the output
 };
@@ -30,10 +46,12 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
                    const BuildProgress& progress = {});
 
 // The complete blob for a scene: manifest (section 0), then the geometry sections.
-std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options);
+std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
+                                    std::vector<AccelReport>* reports = nullptr);
 
 // import_scene + compile_blob + an atomic write to `output`.
 void build_blob_file(const BuildOptions& options, const std::string& output,
-                     const BuildProgress& progress = {});
+                     const BuildProgress& progress = {},
+                     std::vector<AccelReport>* reports = nullptr);
 
 }  // namespace kiln

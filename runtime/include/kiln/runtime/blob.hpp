@@ -62,6 +62,7 @@ class Blob {
   void decode_sections();
   void validate_manifest();
   void validate_geometry();
+  void verify_accelerations() const;
   [[noreturn]] void fail(const std::string& what) const;
   [[noreturn]] void fail_section(std::uint32_t index, const std::string& what) const;
 

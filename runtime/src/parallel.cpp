@@ -1,4 +1,4 @@
-#include "kiln/compiler/parallel.hpp"
+#include "kiln/runtime/parallel.hpp"
 
 #include <algorithm>
 #include <atomic>

@@ -1,0 +1,73 @@
+// BVH builders (binned SAH, full-sweep SAH, SBVH) producing a temporary tree, and the pass that
+// flattens it into the mapped layout (formats/bvh.hpp).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "kiln/compiler/aabb.hpp"
+#include "kiln/compiler/scene.hpp"
+#include "kiln/formats/bvh.hpp"
+
+namespace kiln {
+
+enum class BvhBuilder { kBinned, kSweep, kSpatial };
+
+const char* bvh_builder_name(BvhBuilder builder);
+
+struct BvhBuildOptions {
+  BvhBuilder builder = BvhBuilder::kBinned;
+  std::uint32_t bins = 32;            // binned SAH and SBVH spatial bins
+  float traversal_cost = 1.0f;        // SAH cost of visiting a node
+  float intersection_cost = 1.0f;     // SAH cost of one triangle test
+  std::uint32_t max_leaf_size = 8;    // larger leaves are split even when the SAH disagrees
+  float sbvh_alpha = 1e-5f;           // try spatial splits when child overlap > alpha * root area
+  float sbvh_max_duplication = 1.0f;  // at most (1 + this) x triangles references
+  unsigned threads = 0;               // never changes the result
+};
+
+// A reference to a triangle: its (possibly clipped) box and original triangle id.
+struct PrimRef {
+  Aabb box;
+  std::uint32_t prim;
+};
+
+struct BvhBuildNode {
+  Aabb box;
+  std::unique_ptr<BvhBuildNode> child[2];
+  std::uint8_t axis = 0;
+  std::vector<std::uint32_t> prims;  // leaf references (original triangle ids)
+  bool is_leaf() const { return child[0] == nullptr; }
+};
+
+struct BvhStatistics {
+  std::uint64_t node_count = 0, leaf_count = 0, reference_count = 0;
+  std::uint32_t max_depth = 0, max_leaf_size = 0;
+  double average_leaf_size = 0, duplication_factor = 0, sah_cost = 0, bytes_per_triangle = 0;
+};
+
+// The flattened structure, ready for the blob.
+struct FlatBvh {
+  std::vector<format::BvhNode> nodes;
+  std::vector<format::BvhTriangle> triangles;
+  std::vector<std::uint32_t> prim_ids;
+  BvhStatistics stats;
+};
+
+// Builds the temporary tree over every triangle of the scene.
+std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildOptions& options);
+
+// SAH cost of a tree normalised by the root's area, with the options' constants.
+double bvh_sah_cost(const BvhBuildNode& root, const BvhBuildOptions& options);
+
+// Depth-first pre-order flattening (first child adjacent), triangles copied in leaf order.
+FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuildOptions& options);
+
+inline FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
+  return flatten_bvh(*build_bvh_tree(scene, options), scene, options);
+}
+
+}  // namespace kiln

@@ -1,0 +1,181 @@
+// Top-down SAH construction shared by the three builders; they differ only in split finding.
+#include <cmath>
+#include <stdexcept>
+#include <thread>
+
+#include "bvh_splits.hpp"
+#include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/runtime/parallel.hpp"
+
+namespace kiln {
+
+namespace {
+
+// Subtrees at least this large, near the root, are built on their own thread. Each subtree is a
+// pure function of its references, so the tree is the same whatever runs where.
+constexpr std::size_t kParallelSubtree = 16384;
+
+struct BuildContext {
+  const Scene& scene;
+  const BvhBuildOptions& options;
+  float root_area;
+  unsigned parallel_depth;  // spawn threads above this depth
+};
+
+Aabb bounds_of(std::span<const PrimRef> refs) {
+  Aabb box;
+  for (const auto& r : refs) box.grow(r.box);
+  return box;
+}
+
+std::unique_ptr<BvhBuildNode> make_leaf(const Aabb& box, std::span<const PrimRef> refs) {
+  auto leaf = std::make_unique<BvhBuildNode>();
+  leaf->box = box;
+  leaf->prims.reserve(refs.size());
+  for (const auto& r : refs) leaf->prims.push_back(r.prim);
+  return leaf;
+}
+
+std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, std::vector<PrimRef> refs,
+                                         std::uint32_t depth, std::size_t budget) {
+  const auto& o = ctx.options;
+  const Aabb box = bounds_of(refs);
+  const std::size_t n = refs.size();
+  const float leaf_cost = o.intersection_cost * float(n);
+  const bool must_stop = depth + 1 >= format::kBvhMaxDepth;
+  if (n <= 1 || must_stop) {
+    if (n > format::kBvhMaxLeafSize)
+      throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
+    return make_leaf(box, refs);
+  }
+
+  std::vector<PrimRef> left, right;
+  ObjectSplit object;
+  if (o.builder == BvhBuilder::kBinned) {
+    object = find_binned_split(refs, box, o);
+  } else {
+    object = find_sweep_split(refs, box, o);  // sorts refs on the chosen axis
+  }
+  SpatialSplit spatial;
+  if (o.builder == BvhBuilder::kSpatial && budget > 0) {
+    const float overlap = object.valid()
+                              ? Aabb::intersection(object.left_box, object.right_box).half_area()
+                              : box.half_area();
+    if (!object.valid() || overlap > o.sbvh_alpha * ctx.root_area) {
+      spatial = find_spatial_split(refs, box, ctx.scene, o);
+    }
+  }
+  const float best_cost = std::min(object.cost, spatial.cost);
+  if (!object.valid() && !spatial.valid()) {
+    // All centroids coincide: nothing separates them by the SAH, so split the list in half.
+    if (n <= o.max_leaf_size) return make_leaf(box, refs);
+    left.assign(refs.begin(), refs.begin() + std::ptrdiff_t(n / 2));
+    right.assign(refs.begin() + std::ptrdiff_t(n / 2), refs.end());
+  } else if (best_cost >= leaf_cost && n <= o.max_leaf_size) {
+    return make_leaf(box, refs);
+  } else if (spatial.valid() && spatial.cost < object.cost) {
+    const std::size_t added = apply_spatial_split(spatial, refs, ctx.scene, o, left, right);
+    budget -= std::min(budget, added);
+    if (left.empty() || right.empty()) {  // unsplitting moved everything to one side
+      left.clear();
+      right.clear();
+      if (!object.valid()) return make_leaf(box, refs);
+      spatial = {};
+    }
+  }
+  if (left.empty() && right.empty()) {
+    if (o.builder == BvhBuilder::kBinned) {
+      apply_binned_split(object, refs, left, right);
+    } else {
+      left.assign(refs.begin(), refs.begin() + std::ptrdiff_t(object.left_count));
+      right.assign(refs.begin() + std::ptrdiff_t(object.left_count), refs.end());
+    }
+  }
+  const std::uint8_t axis = std::uint8_t(spatial.valid()  ? spatial.axis
+                                         : object.valid() ? object.axis
+                                                          : 0);
+  refs = {};  // free before recursing
+
+  // The duplication budget is shared in proportion to size: deterministic, no global counter.
+  const std::size_t total = left.size() + right.size();
+  const std::size_t left_budget = budget * left.size() / total;
+  const std::size_t right_budget = budget - left_budget;
+  auto node = std::make_unique<BvhBuildNode>();
+  node->box = box;
+  node->axis = axis;
+  if (depth < ctx.parallel_depth && left.size() >= kParallelSubtree &&
+      right.size() >= kParallelSubtree) {
+    std::unique_ptr<BvhBuildNode> left_node;
+    std::exception_ptr error;
+    std::jthread worker([&] {
+      try {
+        left_node = build_node(ctx, std::move(left), depth + 1, left_budget);
+      } catch (...) {
+        error = std::current_exception();
+      }
+    });
+    node->child[1] = build_node(ctx, std::move(right), depth + 1, right_budget);
+    worker.join();
+    if (error) std::rethrow_exception(error);
+    node->child[0] = std::move(left_node);
+  } else {
+    node->child[0] = build_node(ctx, std::move(left), depth + 1, left_budget);
+    node->child[1] = build_node(ctx, std::move(right), depth + 1, right_budget);
+  }
+  return node;
+}
+
+}  // namespace
+
+const char* bvh_builder_name(BvhBuilder builder) {
+  switch (builder) {
+    case BvhBuilder::kBinned:
+      return "binned";
+    case BvhBuilder::kSweep:
+      return "sweep";
+    case BvhBuilder::kSpatial:
+      return "sbvh";
+  }
+  return "?";
+}
+
+std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildOptions& options) {
+  if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
+  std::vector<PrimRef> refs(scene.triangles.size());
+  for (std::uint32_t i = 0; i < refs.size(); ++i) {
+    for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
+    refs[i].prim = i;
+  }
+  const Aabb root = bounds_of(refs);
+  const unsigned threads = resolve_thread_count(options.threads);
+  const unsigned parallel_depth =
+      threads <= 1 ? 0 : unsigned(std::ceil(std::log2(double(threads)))) + 1;
+  const BuildContext ctx{scene, options, root.half_area(), parallel_depth};
+  const std::size_t budget = options.builder == BvhBuilder::kSpatial
+                                 ? std::size_t(double(scene.triangles.size()) *
+                                               std::max(0.0, double(options.sbvh_max_duplication)))
+                                 : 0;
+  return build_node(ctx, std::move(refs), 0, budget);
+}
+
+double bvh_sah_cost(const BvhBuildNode& root, const BvhBuildOptions& options) {
+  const double root_area = root.box.half_area();
+  if (root_area <= 0) return 0;
+  double cost = 0;
+  std::vector<const BvhBuildNode*> stack{&root};
+  while (!stack.empty()) {
+    const BvhBuildNode* n = stack.back();
+    stack.pop_back();
+    const double area = n->box.half_area() / root_area;
+    if (n->is_leaf()) {
+      cost += area * options.intersection_cost * double(n->prims.size());
+    } else {
+      cost += area * options.traversal_cost;
+      stack.push_back(n->child[1].get());
+      stack.push_back(n->child[0].get());
+    }
+  }
+  return cost;
+}
+
+}  // namespace kiln

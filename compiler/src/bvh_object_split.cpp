@@ -1,0 +1,120 @@
+#include <algorithm>
+#include <vector>
+
+#include "bvh_splits.hpp"
+
+namespace kiln {
+
+namespace {
+
+float split_cost(const BvhBuildOptions& o, float node_area, const Aabb& l, std::size_t nl,
+                 const Aabb& r, std::size_t nr) {
+  return o.traversal_cost +
+         o.intersection_cost * (l.half_area() * float(nl) + r.half_area() * float(nr)) / node_area;
+}
+
+}  // namespace
+
+ObjectSplit find_binned_split(std::span<const PrimRef> refs, const Aabb& node_box,
+                              const BvhBuildOptions& options) {
+  Aabb centroids;
+  for (const auto& r : refs)
+    centroids.grow(format::Float3{r.box.centroid(0), r.box.centroid(1), r.box.centroid(2)});
+  const float node_area = node_box.half_area();
+  const std::uint32_t k = std::max<std::uint32_t>(2, options.bins);
+  ObjectSplit best;
+  if (node_area <= 0.0f) return best;
+  std::vector<Aabb> bin_box(k), right_box(k);
+  std::vector<std::size_t> bin_count(k);
+  for (int axis = 0; axis < 3; ++axis) {
+    const float extent = centroids.hi[axis] - centroids.lo[axis];
+    if (!(extent > 0.0f)) continue;
+    const float scale = float(k) / extent;
+    std::fill(bin_box.begin(), bin_box.end(), Aabb{});
+    std::fill(bin_count.begin(), bin_count.end(), 0);
+    for (const auto& r : refs) {
+      const auto b = std::min<std::uint32_t>(
+          k - 1, std::uint32_t((r.box.centroid(axis) - centroids.lo[axis]) * scale));
+      bin_box[b].grow(r.box);
+      bin_count[b] += 1;
+    }
+    Aabb acc;
+    for (std::uint32_t b = k; b-- > 1;) {
+      acc.grow(bin_box[b]);
+      right_box[b] = acc;
+    }
+    Aabb left;
+    std::size_t left_count = 0;
+    for (std::uint32_t b = 0; b + 1 < k; ++b) {
+      left.grow(bin_box[b]);
+      left_count += bin_count[b];
+      const std::size_t right_count = refs.size() - left_count;
+      if (left_count == 0 || right_count == 0) continue;
+      const float cost =
+          split_cost(options, node_area, left, left_count, right_box[b + 1], right_count);
+      if (cost < best.cost) {
+        best.cost = cost;
+        best.axis = axis;
+        best.bin = b;
+        best.bin_scale = scale;
+        best.bin_origin = centroids.lo[axis];
+        best.left_count = left_count;
+        best.left_box = left;
+        best.right_box = right_box[b + 1];
+      }
+    }
+  }
+  return best;
+}
+
+void apply_binned_split(const ObjectSplit& split, std::vector<PrimRef>& refs,
+                        std::vector<PrimRef>& left, std::vector<PrimRef>& right) {
+  left.reserve(split.left_count);
+  right.reserve(refs.size() - split.left_count);
+  for (const auto& r : refs) {
+    const float c = r.box.centroid(split.axis);
+    // Same arithmetic as binning, so every reference lands on the side it was counted on.
+    const auto bin = std::uint32_t((c - split.bin_origin) * split.bin_scale);
+    (bin <= split.bin ? left : right).push_back(r);
+  }
+}
+
+ObjectSplit find_sweep_split(std::vector<PrimRef>& refs, const Aabb& node_box,
+                             const BvhBuildOptions& options) {
+  const float node_area = node_box.half_area();
+  ObjectSplit best;
+  if (node_area <= 0.0f || refs.size() < 2) return best;
+  const std::size_t n = refs.size();
+  std::vector<PrimRef> sorted[3];
+  std::vector<Aabb> right_box(n);
+  for (int axis = 0; axis < 3; ++axis) {
+    sorted[axis] = refs;
+    std::stable_sort(sorted[axis].begin(), sorted[axis].end(),
+                     [axis](const PrimRef& a, const PrimRef& b) {
+                       const float ca = a.box.centroid(axis), cb = b.box.centroid(axis);
+                       return ca < cb || (ca == cb && a.prim < b.prim);
+                     });
+    const auto& s = sorted[axis];
+    Aabb acc;
+    for (std::size_t i = n; i-- > 1;) {
+      acc.grow(s[i].box);
+      right_box[i] = acc;
+    }
+    Aabb left;
+    for (std::size_t i = 0; i + 1 < n; ++i) {
+      left.grow(s[i].box);
+      const float cost = split_cost(options, node_area, left, i + 1, right_box[i + 1], n - i - 1);
+      if (cost < best.cost) {
+        best.cost = cost;
+        best.axis = axis;
+        best.left_count = i + 1;
+        best.left_box = left;
+        best.right_box = right_box[i + 1];
+      }
+    }
+  }
+  if (best.valid()) refs = std::move(sorted[best.axis]);
+  return best;
+}
+
+}  // namespace kiln

@@ -1,0 +1,79 @@
+// Watertight ray-triangle intersection (Woop, Benthin, Wald, JCGT 2013): the ray is sheared so
+// it runs along +z through the origin, and the 2D edge functions decide the hit. Edge functions
+// of neighbouring triangles are computed from the same values with the same operations, so a
+// ray through a shared edge or vertex hits at least one of them; exact zeros are re-evaluated
+// in double.
+#pragma once
+
+#include <cmath>
+#include <utility>
+
+#include "kiln/formats/geometry.hpp"
+#include "kiln/runtime/ray.hpp"
+
+namespace kiln {
+
+// Per-ray constants of the test.
+struct WatertightRay {
+  int kx, ky, kz;
+  float sx, sy, sz;
+  format::Float3 org;
+};
+
+inline float component(const format::Float3& v, int axis) {
+  return axis == 0 ? v.x : axis == 1 ? v.y : v.z;
+}
+
+inline WatertightRay prepare_watertight(const Ray& ray) {
+  WatertightRay w{};
+  const float ax = std::fabs(ray.dir.x), ay = std::fabs(ray.dir.y), az = std::fabs(ray.dir.z);
+  w.kz = ax > ay ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
+  w.kx = (w.kz + 1) % 3;
+  w.ky = (w.kx + 1) % 3;
+  // Keep the winding: a negative z-direction swaps x and y.
+  if (component(ray.dir, w.kz) < 0.0f) std::swap(w.kx, w.ky);
+  const float dz = component(ray.dir, w.kz);
+  w.sx = component(ray.dir, w.kx) / dz;
+  w.sy = component(ray.dir, w.ky) / dz;
+  w.sz = 1.0f / dz;
+  w.org = ray.org;
+  return w;
+}
+
+// On a hit within (tmin, tmax) writes t and the barycentric weights u (of v1) and v (of v2).
+inline bool intersect_watertight(const WatertightRay& r, const format::Float3& v0,
+                                 const format::Float3& v1, const format::Float3& v2, float tmin,
+                                 float tmax, float& t_out, float& u_out, float& v_out) {
+  const float ax0 = component(v0, r.kx) - component(r.org, r.kx);
+  const float ay0 = component(v0, r.ky) - component(r.org, r.ky);
+  const float az0 = component(v0, r.kz) - component(r.org, r.kz);
+  const float bx0 = component(v1, r.kx) - component(r.org, r.kx);
+  const float by0 = component(v1, r.ky) - component(r.org, r.ky);
+  const float bz0 = component(v1, r.kz) - component(r.org, r.kz);
+  const float cx0 = component(v2, r.kx) - component(r.org, r.kx);
+  const float cy0 = component(v2, r.ky) - component(r.org, r.ky);
+  const float cz0 = component(v2, r.kz) - component(r.org, r.kz);
+  const float ax = ax0 - r.sx * az0, ay = ay0 - r.sy * az0;
+  const float bx = bx0 - r.sx * bz0, by = by0 - r.sy * bz0;
+  const float cx = cx0 - r.sx * cz0, cy = cy0 - r.sy * cz0;
+  float u = cx * by - cy * bx;
+  float v = ax * cy - ay * cx;
+  float w = bx * ay - by * ax;
+  if (u == 0.0f || v == 0.0f || w == 0.0f) {
+    u = float(double(cx) * double(by) - double(cy) * double(bx));
+    v = float(double(ax) * double(cy) - double(ay) * double(cx));
+    w = float(double(bx) * double(ay) - double(by) * double(ax));
+  }
+  if ((u < 0.0f || v < 0.0f || w < 0.0f) && (u > 0.0f || v > 0.0f || w > 0.0f)) return false;
+  const float det = u + v + w;
+  if (det == 0.0f) return false;
+  const float t_scaled = u * (r.sz * az0) + v * (r.sz * bz0) + w * (r.sz * cz0);
+  const float t = t_scaled / det;
+  if (!(t > tmin && t < tmax)) return false;
+  t_out = t;
+  u_out = v / det;
+  v_out = w / det;
+  return true;
+}
+
+}  // namespace kiln

@@ -1,0 +1,140 @@
+#include "kiln/tools/ray_generator.hpp"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace kiln {
+
+namespace {
+
+struct Vec {
+  double x, y, z;
+};
+Vec operator+(Vec a, Vec b) {
+  return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+Vec operator-(Vec a, Vec b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+Vec operator*(Vec a, double s) {
+  return {a.x * s, a.y * s, a.z * s};
+}
+double dot(Vec a, Vec b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+Vec cross(Vec a, Vec b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+Vec normalize(Vec a) {
+  return a * (1.0 / std::sqrt(dot(a, a)));
+}
+Vec vec(const format::Float3& p) {
+  return {p.x, p.y, p.z};
+}
+format::Float3 f3(Vec a) {
+  return {float(a.x), float(a.y), float(a.z)};
+}
+
+class SplitMix64 {
+ public:
+  explicit SplitMix64(std::uint64_t seed) : state_(seed) {}
+  std::uint64_t next() {
+    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  double uniform() { return double(next() >> 11) * 0x1p-53; }  // [0, 1)
+
+ private:
+  std::uint64_t state_;
+};
+
+struct Camera {
+  Vec eye, forward, right, up;
+  double tan_half_fov;
+};
+
+Camera frame_bounds(const RayScene& s) {
+  const Vec lo = vec(s.bounds_min), hi = vec(s.bounds_max);
+  const Vec center = (lo + hi) * 0.5;
+  const double radius = std::max(1e-6, std::sqrt(dot(hi - lo, hi - lo)) * 0.5);
+  Camera c;
+  c.tan_half_fov = std::tan(0.5 * 50.0 * 3.14159265358979323846 / 180.0);
+  const Vec view = normalize(Vec{0.45, 0.35, 1.0});
+  c.eye = center + view * (radius / std::sin(0.5 * 50.0 * 3.14159265358979323846 / 180.0));
+  c.forward = normalize(center - c.eye);
+  c.right = normalize(cross(c.forward, Vec{0, 1, 0}));
+  c.up = cross(c.right, c.forward);
+  return c;
+}
+
+Ray primary_ray(const Camera& c, SplitMix64& rng) {
+  const double sx = (2 * rng.uniform() - 1) * c.tan_half_fov;
+  const double sy = (2 * rng.uniform() - 1) * c.tan_half_fov;
+  const Vec dir = normalize(c.forward + c.right * sx + c.up * sy);
+  return {f3(c.eye), 0.0f, f3(dir), std::numeric_limits<float>::infinity()};
+}
+
+}  // namespace
+
+std::vector<Ray> generate_rays(const RayScene& s, RayKind kind, std::size_t count,
+                               std::uint64_t seed, unsigned threads) {
+  SplitMix64 rng(seed);
+  const Camera camera = frame_bounds(s);
+  std::vector<Ray> rays;
+  rays.reserve(count);
+  if (kind == RayKind::kPrimary) {
+    for (std::size_t i = 0; i < count; ++i) rays.push_back(primary_ray(camera, rng));
+    return rays;
+  }
+  const Vec lo = vec(s.bounds_min), hi = vec(s.bounds_max);
+  const double radius = std::max(1e-6, std::sqrt(dot(hi - lo, hi - lo)) * 0.5);
+  const Vec light = (lo + hi) * 0.5 + Vec{0.3, 1.6, 0.2} * radius;
+  const double offset = 1e-4 * radius;
+  std::size_t attempts = 0;
+  while (rays.size() < count) {
+    // Candidates in order from one stream, traced as a batch, consumed in order: the result
+    // does not depend on the thread count.
+    const std::size_t batch = std::max<std::size_t>(1024, count - rays.size());
+    attempts += batch;
+    if (attempts > 64 * count + 65536)
+      throw std::runtime_error("too few primary rays hit the scene to generate secondary rays");
+    std::vector<Ray> primaries(batch);
+    for (auto& r : primaries) r = primary_ray(camera, rng);
+    std::vector<Hit> hits(batch);
+    trace_rays(s.bvh, primaries, hits, false, threads);
+    for (std::size_t i = 0; i < batch && rays.size() < count; ++i) {
+      if (hits[i].prim == kNoHit) continue;
+      const auto& t = s.triangles[hits[i].prim];
+      const Vec a = vec(s.positions[t.v[0]]), b = vec(s.positions[t.v[1]]),
+                c = vec(s.positions[t.v[2]]);
+      Vec n = cross(b - a, c - a);
+      if (dot(n, n) == 0) continue;
+      n = normalize(n);
+      const Vec dir = vec(primaries[i].dir);
+      if (dot(n, dir) > 0) n = n * -1.0;
+      const Vec p = vec(primaries[i].org) + dir * double(hits[i].t) + n * offset;
+      if (kind == RayKind::kDiffuse) {
+        // Cosine-weighted hemisphere around n (Malley's method).
+        const double u1 = rng.uniform(), u2 = rng.uniform();
+        const double r = std::sqrt(u1), phi = 2 * 3.14159265358979323846 * u2;
+        const Vec tangent =
+            normalize(std::fabs(n.x) > 0.9 ? cross(n, Vec{0, 1, 0}) : cross(n, Vec{1, 0, 0}));
+        const Vec bitangent = cross(n, tangent);
+        const Vec d = normalize(tangent * (r * std::cos(phi)) + bitangent * (r * std::sin(phi)) +
+                                n * std::sqrt(std::max(0.0, 1 - u1)));
+        rays.push_back({f3(p), 0.0f, f3(d), std::numeric_limits<float>::infinity()});
+      } else {
+        const Vec to_light = light - p;
+        const double distance = std::sqrt(dot(to_light, to_light));
+        rays.push_back(
+            {f3(p), 0.0f, f3(to_light * (1.0 / distance)), float(distance * (1 - 1e-4))});
+      }
+    }
+  }
+  return rays;
+}
+
+}  // namespace kiln
