@@ -1,4 +1,6 @@
 // The command line as users and CI run it.
+#include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -14,7 +16,8 @@ std::string quoted(const std::string& s) {
 }
 
 TEST(Cli, EveryCommandHasHelp) {
-  for (const char* command : {"--help", "build --help", "dump --help", "verify --help"}) {
+  for (const char* command :
+       {"--help", "build --help", "dump --help", "verify --help", "trace --help", "rays --help"}) {
     const auto result = test::run_kiln(command);
     EXPECT_EQ(result.exit_code, 0) << command;
     EXPECT_NE(result.out.find("Usage"), std::string::npos) << command;
@@ -106,6 +109,114 @@ TEST(Cli, AbsurdOptionsAreRefused) {
   EXPECT_NE(missing_output.exit_code, 0);
   const auto same_file = test::run_kiln("build " + input + " -o " + input);
   EXPECT_NE(same_file.exit_code, 0);
+}
+
+struct HitRecord {
+  float t;
+  std::uint32_t prim;
+  float u, v;
+};
+
+std::vector<HitRecord> read_hits(const std::string& path) {
+  const auto bytes = test::read_file(path);
+  std::vector<HitRecord> hits(bytes.size() / sizeof(HitRecord));
+  std::memcpy(hits.data(), bytes.data(), hits.size() * sizeof(HitRecord));
+  return hits;
+}
+
+TEST(Cli, BuildRaysTraceWithBothBvhs) {
+  KILN_REQUIRE_CORPUS();
+  test::TempDir dir;
+  const std::string blob = dir.file("x.kiln");
+  const std::string mesh = quoted(test::mesh_path("stanford/Lucy100k.ply"));
+  ASSERT_EQ(
+      test::run_kiln("build --accel bvh --accel sbvh " + mesh + " -o " + quoted(blob)).exit_code,
+      0);
+  const auto dump = nlohmann::json::parse(test::run_kiln("dump --json " + quoted(blob)).out);
+  ASSERT_EQ(dump["manifest"]["accelerations"].size(), 2u);
+  EXPECT_EQ(dump["manifest"]["accelerations"][1]["kind"], "sbvh");
+  EXPECT_GE(dump["manifest"]["accelerations"][1]["bvh"]["reference_count"].get<std::uint64_t>(),
+            100000u);
+  EXPECT_EQ(test::run_kiln("verify " + quoted(blob)).exit_code, 0);
+
+  for (const char* kind : {"primary", "diffuse", "shadow"}) {
+    SCOPED_TRACE(kind);
+    const std::string rays = dir.file(std::string(kind) + ".rays");
+    ASSERT_EQ(test::run_kiln("rays " + quoted(blob) + " --kind " + kind +
+                             " --count 5000 --seed 3 -o " + quoted(rays))
+                  .exit_code,
+              0);
+    EXPECT_EQ(fs::file_size(rays), 5000u * 32u);
+    // Reproducible, whatever the thread count.
+    ASSERT_EQ(test::run_kiln("rays " + quoted(blob) + " --kind " + kind +
+                             " --count 5000 --seed 3 --threads 1 -o " + quoted(rays + "2"))
+                  .exit_code,
+              0);
+    EXPECT_EQ(test::read_file(rays), test::read_file(rays + "2"));
+
+    const std::string a = dir.file("a.hits"), b = dir.file("b.hits"), any = dir.file("any.hits");
+    ASSERT_EQ(test::run_kiln("trace " + quoted(blob) + " --accel bvh --rays " + quoted(rays) +
+                             " --out " + quoted(a))
+                  .exit_code,
+              0);
+    ASSERT_EQ(test::run_kiln("trace " + quoted(blob) + " --accel sbvh --threads 1 --rays " +
+                             quoted(rays) + " --out " + quoted(b))
+                  .exit_code,
+              0);
+    ASSERT_EQ(test::run_kiln("trace " + quoted(blob) + " --any-hit --rays " + quoted(rays) +
+                             " --out " + quoted(any))
+                  .exit_code,
+              0);
+    const auto ha = read_hits(a), hb = read_hits(b), hany = read_hits(any);
+    ASSERT_EQ(ha.size(), 5000u);
+    ASSERT_EQ(hb.size(), 5000u);
+    std::size_t hits = 0;
+    for (std::size_t i = 0; i < ha.size(); ++i) {
+      ASSERT_EQ(ha[i].prim == 0xFFFFFFFFu, hb[i].prim == 0xFFFFFFFFu) << i;
+      ASSERT_EQ(ha[i].prim == 0xFFFFFFFFu, hany[i].prim == 0xFFFFFFFFu) << i;
+      if (ha[i].prim == 0xFFFFFFFFu) {
+        EXPECT_TRUE(std::isinf(ha[i].t));
+        continue;
+      }
+      ++hits;
+      EXPECT_EQ(ha[i].t, hb[i].t) << i;
+      EXPECT_GE(hany[i].t, ha[i].t) << i;
+    }
+    EXPECT_GT(hits, 0u);
+  }
+}
+
+TEST(Cli, TraceRefusesBadInputs) {
+  KILN_REQUIRE_CORPUS();
+  test::TempDir dir;
+  const std::string blob = dir.file("x.kiln"), plain = dir.file("plain.kiln");
+  const std::string mesh = quoted(test::mesh_path("classic/teapot.obj"));
+  ASSERT_EQ(test::run_kiln("build --accel bvh " + mesh + " -o " + quoted(blob)).exit_code, 0);
+  ASSERT_EQ(test::run_kiln("build " + mesh + " -o " + quoted(plain)).exit_code, 0);
+  const std::string rays = dir.file("r.rays");
+  ASSERT_EQ(test::run_kiln("rays " + mesh + " --count 100 -o " + quoted(rays)).exit_code, 0);
+  auto bytes = test::read_file(rays);
+  bytes.resize(bytes.size() - 5);
+  const std::string ragged = dir.file("ragged.rays");
+  test::write_file(ragged, bytes);
+
+  auto result = test::run_kiln("trace " + quoted(blob) + " --rays " + quoted(ragged) + " --out " +
+                               quoted(dir.file("h")));
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.err.find("multiple of 32"), std::string::npos) << result.err;
+  EXPECT_FALSE(fs::exists(dir.file("h")));
+  result = test::run_kiln("trace " + quoted(blob) + " --accel sbvh --rays " + quoted(rays) +
+                          " --out " + quoted(dir.file("h")));
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.err.find("'sbvh'"), std::string::npos) << result.err;
+  result = test::run_kiln("trace " + quoted(plain) + " --rays " + quoted(rays) + " --out " +
+                          quoted(dir.file("h")));
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_NE(result.err.find("no acceleration structure"), std::string::npos) << result.err;
+  EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+  result =
+      test::run_kiln("build --accel bvh --accel bvh " + mesh + " -o " + quoted(dir.file("y.kiln")));
+  EXPECT_NE(result.exit_code, 0);
 }
 
 }  // namespace

@@ -33,5 +33,27 @@ TEST(Determinism, ByteIdenticalAcrossRunsAndThreadCounts) {
   }
 }
 
+// The builders spawn threads for large subtrees; the tree must not depend on it.
+TEST(Determinism, BvhBuildsAreByteIdenticalAcrossThreadCounts) {
+  KILN_REQUIRE_CORPUS();
+  const std::vector<std::string> inputs = {test::mesh_path("stanford/Lucy100k.ply"),
+                                           test::mesh_path("stanford/stanford-bunny.obj.zst")};
+  const Scene scene = import_scene(inputs, 2);
+  auto blob = [&](unsigned threads) {
+    BuildOptions options;
+    options.inputs = inputs;
+    options.threads = threads;
+    BvhBuildOptions sweep, sbvh;
+    sweep.builder = BvhBuilder::kSweep;
+    sbvh.builder = BvhBuilder::kSpatial;
+    options.accels = {{"bvh", sweep}, {"sbvh", sbvh}};
+    return compile_blob(scene, options);
+  };
+  const auto one = blob(1);
+  EXPECT_EQ(one, blob(2));
+  EXPECT_EQ(one, blob(8));
+  EXPECT_EQ(test::open_and_verify(one), "");
+}
+
 }  // namespace
 }  // namespace kiln

@@ -139,7 +139,23 @@ void write_json(const Blob& blob, std::ostream& out) {
       j.key("sections").begin_array();
       if (a->sections())
         for (const auto index : *a->sections()) j.value(index);
-      j.end_array().end_object();
+      j.end_array();
+      if (const auto* b = a->bvh()) {
+        j.key("bvh").begin_object();
+        j.field("builder", str(b->builder())).field("bins", b->bins());
+        j.field("traversal_cost", double(b->traversal_cost()));
+        j.field("intersection_cost", double(b->intersection_cost()));
+        j.field("max_leaf_size", b->max_leaf_size()).field("sbvh_alpha", double(b->sbvh_alpha()));
+        j.field("sbvh_max_duplication", double(b->sbvh_max_duplication()));
+        j.field("node_count", b->node_count()).field("leaf_count", b->leaf_count());
+        j.field("reference_count", b->reference_count()).field("max_depth", b->max_depth());
+        j.field("largest_leaf", b->largest_leaf())
+            .field("average_leaf_size", b->average_leaf_size());
+        j.field("duplication_factor", b->duplication_factor()).field("sah_cost", b->sah_cost());
+        j.field("bytes_per_triangle", b->bytes_per_triangle());
+        j.end_object();
+      }
+      j.end_object();
     }
   j.end_array();
   j.end_object();
@@ -211,7 +227,24 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
   if (!m.accelerations() || m.accelerations()->size() == 0)
     out << "  (none)\n";
   else
-    for (const auto* a : *m.accelerations()) out << "  " << str(a->kind()) << "\n";
+    for (const auto* a : *m.accelerations()) {
+      out << "  " << str(a->kind()) << "\n";
+      if (const auto* b = a->bvh()) {
+        out << printf_string("    builder %s, %u bins, max leaf %u, SAH constants Ct %g Ci %g",
+                             str(b->builder()).c_str(), b->bins(), b->max_leaf_size(),
+                             double(b->traversal_cost()), double(b->intersection_cost()));
+        if (str(b->builder()) == "sbvh")
+          out << printf_string(", alpha %g, max duplication %g", double(b->sbvh_alpha()),
+                               double(b->sbvh_max_duplication()));
+        out << printf_string(
+            "\n    %llu nodes, %llu leaves, depth %u, leaf size avg %.2f max %u\n"
+            "    %llu references (%.3f per triangle), SAH cost %.3f, %.1f bytes/triangle\n",
+            (unsigned long long)b->node_count(), (unsigned long long)b->leaf_count(),
+            b->max_depth(), b->average_leaf_size(), b->largest_leaf(),
+            (unsigned long long)b->reference_count(), b->duplication_factor(), b->sah_cost(),
+            b->bytes_per_triangle());
+      }
+    }
 }
 
 }  // namespace
