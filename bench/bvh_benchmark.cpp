@@ -1,0 +1,790 @@
+// BVH build and traversal throughput of Kiln's builders (binned SAH, full-sweep SAH, SBVH) and,
+// when built with -DKILN_BENCH_EMBREE=ON, of Embree 3 on the same triangles and the same rays.
+//
+// Usage: kiln_bench_bvh [--rays=N] [--seed=N] [--iterations=N] MESH... [benchmark flags]
+//   MESH    a file import_scene reads (OBJ, PLY, .drc, any of them .zst...), or
+//           [LABEL=]@DIR[/PATTERN]: every file in DIR matching PATTERN (default *.obj), sorted by
+//           name, imported as one scene, e.g.
+//           'sponza=@/tmp/sponza/crytek-sponza/models/sponza_*.obj'
+//   --rays  rays per kind (primary, diffuse, shadow); default 200000
+//   --seed  ray generator seed; default 1
+//   --iterations  timed repetitions of every benchmark; default 0 = by mesh size
+//
+// Every benchmark times itself with std::chrono (manual time) and keeps its fastest iteration,
+// which feeds the counters and the Markdown tables printed at the end: on a small, shared machine
+// the minimum is the least noisy estimate.
+#include <benchmark/benchmark.h>
+
+#include <fnmatch.h>
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <functional>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <thread>
+#include <type_traits>
+#include <vector>
+
+#include "kiln/compiler/build.hpp"
+#include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/ray.hpp"
+#include "kiln/tools/ray_generator.hpp"
+
+#ifdef KILN_BENCH_EMBREE
+#include <embree3/rtcore.h>
+#endif
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+unsigned hardware_threads() {
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+// ---------------------------------------------------------------------------------------------
+// What is measured: one row per acceleration structure and mesh.
+
+enum class Structure { kBinned, kSweep, kSbvh, kEmbreeMedium, kEmbreeHigh };
+constexpr std::array kStructures = {Structure::kBinned, Structure::kSweep, Structure::kSbvh,
+                                    Structure::kEmbreeMedium, Structure::kEmbreeHigh};
+
+const char* structure_name(Structure s) {
+  switch (s) {
+    case Structure::kBinned:
+      return "binned";
+    case Structure::kSweep:
+      return "sweep";
+    case Structure::kSbvh:
+      return "sbvh";
+    case Structure::kEmbreeMedium:
+      return "embree-medium";
+    case Structure::kEmbreeHigh:
+      return "embree-high";
+  }
+  return "?";
+}
+
+kiln::BvhBuilder kiln_builder(Structure s) {
+  return s == Structure::kBinned  ? kiln::BvhBuilder::kBinned
+         : s == Structure::kSweep ? kiln::BvhBuilder::kSweep
+                                  : kiln::BvhBuilder::kSpatial;
+}
+
+constexpr std::array kRayKinds = {kiln::RayKind::kPrimary, kiln::RayKind::kDiffuse,
+                                  kiln::RayKind::kShadow};
+
+const char* ray_kind_name(kiln::RayKind kind) {
+  switch (kind) {
+    case kiln::RayKind::kPrimary:
+      return "primary";
+    case kiln::RayKind::kDiffuse:
+      return "diffuse";
+    case kiln::RayKind::kShadow:
+      return "shadow";
+  }
+  return "?";
+}
+
+// Shadow rays only ask whether anything blocks them; the others want the closest hit.
+bool is_any_hit(kiln::RayKind kind) {
+  return kind == kiln::RayKind::kShadow;
+}
+
+std::size_t kind_index(kiln::RayKind kind) {
+  return std::size_t(std::find(kRayKinds.begin(), kRayKinds.end(), kind) - kRayKinds.begin());
+}
+
+struct Row {
+  double build_seconds = kNaN;
+  double sah_cost = kNaN;
+  double bytes_per_triangle = kNaN;
+  // [ray kind][0: one thread, 1: all threads]
+  std::array<std::array<double, 2>, kRayKinds.size()> mrays{
+      {{kNaN, kNaN}, {kNaN, kNaN}, {kNaN, kNaN}}};
+};
+
+// ---------------------------------------------------------------------------------------------
+// Embree: a device shared by every benchmark and one committed scene per (mesh, quality).
+
+#ifdef KILN_BENCH_EMBREE
+
+// Embree's hit/miss against Kiln's SBVH on one ray set (checked once, outside timing).
+struct Agreement {
+  Structure embree;
+  kiln::RayKind kind;
+  std::size_t rays = 0, same_hit_or_miss = 0, same_prim = 0;
+  double fraction() const { return rays ? double(same_hit_or_miss) / double(rays) : 0; }
+};
+
+// Net bytes Embree holds (allocations minus frees), from its memory monitor: the difference
+// across rtcCommitScene is what the built structure keeps (BVH, primitive blocks, slack).
+std::atomic<std::int64_t> g_embree_bytes{0};
+
+bool track_embree_memory(void*, ssize_t bytes, bool) {
+  g_embree_bytes += bytes;
+  return true;
+}
+
+RTCDevice embree_device() {
+  static RTCDevice device = [] {
+    RTCDevice d = rtcNewDevice(nullptr);
+    if (!d) {
+      std::fprintf(stderr, "rtcNewDevice failed: %d\n", int(rtcGetDeviceError(nullptr)));
+      std::exit(1);
+    }
+    // An Embree error means the comparison is meaningless: stop loudly.
+    rtcSetDeviceErrorFunction(
+        d,
+        [](void*, RTCError code, const char* message) {
+          std::fprintf(stderr, "Embree error %d: %s\n", int(code), message ? message : "");
+          std::abort();
+        },
+        nullptr);
+    rtcSetDeviceMemoryMonitorFunction(d, track_embree_memory, nullptr);
+    return d;
+  }();
+  return device;
+}
+
+RTCBuildQuality embree_quality(Structure s) {
+  return s == Structure::kEmbreeHigh ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM;
+}
+
+struct EmbreeSceneDeleter {
+  void operator()(RTCSceneTy* scene) const { rtcReleaseScene(scene); }
+};
+using EmbreeScene = std::unique_ptr<RTCSceneTy, EmbreeSceneDeleter>;
+
+// A scene holding one triangle geometry with copies of the vertices and indices, not yet
+// committed (the commit is the build being timed). rtcSetNewGeometryBuffer pads the vertex
+// buffer as Embree's SIMD loads require, which sharing the Scene's arrays would not.
+EmbreeScene make_embree_scene(const kiln::Scene& scene, RTCBuildQuality quality) {
+  const RTCDevice device = embree_device();
+  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* vertices = static_cast<kiln::format::Float3*>(
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                              sizeof(kiln::format::Float3), scene.positions.size()));
+  std::copy(scene.positions.begin(), scene.positions.end(), vertices);
+  auto* indices = static_cast<kiln::format::Triangle*>(
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                              sizeof(kiln::format::Triangle), scene.triangles.size()));
+  std::copy(scene.triangles.begin(), scene.triangles.end(), indices);
+  rtcSetGeometryBuildQuality(geometry, quality);
+  rtcCommitGeometry(geometry);
+
+  EmbreeScene out(rtcNewScene(device));
+  rtcSetSceneBuildQuality(out.get(), quality);
+  rtcAttachGeometry(out.get(), geometry);
+  rtcReleaseGeometry(geometry);  // the scene holds it now
+  return out;
+}
+
+// Kiln's Ray in Embree's layout. Done per ray inside the timed loops: a renderer built on
+// Embree would fill RTCRayHit directly, but the copy is a few stores against a traversal.
+RTCRayHit to_embree(const kiln::Ray& r) {
+  RTCRayHit rh;
+  rh.ray.org_x = r.org.x;
+  rh.ray.org_y = r.org.y;
+  rh.ray.org_z = r.org.z;
+  rh.ray.tnear = r.tmin;
+  rh.ray.dir_x = r.dir.x;
+  rh.ray.dir_y = r.dir.y;
+  rh.ray.dir_z = r.dir.z;
+  rh.ray.time = 0;
+  rh.ray.tfar = r.tmax;
+  rh.ray.mask = ~0u;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
+// One ray traced with Embree, its result written as a kiln::Hit (any hit: prim 0 or kNoHit).
+kiln::Hit embree_trace(RTCScene scene, const kiln::Ray& ray, bool any_hit) {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRayHit rh = to_embree(ray);
+  kiln::Hit hit;
+  if (any_hit) {
+    rtcOccluded1(scene, &context, &rh.ray);
+    // Embree marks an occluded ray by setting tfar to -inf.
+    if (rh.ray.tfar < 0) hit.prim = 0;
+    return hit;
+  }
+  rtcIntersect1(scene, &context, &rh);
+  if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID)
+    hit = {rh.ray.tfar, rh.hit.primID, rh.hit.u, rh.hit.v};
+  return hit;
+}
+
+#endif  // KILN_BENCH_EMBREE
+
+// ---------------------------------------------------------------------------------------------
+// One mesh (or multi-file scene) under test. Structures and rays are made on first use, so that
+// a --benchmark_filter selecting only traversal still works; the build benchmarks leave their
+// last result here for the traversal benchmarks to reuse.
+
+struct MeshCase {
+  std::string label;
+  std::vector<std::string> files;
+  kiln::Scene scene;
+  std::map<kiln::BvhBuilder, kiln::FlatBvh> bvhs;
+  std::map<kiln::RayKind, std::vector<kiln::Ray>> rays;
+  std::map<Structure, Row> rows;
+#ifdef KILN_BENCH_EMBREE
+  std::map<Structure, EmbreeScene> embree;
+#endif
+};
+
+struct Settings {
+  std::size_t rays = 200000;
+  std::uint64_t seed = 1;
+  int iterations = 0;  // 0: by mesh size
+};
+
+Settings g_settings;
+std::vector<std::unique_ptr<MeshCase>> g_meshes;
+#ifdef KILN_BENCH_EMBREE
+std::vector<std::pair<const MeshCase*, Agreement>> g_agreements;
+#endif
+
+const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
+  auto it = mesh.bvhs.find(builder);
+  if (it == mesh.bvhs.end()) {
+    kiln::BvhBuildOptions options;
+    options.builder = builder;
+    options.threads = 0;
+    it = mesh.bvhs.emplace(builder, kiln::build_bvh(mesh.scene, options)).first;
+  }
+  return it->second;
+}
+
+// The same rays for every structure: generated once from the binned BVH (any correct BVH gives
+// the generator the same closest hits, so the choice does not change the rays' distribution).
+const std::vector<kiln::Ray>& rays_for(MeshCase& mesh, kiln::RayKind kind) {
+  auto it = mesh.rays.find(kind);
+  if (it == mesh.rays.end()) {
+    const kiln::FlatBvh& flat = bvh_for(mesh, kiln::BvhBuilder::kBinned);
+    const kiln::BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);
+    const kiln::RayScene ray_scene{bvh, mesh.scene.positions, mesh.scene.triangles,
+                                   mesh.scene.bounds.min, mesh.scene.bounds.max};
+    it = mesh.rays
+             .emplace(kind,
+                      kiln::generate_rays(ray_scene, kind, g_settings.rays, g_settings.seed, 0))
+             .first;
+  }
+  return it->second;
+}
+
+#ifdef KILN_BENCH_EMBREE
+RTCScene embree_for(MeshCase& mesh, Structure s) {
+  auto it = mesh.embree.find(s);
+  if (it == mesh.embree.end()) {
+    EmbreeScene scene = make_embree_scene(mesh.scene, embree_quality(s));
+    rtcCommitScene(scene.get());
+    it = mesh.embree.emplace(s, std::move(scene)).first;
+  }
+  return it->second.get();
+}
+#endif
+
+// ---------------------------------------------------------------------------------------------
+// Tracing loops shared by Kiln and Embree.
+
+// Runs trace(i) for every ray on all hardware threads, in batches of 4096 rays handed out from
+// an atomic counter: the same scheduling as kiln::trace_rays, so both sides pay alike for it.
+// A template, not std::function: no indirect call per ray that Kiln's loop does not pay.
+template <typename Trace>
+void for_each_ray_parallel(std::size_t count, const Trace& trace) {
+  constexpr std::size_t kBatch = 4096;
+  const std::size_t batches = (count + kBatch - 1) / kBatch;
+  std::atomic<std::size_t> next{0};
+  auto worker = [&] {
+    for (std::size_t b = next++; b < batches; b = next++) {
+      const std::size_t end = std::min(count, (b + 1) * kBatch);
+      for (std::size_t i = b * kBatch; i < end; ++i) trace(i);
+    }
+  };
+  std::vector<std::jthread> pool;
+  for (unsigned t = 1; t < hardware_threads(); ++t) pool.emplace_back(worker);
+  worker();
+}
+
+void trace_kiln_single(const kiln::BvhView& bvh, const std::vector<kiln::Ray>& rays,
+                       std::vector<kiln::Hit>& hits, bool any_hit) {
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    if (any_hit) {
+      hits[i].prim = bvh.occluded(rays[i]) ? 0 : kiln::kNoHit;
+    } else {
+      hits[i] = bvh.intersect(rays[i]);
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Benchmarks. Each keeps its fastest iteration (see the file comment).
+
+int iterations_for(const MeshCase& mesh, bool build) {
+  if (g_settings.iterations > 0) return g_settings.iterations;
+  // Builds of big meshes take seconds on two cores: two of them (the first also pays for page
+  // faults and thread-pool start-up). A pass over the rays takes well under a second.
+  if (build) return mesh.scene.triangles.size() > 200000 ? 2 : 3;
+  return 5;
+}
+
+// Times body() once per iteration, after an untimed prepare(); returns the fastest time in seconds.
+double time_iterations(
+    benchmark::State& state, const std::function<void()>& body,
+    const std::function<void()>& prepare = [] {}) {
+  double best = std::numeric_limits<double>::infinity();
+  for (auto _ : state) {
+    prepare();
+    const auto start = Clock::now();
+    body();
+    const double seconds = seconds_since(start);
+    state.SetIterationTime(seconds);
+    best = std::min(best, seconds);
+  }
+  return best;
+}
+
+void set_build_counters(benchmark::State& state, const MeshCase& mesh, const Row& row) {
+  state.counters["Mtris/s"] = double(mesh.scene.triangles.size()) / row.build_seconds * 1e-6;
+  if (!std::isnan(row.sah_cost)) state.counters["SAH"] = row.sah_cost;  // Embree's is not exposed
+  state.counters["B/tri"] = row.bytes_per_triangle;
+}
+
+void bench_kiln_build(benchmark::State& state, MeshCase* mesh, Structure s) {
+  kiln::BvhBuildOptions options;
+  options.builder = kiln_builder(s);
+  options.threads = 0;
+  std::optional<kiln::FlatBvh> built;
+  Row& row = mesh->rows[s];
+  row.build_seconds = time_iterations(
+      state, [&] { built.emplace(kiln::build_bvh(mesh->scene, options)); },
+      [&] { built.reset(); });  // freeing the previous result is not part of a build
+  row.sah_cost = built->stats.sah_cost;
+  row.bytes_per_triangle = built->stats.bytes_per_triangle;
+  set_build_counters(state, *mesh, row);
+  mesh->bvhs[options.builder] = std::move(*built);
+}
+
+void bench_kiln_trace(benchmark::State& state, MeshCase* mesh, Structure s, kiln::RayKind kind,
+                      bool all_threads) {
+  const std::vector<kiln::Ray>* rays = nullptr;
+  try {
+    rays = &rays_for(*mesh, kind);
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+    return;
+  }
+  const kiln::FlatBvh& flat = bvh_for(*mesh, kiln_builder(s));
+  const kiln::BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);  // O(nodes) check: untimed
+  std::vector<kiln::Hit> hits(rays->size());
+  const bool any_hit = is_any_hit(kind);
+  const double seconds = time_iterations(state, [&] {
+    if (all_threads) {
+      kiln::trace_rays(bvh, *rays, hits, any_hit, 0);
+    } else {
+      trace_kiln_single(bvh, *rays, hits, any_hit);
+    }
+    benchmark::ClobberMemory();
+  });
+  const double mrays = double(rays->size()) / seconds * 1e-6;
+  state.counters["Mrays/s"] = mrays;
+  mesh->rows[s].mrays[kind_index(kind)][all_threads] = mrays;
+}
+
+#ifdef KILN_BENCH_EMBREE
+void bench_embree_build(benchmark::State& state, MeshCase* mesh, Structure s) {
+  EmbreeScene scene;
+  std::int64_t before = 0, after = 0;
+  Row& row = mesh->rows[s];
+  // A fresh, uncommitted scene per iteration (buffer copies untimed); only the commit counts.
+  row.build_seconds = time_iterations(
+      state,
+      [&] {
+        rtcCommitScene(scene.get());
+        after = g_embree_bytes;
+      },
+      [&] {
+        scene.reset();
+        scene = make_embree_scene(mesh->scene, embree_quality(s));
+        before = g_embree_bytes;
+      });
+  const std::int64_t bytes = after - before;
+  row.bytes_per_triangle = double(bytes) / double(mesh->scene.triangles.size());
+  set_build_counters(state, *mesh, row);
+  mesh->embree[s] = std::move(scene);
+}
+
+void bench_embree_trace(benchmark::State& state, MeshCase* mesh, Structure s, kiln::RayKind kind,
+                        bool all_threads) {
+  const std::vector<kiln::Ray>* rays = nullptr;
+  try {
+    rays = &rays_for(*mesh, kind);
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+    return;
+  }
+  const RTCScene scene = embree_for(*mesh, s);
+  std::vector<kiln::Hit> hits(rays->size());
+  const bool any_hit = is_any_hit(kind);
+  auto trace_one = [&](std::size_t i) { hits[i] = embree_trace(scene, (*rays)[i], any_hit); };
+  const double seconds = time_iterations(state, [&] {
+    if (all_threads) {
+      for_each_ray_parallel(rays->size(), trace_one);
+    } else {
+      for (std::size_t i = 0; i < rays->size(); ++i) trace_one(i);
+    }
+    benchmark::ClobberMemory();
+  });
+  const double mrays = double(rays->size()) / seconds * 1e-6;
+  state.counters["Mrays/s"] = mrays;
+  mesh->rows[s].mrays[kind_index(kind)][all_threads] = mrays;
+}
+
+// Embree and Kiln's SBVH must see the same scene: compare hit/miss on every ray (and, for closest
+// hits, the primitive). Both trace with all threads; nothing here is timed.
+Agreement check_agreement(MeshCase& mesh, Structure s, kiln::RayKind kind) {
+  const std::vector<kiln::Ray>& rays = rays_for(mesh, kind);
+  const kiln::FlatBvh& flat = bvh_for(mesh, kiln::BvhBuilder::kSpatial);
+  const kiln::BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);
+  const bool any_hit = is_any_hit(kind);
+  std::vector<kiln::Hit> kiln_hits(rays.size()), embree_hits(rays.size());
+  kiln::trace_rays(bvh, rays, kiln_hits, any_hit, 0);
+  const RTCScene scene = embree_for(mesh, s);
+  for_each_ray_parallel(
+      rays.size(), [&](std::size_t i) { embree_hits[i] = embree_trace(scene, rays[i], any_hit); });
+  Agreement a{s, kind, rays.size()};
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const bool kiln_hit = kiln_hits[i].prim != kiln::kNoHit;
+    const bool embree_hit = embree_hits[i].prim != kiln::kNoHit;
+    a.same_hit_or_miss += kiln_hit == embree_hit;
+    a.same_prim += kiln_hits[i].prim == embree_hits[i].prim;
+  }
+  return a;
+}
+#endif  // KILN_BENCH_EMBREE
+
+// ---------------------------------------------------------------------------------------------
+// Registration.
+
+bool is_embree(Structure s) {
+  return s == Structure::kEmbreeMedium || s == Structure::kEmbreeHigh;
+}
+
+// Kiln structures that are traced (the sweep builder's tree is only built: its SAH sits between
+// binned and SBVH, and tracing it would add minutes for little).
+bool is_traced(Structure s) {
+  return s != Structure::kSweep;
+}
+
+void register_mesh(MeshCase* mesh) {
+  const int build_iterations = iterations_for(*mesh, true);
+  const int trace_iterations = iterations_for(*mesh, false);
+  for (Structure s : kStructures) {
+    const std::string name = "build/" + mesh->label + "/" + structure_name(s);
+    if (!is_embree(s)) {
+      benchmark::RegisterBenchmark(name.c_str(), bench_kiln_build, mesh, s)
+          ->Iterations(build_iterations)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond);
+    }
+#ifdef KILN_BENCH_EMBREE
+    if (is_embree(s)) {
+      benchmark::RegisterBenchmark(name.c_str(), bench_embree_build, mesh, s)
+          ->Iterations(build_iterations)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond);
+    }
+#endif
+  }
+  for (Structure s : kStructures) {
+    if (!is_traced(s)) continue;
+    for (kiln::RayKind kind : kRayKinds) {
+      for (bool all_threads : {false, true}) {
+        const std::string name = "trace/" + mesh->label + "/" + structure_name(s) + "/" +
+                                 ray_kind_name(kind) + (all_threads ? "/all-threads" : "/1-thread");
+        benchmark::internal::Benchmark* b = nullptr;
+        if (!is_embree(s)) {
+          b = benchmark::RegisterBenchmark(name.c_str(), bench_kiln_trace, mesh, s, kind,
+                                           all_threads);
+        }
+#ifdef KILN_BENCH_EMBREE
+        if (is_embree(s)) {
+          b = benchmark::RegisterBenchmark(name.c_str(), bench_embree_trace, mesh, s, kind,
+                                           all_threads);
+        }
+#endif
+        if (b) b->Iterations(trace_iterations)->UseManualTime()->Unit(benchmark::kMillisecond);
+      }
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Command line.
+
+// "[LABEL=]@DIR[/PATTERN]" -> the matching files, sorted; a plain path -> itself.
+std::optional<MeshCase> parse_mesh(const std::string& arg) {
+  MeshCase mesh;
+  const std::size_t at = arg.find('@');
+  const bool is_set = at != std::string::npos && (at == 0 || arg[at - 1] == '=');
+  if (!is_set) {
+    mesh.files = {arg};
+    mesh.label = std::filesystem::path(arg).filename().string();
+    return mesh;
+  }
+  std::filesystem::path dir = arg.substr(at + 1);
+  std::string pattern = "*.obj";
+  if (!std::filesystem::is_directory(dir)) {
+    pattern = dir.filename().string();
+    dir = dir.parent_path();
+  }
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, error)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.is_regular_file() && fnmatch(pattern.c_str(), name.c_str(), 0) == 0)
+      mesh.files.push_back(entry.path().string());
+  }
+  if (error || mesh.files.empty()) {
+    std::fprintf(stderr, "%s: no file matches '%s' in '%s'\n", arg.c_str(), pattern.c_str(),
+                 dir.c_str());
+    return std::nullopt;
+  }
+  std::sort(mesh.files.begin(), mesh.files.end());
+  mesh.label = at > 0 ? arg.substr(0, at - 1) : dir.filename().string() + "/" + pattern;
+  return mesh;
+}
+
+// Reads "--NAME=VALUE" into `value`; false when `arg` is not that option.
+bool parse_number_option(std::string_view arg, std::string_view name, auto& value) {
+  const std::string prefix = "--" + std::string(name) + "=";
+  if (!arg.starts_with(prefix)) return false;
+  value =
+      std::remove_reference_t<decltype(value)>(std::stoull(std::string(arg.substr(prefix.size()))));
+  return true;
+}
+
+bool import_meshes(std::vector<MeshCase> meshes) {
+  for (MeshCase& mesh : meshes) {
+    const auto start = Clock::now();
+    try {
+      mesh.scene = kiln::import_scene(mesh.files, 0);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "%s\n", e.what());
+      return false;
+    }
+    std::fprintf(stderr, "imported %s: %zu file(s), %zu triangles, %zu vertices in %.2f s\n",
+                 mesh.label.c_str(), mesh.files.size(), mesh.scene.triangles.size(),
+                 mesh.scene.positions.size(), seconds_since(start));
+    g_meshes.push_back(std::make_unique<MeshCase>(std::move(mesh)));
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Report.
+
+std::string format(const char* spec, double value) {
+  if (std::isnan(value)) return "–";
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, spec, value);
+  return buffer;
+}
+
+std::string with_thousands(std::uint64_t n) {
+  std::string digits = std::to_string(n), out;
+  for (std::size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return out;
+}
+
+// Build seconds with three significant digits, whatever the scale.
+std::string format_seconds(double s) {
+  if (std::isnan(s)) return "–";
+  return format(s >= 1 ? "%.2f" : s >= 0.1 ? "%.3f" : "%.4f", s);
+}
+
+double row_value(const MeshCase& mesh, Structure s, double Row::*field) {
+  const auto it = mesh.rows.find(s);
+  return it == mesh.rows.end() ? kNaN : it->second.*field;
+}
+
+// Kiln's build time over Embree's comparable build: binned vs MEDIUM, SBVH vs HIGH (the one
+// with spatial splits).
+double build_ratio(const MeshCase& mesh, Structure s) {
+  const Structure reference = s == Structure::kBinned ? Structure::kEmbreeMedium
+                              : s == Structure::kSbvh ? Structure::kEmbreeHigh
+                                                      : s;
+  if (reference == s) return kNaN;
+  return row_value(mesh, s, &Row::build_seconds) / row_value(mesh, reference, &Row::build_seconds);
+}
+
+void print_main_table() {
+  std::printf(
+      "\n| mesh | triangles | builder | build s | Mtris/s | SAH | B/tri | build ÷ Embree |");
+  for (kiln::RayKind kind : kRayKinds)
+    std::printf(" %s 1T | %s %uT |", ray_kind_name(kind), ray_kind_name(kind), hardware_threads());
+  std::printf("\n|---|---:|---|---:|---:|---:|---:|---:|");
+  for (std::size_t i = 0; i < kRayKinds.size(); ++i) std::printf("---:|---:|");
+  std::printf("\n");
+  for (const auto& mesh : g_meshes) {
+    const double triangles = double(mesh->scene.triangles.size());
+    for (Structure s : kStructures) {
+      if (!mesh->rows.count(s)) continue;
+      const Row& row = mesh->rows.at(s);
+      std::printf("| %s | %s | %s | %s | %s | %s | %s | %s |", mesh->label.c_str(),
+                  with_thousands(mesh->scene.triangles.size()).c_str(), structure_name(s),
+                  format_seconds(row.build_seconds).c_str(),
+                  format("%.2f", triangles / row.build_seconds * 1e-6).c_str(),
+                  format("%.1f", row.sah_cost).c_str(),
+                  format("%.1f", row.bytes_per_triangle).c_str(),
+                  format("%.2f×", build_ratio(*mesh, s)).c_str());
+      for (std::size_t k = 0; k < kRayKinds.size(); ++k)
+        std::printf(" %s | %s |", format("%.2f", row.mrays[k][0]).c_str(),
+                    format("%.2f", row.mrays[k][1]).c_str());
+      std::printf("\n");
+    }
+  }
+}
+
+#ifdef KILN_BENCH_EMBREE
+double row_mrays(const MeshCase& mesh, Structure s, std::size_t kind, int threads) {
+  const auto it = mesh.rows.find(s);
+  return it == mesh.rows.end() ? kNaN : it->second.mrays[kind][threads];
+}
+
+void print_ratio_table() {
+  std::printf(
+      "\nMrays/s of Kiln's SBVH ÷ Embree HIGH on the same rays (above 1: Kiln faster):\n\n");
+  std::printf("| mesh |");
+  for (kiln::RayKind kind : kRayKinds)
+    std::printf(" %s 1T | %s %uT |", ray_kind_name(kind), ray_kind_name(kind), hardware_threads());
+  std::printf("\n|---|");
+  for (std::size_t i = 0; i < kRayKinds.size(); ++i) std::printf("---:|---:|");
+  std::printf("\n");
+  for (const auto& mesh : g_meshes) {
+    std::printf("| %s |", mesh->label.c_str());
+    for (std::size_t k = 0; k < kRayKinds.size(); ++k) {
+      for (int t : {0, 1}) {
+        const double ratio = row_mrays(*mesh, Structure::kSbvh, k, t) /
+                             row_mrays(*mesh, Structure::kEmbreeHigh, k, t);
+        std::printf(" %s |", format("%.2f×", ratio).c_str());
+      }
+    }
+    std::printf("\n");
+  }
+}
+
+void print_agreement_table() {
+  if (g_agreements.empty()) return;  // no Embree scene was built (--benchmark_filter)
+  std::printf("\nEmbree vs Kiln SBVH, same rays (required: hit/miss agree on ≥ 99.9%%):\n\n");
+  std::printf("| mesh | Embree | rays | kind | hit/miss agree | same primitive |\n");
+  std::printf("|---|---|---:|---|---:|---:|\n");
+  for (const auto& [mesh, a] : g_agreements) {
+    const bool closest = !is_any_hit(a.kind);
+    std::printf("| %s | %s | %s | %s | %.4f%% | %s |\n", mesh->label.c_str(),
+                structure_name(a.embree), with_thousands(a.rays).c_str(), ray_kind_name(a.kind),
+                100 * a.fraction(),
+                closest ? format("%.4f%%", 100 * double(a.same_prim) / double(a.rays)).c_str()
+                        : "– (any hit)");
+  }
+}
+#endif  // KILN_BENCH_EMBREE
+
+void print_report() {
+  std::printf("\n## kiln_bench_bvh: %zu rays per kind, seed %llu, %u hardware threads\n",
+              g_settings.rays, static_cast<unsigned long long>(g_settings.seed),
+              hardware_threads());
+  std::printf(
+      "\nFastest of the timed iterations. Build: all threads (Kiln threads = 0; Embree's TBB "
+      "pool). B/tri: Kiln = nodes + leaf triangles + prim ids; Embree = net bytes allocated by "
+      "rtcCommitScene (memory monitor, allocator slack included). build ÷ Embree: Kiln binned ÷ "
+      "Embree MEDIUM, Kiln SBVH ÷ Embree HIGH (above 1: Kiln slower). Mrays/s: primary and diffuse "
+      "= closest hit, shadow = any hit.\n");
+  print_main_table();
+#ifdef KILN_BENCH_EMBREE
+  print_ratio_table();
+  print_agreement_table();
+#endif
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);  // removes the --benchmark_* flags
+  std::vector<MeshCase> meshes;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    try {
+      if (parse_number_option(arg, "rays", g_settings.rays) ||
+          parse_number_option(arg, "seed", g_settings.seed) ||
+          parse_number_option(arg, "iterations", g_settings.iterations))
+        continue;
+    } catch (const std::exception&) {
+      std::fprintf(stderr, "bad number in '%s'\n", arg.c_str());
+      return 2;
+    }
+    if (arg.starts_with("--")) {
+      std::fprintf(stderr, "unknown option '%s'\n", arg.c_str());
+      return 2;
+    }
+    std::optional<MeshCase> mesh = parse_mesh(arg);
+    if (!mesh) return 2;
+    meshes.push_back(std::move(*mesh));
+  }
+  if (meshes.empty()) {
+    std::fprintf(stderr,
+                 "usage: kiln_bench_bvh [--rays=N] [--seed=N] [--iterations=N] MESH... "
+                 "[benchmark flags]\n  MESH: a file, or [LABEL=]@DIR[/PATTERN] (default *.obj) "
+                 "for every matching file in DIR as one scene\n");
+    return 2;
+  }
+  if (!import_meshes(std::move(meshes))) return 1;
+  for (const auto& mesh : g_meshes) register_mesh(mesh.get());
+
+  benchmark::RunSpecifiedBenchmarks();
+
+  bool agree = true;
+#ifdef KILN_BENCH_EMBREE
+  for (const auto& mesh : g_meshes) {
+    for (Structure s : {Structure::kEmbreeMedium, Structure::kEmbreeHigh}) {
+      if (!mesh->embree.count(s)) continue;  // filtered out
+      for (kiln::RayKind kind : kRayKinds) {
+        if (!mesh->rays.count(kind)) continue;
+        const Agreement a = check_agreement(*mesh, s, kind);
+        agree = agree && a.fraction() >= 0.999;
+        g_agreements.emplace_back(mesh.get(), a);
+      }
+    }
+  }
+#endif
+  print_report();
+  benchmark::Shutdown();
+  if (!agree) std::fprintf(stderr, "Embree and Kiln disagree on more than 0.1%% of some ray set\n");
+  return agree ? 0 : 1;
+}
