@@ -34,25 +34,26 @@ BoxRay prepare_box_ray(const Ray& ray) {
   return b;
 }
 
-inline bool hits_box(const format::BvhNode& n, const BoxRay& r, float tmin, float tmax) {
+// Entry distance of the ray into the node's box, or +inf when it misses within [tmin, tmax].
+// A NaN slab distance (origin on a slab plane of an axis the ray runs parallel to) loses every
+// comparison below, which leaves that axis unconstrained, as it should be.
+inline float enter_box(const format::BvhNode& n, const BoxRay& r, float tmin, float tmax) {
   for (int a = 0; a < 3; ++a) {
     const float lo = r.negative[a] ? n.max[a] : n.min[a];
     const float hi = r.negative[a] ? n.min[a] : n.max[a];
-    float t0 = (lo - r.org[a]) * r.inv_dir[a];
-    float t1 = (hi - r.org[a]) * r.inv_dir[a];
-    // 0 * inf is NaN when the origin lies on a slab plane of a parallel axis: treat as inside.
-    if (std::isnan(t0)) t0 = -std::numeric_limits<float>::infinity();
-    if (std::isnan(t1)) t1 = std::numeric_limits<float>::infinity();
-    t1 *= kFarScale;
+    const float t0 = (lo - r.org[a]) * r.inv_dir[a];
+    const float t1 = (hi - r.org[a]) * r.inv_dir[a] * kFarScale;
     tmin = t0 > tmin ? t0 : tmin;
     tmax = t1 < tmax ? t1 : tmax;
-    if (tmin > tmax) return false;
   }
-  return true;
+  return tmin <= tmax ? tmin : std::numeric_limits<float>::infinity();
 }
 
+// Both children's boxes are tested at their parent: the nearer is visited first, the farther
+// is pushed with its entry distance and skipped on pop if a closer hit has been found since.
 template <bool kAnyHit, bool kCount>
 Hit traverse(const BvhView& bvh, const Ray& ray, BvhView::Cost* cost) {
+  constexpr float kMiss = std::numeric_limits<float>::infinity();
   const auto nodes = bvh.nodes();
   const auto triangles = bvh.triangles();
   const BoxRay box_ray = prepare_box_ray(ray);
@@ -60,43 +61,64 @@ Hit traverse(const BvhView& bvh, const Ray& ray, BvhView::Cost* cost) {
   Hit hit;
   hit.t = ray.tmax;
   std::uint32_t best_ref = kNoHit;
-  std::uint32_t stack[format::kBvhMaxDepth];
+  struct Entry {
+    std::uint32_t node;
+    float t;
+  };
+  Entry stack[format::kBvhMaxDepth];
   std::uint32_t top = 0;
+  if constexpr (kCount) cost->nodes += 1;
+  if (enter_box(nodes[0], box_ray, ray.tmin, hit.t) == kMiss) return Hit{};
   std::uint32_t current = 0;
   for (;;) {
     const format::BvhNode& n = nodes[current];
-    if constexpr (kCount) cost->nodes += 1;
-    if (hits_box(n, box_ray, ray.tmin, hit.t)) {
-      if (n.count > 0) {
-        for (std::uint32_t i = n.offset, end = n.offset + n.count; i < end; ++i) {
-          if constexpr (kCount) cost->triangles += 1;
-          const format::BvhTriangle& tri = triangles[i];
-          float t, u, v;
-          if (intersect_watertight(tri_ray, tri.v0, tri.v1, tri.v2, ray.tmin, hit.t, t, u, v)) {
-            hit.t = t;
-            hit.u = u;
-            hit.v = v;
-            best_ref = i;
-            if constexpr (kAnyHit) {
-              hit.prim = bvh.prim_ids()[i];
-              return hit;
-            }
-          }
-        }
-      } else {
-        const std::uint32_t first = current + 1, second = n.offset;
-        const bool far_first = box_ray.negative[n.axis];
-        stack[top++] = far_first ? first : second;
-        current = far_first ? second : first;
+    if (n.count == 0) {
+      const std::uint32_t first = current + 1, second = n.offset;
+      const float t_first = enter_box(nodes[first], box_ray, ray.tmin, hit.t);
+      const float t_second = enter_box(nodes[second], box_ray, ray.tmin, hit.t);
+      if constexpr (kCount) cost->nodes += 2;
+      if (t_first != kMiss && t_second != kMiss) {
+        const bool first_nearer = t_first <= t_second;
+        stack[top++] = first_nearer ? Entry{second, t_second} : Entry{first, t_first};
+        current = first_nearer ? first : second;
         continue;
       }
+      if (t_first != kMiss) {
+        current = first;
+        continue;
+      }
+      if (t_second != kMiss) {
+        current = second;
+        continue;
+      }
+    } else {
+      for (std::uint32_t i = n.offset, end = n.offset + n.count; i < end; ++i) {
+        if constexpr (kCount) cost->triangles += 1;
+        const format::BvhTriangle& tri = triangles[i];
+        float t, u, v;
+        if (intersect_watertight(tri_ray, tri.v0, tri.v1, tri.v2, ray.tmin, hit.t, t, u, v)) {
+          hit.t = t;
+          hit.u = u;
+          hit.v = v;
+          best_ref = i;
+          if constexpr (kAnyHit) {
+            hit.prim = bvh.prim_ids()[i];
+            return hit;
+          }
+        }
+      }
     }
-    if (top == 0) break;
-    current = stack[--top];
+    // Pop the next subtree that can still hold a closer hit.
+    do {
+      if (top == 0) {
+        if (best_ref == kNoHit) return Hit{};
+        hit.prim = bvh.prim_ids()[best_ref];
+        return hit;
+      }
+      --top;
+    } while (stack[top].t > hit.t);
+    current = stack[top].node;
   }
-  if (best_ref == kNoHit) return Hit{};
-  hit.prim = bvh.prim_ids()[best_ref];
-  return hit;
 }
 
 }  // namespace

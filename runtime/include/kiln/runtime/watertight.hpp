@@ -17,7 +17,13 @@ namespace kiln {
 struct WatertightRay {
   int kx, ky, kz;
   float sx, sy, sz;
-  format::Float3 org;
+  float org[3];
+};
+
+// A point's coordinates as an array, so the permuted axes index instead of branching.
+struct Coords {
+  float c[3];
+  explicit Coords(const format::Float3& p) : c{p.x, p.y, p.z} {}
 };
 
 inline float component(const format::Float3& v, int axis) {
@@ -36,7 +42,7 @@ inline WatertightRay prepare_watertight(const Ray& ray) {
   w.sx = component(ray.dir, w.kx) / dz;
   w.sy = component(ray.dir, w.ky) / dz;
   w.sz = 1.0f / dz;
-  w.org = ray.org;
+  w.org[0] = ray.org.x, w.org[1] = ray.org.y, w.org[2] = ray.org.z;
   return w;
 }
 
@@ -44,15 +50,13 @@ inline WatertightRay prepare_watertight(const Ray& ray) {
 inline bool intersect_watertight(const WatertightRay& r, const format::Float3& v0,
                                  const format::Float3& v1, const format::Float3& v2, float tmin,
                                  float tmax, float& t_out, float& u_out, float& v_out) {
-  const float ax0 = component(v0, r.kx) - component(r.org, r.kx);
-  const float ay0 = component(v0, r.ky) - component(r.org, r.ky);
-  const float az0 = component(v0, r.kz) - component(r.org, r.kz);
-  const float bx0 = component(v1, r.kx) - component(r.org, r.kx);
-  const float by0 = component(v1, r.ky) - component(r.org, r.ky);
-  const float bz0 = component(v1, r.kz) - component(r.org, r.kz);
-  const float cx0 = component(v2, r.kx) - component(r.org, r.kx);
-  const float cy0 = component(v2, r.ky) - component(r.org, r.ky);
-  const float cz0 = component(v2, r.kz) - component(r.org, r.kz);
+  const Coords a(v0), b(v1), c(v2);
+  const float ax0 = a.c[r.kx] - r.org[r.kx], ay0 = a.c[r.ky] - r.org[r.ky],
+              az0 = a.c[r.kz] - r.org[r.kz];
+  const float bx0 = b.c[r.kx] - r.org[r.kx], by0 = b.c[r.ky] - r.org[r.ky],
+              bz0 = b.c[r.kz] - r.org[r.kz];
+  const float cx0 = c.c[r.kx] - r.org[r.kx], cy0 = c.c[r.ky] - r.org[r.ky],
+              cz0 = c.c[r.kz] - r.org[r.kz];
   const float ax = ax0 - r.sx * az0, ay = ay0 - r.sy * az0;
   const float bx = bx0 - r.sx * bz0, by = by0 - r.sy * bz0;
   const float cx = cx0 - r.sx * cz0, cy = cy0 - r.sy * cz0;
