@@ -95,13 +95,7 @@ Scene make_scene(std::vector<Float3> positions, std::vector<format::Triangle> tr
   s.triangle_mesh.assign(s.triangles.size(), 0);
   s.meshes.push_back({"generated", 0, 0, s.triangles.size(), 0, s.positions.size()});
   s.sources.push_back({"generated", 0, 0});
-  s.bounds.min = s.bounds.max = s.positions.front();
-  for (const auto& p : s.positions) {
-    s.bounds.min = {std::min(s.bounds.min.x, p.x), std::min(s.bounds.min.y, p.y),
-                    std::min(s.bounds.min.z, p.z)};
-    s.bounds.max = {std::max(s.bounds.max.x, p.x), std::max(s.bounds.max.y, p.y),
-                    std::max(s.bounds.max.z, p.z)};
-  }
+  s.bounds = bounds_of(s.positions);
   s.input_triangle_count = s.triangles.size();
   return s;
 }

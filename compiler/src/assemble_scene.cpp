@@ -38,6 +38,17 @@ bool is_finite(const format::Float3& p) {
 
 }  // namespace
 
+Bounds3 bounds_of(std::span<const format::Float3> positions) {
+  Bounds3 b;
+  if (positions.empty()) return b;
+  b.min = b.max = positions.front();
+  for (const auto& p : positions) {
+    b.min = {std::min(b.min.x, p.x), std::min(b.min.y, p.y), std::min(b.min.z, p.z)};
+    b.max = {std::max(b.max.x, p.x), std::max(b.max.y, p.y), std::max(b.max.z, p.z)};
+  }
+  return b;
+}
+
 Scene assemble_scene(std::vector<ImportedFile> files) {
   Scene scene;
   bool every_mesh_has_normals = true;
@@ -98,15 +109,7 @@ Scene assemble_scene(std::vector<ImportedFile> files) {
     }
   }
 
-  if (!scene.positions.empty()) {
-    scene.bounds.min = scene.bounds.max = scene.positions.front();
-    for (const auto& p : scene.positions) {
-      scene.bounds.min = {std::min(scene.bounds.min.x, p.x), std::min(scene.bounds.min.y, p.y),
-                          std::min(scene.bounds.min.z, p.z)};
-      scene.bounds.max = {std::max(scene.bounds.max.x, p.x), std::max(scene.bounds.max.y, p.y),
-                          std::max(scene.bounds.max.z, p.z)};
-    }
-  }
+  scene.bounds = bounds_of(scene.positions);
   return scene;
 }
 

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -57,6 +58,9 @@ struct Scene {
   std::uint64_t degenerate_triangles_dropped = 0;
   Bounds3 bounds;
 };
+
+// The box around `positions` (all zero when empty).
+Bounds3 bounds_of(std::span<const format::Float3> positions);
 
 // Concatenates imported files in order, drops degenerate triangles (zero area on the world-space
 // corners evaluated in double, or a non-finite corner), drops vertices no kept triangle uses (order
