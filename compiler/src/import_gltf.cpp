@@ -174,7 +174,11 @@ void append_mesh(const tinygltf::Model& model, int mesh_index, const Matrix4& wo
     if (position == primitive.attributes.end()) continue;
 
     ImportedMesh part;
-    part.name = mesh.name + (mesh.primitives.size() > 1 ? "/" + std::to_string(p) : "");
+    part.name = mesh.name;
+    if (mesh.primitives.size() > 1) {  // appended, not "/" + ...: GCC 12's -Wrestrict misfires
+      part.name += '/';
+      part.name += std::to_string(p);
+    }
     part.transform = world;
     part.positions = read_vec3(model, position->second, path, "POSITION");
     if (const auto normal = primitive.attributes.find("NORMAL");
