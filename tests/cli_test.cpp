@@ -16,8 +16,8 @@ std::string quoted(const std::string& s) {
 }
 
 TEST(Cli, EveryCommandHasHelp) {
-  for (const char* command :
-       {"--help", "build --help", "dump --help", "verify --help", "trace --help", "rays --help"}) {
+  for (const char* command : {"--help", "build --help", "dump --help", "verify --help",
+                              "trace --help", "rays --help", "query --help"}) {
     const auto result = test::run_kiln(command);
     EXPECT_EQ(result.exit_code, 0) << command;
     EXPECT_NE(result.out.find("Usage"), std::string::npos) << command;
@@ -217,6 +217,65 @@ TEST(Cli, TraceRefusesBadInputs) {
   result =
       test::run_kiln("build --accel bvh --accel bvh " + mesh + " -o " + quoted(dir.file("y.kiln")));
   EXPECT_NE(result.exit_code, 0);
+}
+
+TEST(Cli, QueryClosestInsideBox) {
+  KILN_REQUIRE_CORPUS();
+  test::TempDir dir;
+  const std::string blob = dir.file("box.kiln");
+  ASSERT_EQ(test::run_kiln("build --accel sbvh " + quoted(test::mesh_path("assimp/OBJ/box.obj")) +
+                           " -o " + quoted(blob))
+                .exit_code,
+            0);
+  // box.obj is the cube [-0.5, 0.5]^3.
+  const float points[] = {0, 0, 0, 2, 0, 0, 0.4f, 0.1f, -0.2f};
+  const std::string in = dir.file("points.bin");
+  test::write_file(in, std::as_bytes(std::span(points)));
+  ASSERT_EQ(test::run_kiln("query " + quoted(blob) + " --op closest --in " + quoted(in) +
+                           " --out " + quoted(dir.file("c.bin")))
+                .exit_code,
+            0);
+  const auto closest = test::read_file(dir.file("c.bin"));
+  ASSERT_EQ(closest.size(), 3u * 20u);
+  float d[3];
+  for (int i = 0; i < 3; ++i) std::memcpy(&d[i], closest.data() + 20 * i, 4);
+  EXPECT_FLOAT_EQ(d[0], 0.5f);
+  EXPECT_FLOAT_EQ(d[1], 1.5f);
+  EXPECT_NEAR(d[2], 0.1f, 1e-6f);
+  ASSERT_EQ(test::run_kiln("query " + quoted(blob) + " --op inside --in " + quoted(in) + " --out " +
+                           quoted(dir.file("i.bin")))
+                .exit_code,
+            0);
+  const auto inside = test::read_file(dir.file("i.bin"));
+  ASSERT_EQ(inside.size(), 3u);
+  EXPECT_EQ(inside[0], std::byte{1});
+  EXPECT_EQ(inside[1], std::byte{0});
+  EXPECT_EQ(inside[2], std::byte{1});
+
+  const float boxes[] = {0.45f, -0.1f, -0.1f, 0.6f, 0.1f, 0.1f,   // touches the +x face only
+                         -0.1f, -0.1f, -0.1f, 0.1f, 0.1f, 0.1f};  // inside, touches nothing
+  const std::string box_in = dir.file("boxes.bin");
+  test::write_file(box_in, std::as_bytes(std::span(boxes)));
+  ASSERT_EQ(test::run_kiln("query " + quoted(blob) + " --op box --in " + quoted(box_in) +
+                           " --out " + quoted(dir.file("b.bin")))
+                .exit_code,
+            0);
+  const auto ids = test::read_file(dir.file("b.bin"));
+  std::uint32_t first_count = 0, second_count = 0;
+  std::memcpy(&first_count, ids.data(), 4);
+  EXPECT_EQ(first_count, 2u);  // the two triangles of the +x face
+  std::memcpy(&second_count, ids.data() + 4 + 4 * first_count, 4);
+  EXPECT_EQ(second_count, 0u);
+  EXPECT_EQ(ids.size(), 4u + 4u * first_count + 4u);
+
+  auto result = test::run_kiln("query " + quoted(blob) + " --op box --in " + quoted(in) +
+                               " --out " + quoted(dir.file("x.bin")));
+  EXPECT_EQ(result.exit_code, 1);  // 36 bytes is not a whole number of boxes
+  EXPECT_NE(result.err.find("multiple of 24"), std::string::npos) << result.err;
+  result = test::run_kiln("query " + quoted(blob) + " --op knn --k 4 --in " + quoted(in) +
+                          " --out " + quoted(dir.file("x.bin")));
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_FALSE(fs::exists(dir.file("x.bin")));
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <utility>
 
@@ -47,6 +49,46 @@ Bounds3 bounds_of(std::span<const format::Float3> positions) {
     b.max = {std::max(b.max.x, p.x), std::max(b.max.y, p.y), std::max(b.max.z, p.z)};
   }
   return b;
+}
+
+EdgeTopology edge_topology(const Scene& scene) {
+  // Weld: vertices with bit-identical positions share an id (seams split by normals or UVs
+  // must not look like holes).
+  const std::size_t n = scene.positions.size();
+  std::vector<std::uint32_t> order(n), weld(n);
+  for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
+  auto key = [&](std::uint32_t i) {
+    const auto& p = scene.positions[i];
+    std::array<std::uint32_t, 3> k;
+    std::memcpy(k.data(), &p, sizeof(k));
+    return k;
+  };
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    const auto ka = key(a), kb = key(b);
+    return ka < kb || (ka == kb && a < b);
+  });
+  std::uint32_t id = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0 && key(order[i]) != key(order[i - 1])) ++id;
+    weld[order[i]] = id;
+  }
+  std::vector<std::uint64_t> edges;
+  edges.reserve(scene.triangles.size() * 3);
+  for (const auto& t : scene.triangles)
+    for (int e = 0; e < 3; ++e) {
+      const std::uint64_t a = weld[t.v[e]], b = weld[t.v[(e + 1) % 3]];
+      if (a != b) edges.push_back(std::min(a, b) << 32 | std::max(a, b));
+    }
+  std::sort(edges.begin(), edges.end());
+  EdgeTopology topology;
+  for (std::size_t i = 0; i < edges.size();) {
+    std::size_t j = i;
+    while (j < edges.size() && edges[j] == edges[i]) ++j;
+    if (j - i == 1) topology.boundary_edges += 1;
+    if (j - i > 2) topology.non_manifold_edges += 1;
+    i = j;
+  }
+  return topology;
 }
 
 Scene assemble_scene(std::vector<ImportedFile> files) {

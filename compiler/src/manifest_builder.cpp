@@ -32,12 +32,14 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
     meshes.push_back(schema::CreateMeshDirect(fbb, m.name.c_str(), m.source_file, m.first_triangle,
                                               m.triangle_count, m.first_vertex, m.vertex_count));
 
+  const EdgeTopology topology = edge_topology(scene);
   const schema::Bounds bounds(
       schema::Vec3(scene.bounds.min.x, scene.bounds.min.y, scene.bounds.min.z),
       schema::Vec3(scene.bounds.max.x, scene.bounds.max.y, scene.bounds.max.z));
   const auto stats = schema::CreateSceneStats(
       fbb, scene.positions.size(), scene.triangles.size(), &bounds, scene.input_triangle_count,
-      scene.degenerate_triangles_dropped, !scene.normals.empty());
+      scene.degenerate_triangles_dropped, !scene.normals.empty(), topology.boundary_edges,
+      topology.non_manifold_edges, topology.closed());
   const auto geometry = schema::CreateGeometry(fbb, sections.positions, sections.triangles,
                                                sections.triangle_mesh, sections.normals);
   std::vector<flatbuffers::Offset<schema::Acceleration>> accelerations;

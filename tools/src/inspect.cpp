@@ -92,6 +92,8 @@ void write_json(const Blob& blob, std::ostream& out) {
   j.field("input_triangle_count", scene->input_triangle_count());
   j.field("degenerate_triangles_dropped", scene->degenerate_triangles_dropped());
   j.field("has_normals", scene->has_normals());
+  j.field("closed", scene->closed()).field("boundary_edges", scene->boundary_edges());
+  j.field("non_manifold_edges", scene->non_manifold_edges());
   j.field("mesh_count", std::uint64_t(m.meshes() ? m.meshes()->size() : 0));
   j.key("bounds").begin_object();
   j.key("min")
@@ -203,6 +205,8 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
   out << "  triangles  " << scene->triangle_count() << "  (imported "
       << scene->input_triangle_count() << ", degenerate dropped "
       << scene->degenerate_triangles_dropped() << ")\n";
+  out << "  surface    " << (scene->closed() ? "closed" : "open") << " (" << scene->boundary_edges()
+      << " boundary edges, " << scene->non_manifold_edges() << " non-manifold)\n";
   out << "  vertices   " << scene->vertex_count()
       << (scene->has_normals() ? "  (with normals)" : "") << "\n";
   out << printf_string("  bounds     (%g, %g, %g) .. (%g, %g, %g)\n", b.min().x(), b.min().y(),

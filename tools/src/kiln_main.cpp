@@ -12,6 +12,7 @@
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/inspect.hpp"
+#include "kiln/tools/query_command.hpp"
 #include "kiln/tools/trace_command.hpp"
 #include "progress.hpp"
 
@@ -202,6 +203,26 @@ int main(int argc, char** argv) {
                    "Worker threads (0 = all cores); never changes the output")
       ->check(CLI::Range(0u, kMaxThreads));
 
+  kiln::QueryArgs query;
+  auto* query_cmd =
+      app.add_subcommand("query", "Closest point, inside, box queries against a blob's BVH");
+  query_cmd->add_option("blob", query.blob, "The .kiln file")->required();
+  query_cmd->add_option("--op", query.op, "closest, inside, box (knn and radius: not yet)")
+      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius"}))
+      ->required();
+  query_cmd->add_option("--in", query.in, "Queries: float32 x 3 per point, x 6 per box (min, max)")
+      ->required();
+  query_cmd->add_option("--out", query.out, "Answers (docs/FORMAT.md)")->required();
+  query_cmd->add_option("--accel", query.accel, "BVH to use (default: the first)");
+  query_cmd
+      ->add_option("--max-distance", query.max_distance, "closest: ignore surfaces farther away")
+      ->check(CLI::PositiveNumber);
+  query_cmd->add_option("--k", query.k, "knn: neighbours per query")->check(CLI::Range(1u, 4096u));
+  query_cmd->add_option("--radius", query.radius, "radius: search radius")
+      ->check(CLI::NonNegativeNumber);
+  query_cmd->add_option("--threads", query.threads, "Worker threads (0 = all cores)")
+      ->check(CLI::Range(0u, kMaxThreads));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -212,5 +233,6 @@ int main(int argc, char** argv) {
   if (*verify_cmd) return kiln::run_verify(verify_path, verify_json, std::cout, std::cerr);
   if (*trace_cmd) return kiln::run_trace(trace);
   if (*rays_cmd) return kiln::run_rays(rays);
+  if (*query_cmd) return kiln::run_query(query);
   return 2;
 }

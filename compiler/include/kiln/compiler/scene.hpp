@@ -59,6 +59,14 @@ struct Scene {
   Bounds3 bounds;
 };
 
+// Edge manifoldness over welded positions: what "closed" means for point-inside queries.
+struct EdgeTopology {
+  std::uint64_t boundary_edges = 0;      // used by one triangle
+  std::uint64_t non_manifold_edges = 0;  // used by three or more
+  bool closed() const { return boundary_edges == 0 && non_manifold_edges == 0; }
+};
+EdgeTopology edge_topology(const Scene& scene);
+
 // The box around `positions` (all zero when empty).
 Bounds3 bounds_of(std::span<const format::Float3> positions);
 
