@@ -74,7 +74,7 @@ std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, std::vector<Pr
   } else if (best_cost >= leaf_cost && n <= o.max_leaf_size) {
     return make_leaf(box, refs);
   } else if (spatial.valid() && spatial.cost < object.cost) {
-    const std::size_t added = apply_spatial_split(spatial, refs, ctx.scene, o, left, right);
+    const std::size_t added = apply_spatial_split(spatial, refs, ctx.scene, left, right);
     budget -= std::min(budget, added);
     if (left.empty() || right.empty()) {  // unsplitting moved everything to one side
       left.clear();

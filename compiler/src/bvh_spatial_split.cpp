@@ -111,8 +111,8 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const Aabb& node_
 }
 
 std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimRef> refs,
-                                const Scene& scene, const BvhBuildOptions& options,
-                                std::vector<PrimRef>& left, std::vector<PrimRef>& right) {
+                                const Scene& scene, std::vector<PrimRef>& left,
+                                std::vector<PrimRef>& right) {
   const int axis = split.axis;
   const float pos = split.position;
   Aabb left_box, right_box;
@@ -159,7 +159,6 @@ std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimR
         whole_l.half_area() * float(left_count) + right_box.half_area() * float(right_count - 1);
     const float c_right =
         left_box.half_area() * float(left_count - 1) + whole_r.half_area() * float(right_count);
-    (void)options;
     if (c_left < c_split && c_left <= c_right) {
       left.push_back(*r);
       left_box = whole_l;

@@ -46,8 +46,8 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const Aabb& node_
                                 const Scene& scene, const BvhBuildOptions& options);
 // Distributes references, unsplitting straddlers where cheaper; returns the added references.
 std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimRef> refs,
-                                const Scene& scene, const BvhBuildOptions& options,
-                                std::vector<PrimRef>& left, std::vector<PrimRef>& right);
+                                const Scene& scene, std::vector<PrimRef>& left,
+                                std::vector<PrimRef>& right);
 
 // Splits a reference's triangle (clipped to its box) by the plane axis = position.
 void split_reference(const PrimRef& ref, int axis, float position, const Scene& scene, Aabb& left,

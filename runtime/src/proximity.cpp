@@ -5,6 +5,7 @@
 
 #include "kiln/runtime/triangle_geometry.hpp"
 #include "kiln/runtime/watertight.hpp"
+#include "ray_box.hpp"
 
 namespace kiln {
 
@@ -74,76 +75,47 @@ ClosestPoint closest_point(const BvhView& bvh, const format::Float3& point, floa
   return result;
 }
 
-void triangles_in_box(const BvhView& bvh, const format::Float3& lo_f, const format::Float3& hi_f,
-                      std::vector<std::uint32_t>& out) {
-  out.clear();
-  const auto nodes = bvh.nodes();
-  const auto triangles = bvh.triangles();
-  const Vec3d lo = to_d(lo_f), hi = to_d(hi_f);
-  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;  // empty or NaN box
-  std::uint32_t stack[format::kBvhMaxDepth + 1];
-  std::uint32_t top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const std::uint32_t index = stack[--top];
-    const format::BvhNode& n = nodes[index];
-    if (!box_overlaps(n, lo, hi)) continue;
-    if (n.count == 0) {
-      stack[top++] = n.offset;
-      stack[top++] = index + 1;
-      continue;
-    }
-    for (std::uint32_t i = n.offset, end = n.offset + n.count; i < end; ++i) {
-      const auto& t = triangles[i];
-      if (triangle_overlaps_box(to_d(t.v0), to_d(t.v1), to_d(t.v2), lo, hi))
-        out.push_back(bvh.prim_ids()[i]);
-    }
-  }
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());  // SBVH references repeat
-}
-
 namespace {
 
-// Distinct triangles crossed by the ray (t > 0).
-std::size_t count_crossings(const BvhView& bvh, const Ray& ray, std::vector<std::uint32_t>& prims) {
-  prims.clear();
+// Sorted, distinct primitive ids of the references in every leaf whose box passes `enter` and
+// that pass `keep`; SBVH references repeat, hence the dedup.
+template <class Enter, class Keep>
+void collect_prims(const BvhView& bvh, Enter enter, Keep keep, std::vector<std::uint32_t>& out) {
+  out.clear();
   const auto nodes = bvh.nodes();
-  const auto triangles = bvh.triangles();
-  const WatertightRay w = prepare_watertight(ray);
-  const float inv[3] = {1.0f / ray.dir.x, 1.0f / ray.dir.y, 1.0f / ray.dir.z};
-  const float org[3] = {ray.org.x, ray.org.y, ray.org.z};
   std::uint32_t stack[format::kBvhMaxDepth + 1];
   std::uint32_t top = 0;
   stack[top++] = 0;
   while (top > 0) {
     const std::uint32_t index = stack[--top];
     const format::BvhNode& n = nodes[index];
-    float t0 = 0, t1 = INFINITY;
-    for (int a = 0; a < 3; ++a) {
-      float lo = (n.min[a] - org[a]) * inv[a], hi = (n.max[a] - org[a]) * inv[a];
-      if (lo > hi) std::swap(lo, hi);
-      t0 = lo > t0 ? lo : t0;
-      t1 = hi * 1.0000004f < t1 ? hi * 1.0000004f : t1;
-    }
-    if (t0 > t1) continue;
+    if (!enter(n)) continue;
     if (n.count == 0) {
       stack[top++] = n.offset;
       stack[top++] = index + 1;
       continue;
     }
-    for (std::uint32_t i = n.offset, end = n.offset + n.count; i < end; ++i) {
-      const auto& t = triangles[i];
-      float th, u, v;
-      if (intersect_watertight(w, t.v0, t.v1, t.v2, 0.0f, INFINITY, th, u, v))
-        prims.push_back(bvh.prim_ids()[i]);
-    }
+    for (std::uint32_t i = n.offset, end = n.offset + n.count; i < end; ++i)
+      if (keep(bvh.triangles()[i])) out.push_back(bvh.prim_ids()[i]);
   }
-  std::sort(prims.begin(), prims.end());
-  return std::size_t(std::unique(prims.begin(), prims.end()) - prims.begin());
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
 }
 
 }  // namespace
+
+void triangles_in_box(const BvhView& bvh, const format::Float3& lo_f, const format::Float3& hi_f,
+                      std::vector<std::uint32_t>& out) {
+  out.clear();
+  const Vec3d lo = to_d(lo_f), hi = to_d(hi_f);
+  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;  // empty or NaN box
+  collect_prims(
+      bvh, [&](const format::BvhNode& n) { return box_overlaps(n, lo, hi); },
+      [&](const format::BvhTriangle& t) {
+        return triangle_overlaps_box(to_d(t.v0), to_d(t.v1), to_d(t.v2), lo, hi);
+      },
+      out);
+}
 
 bool point_inside(const BvhView& bvh, const format::Float3& p) {
   // Directions with no rational relation to the axes or each other: exact hits on the edges of
@@ -153,10 +125,22 @@ bool point_inside(const BvhView& bvh, const format::Float3& p) {
                                                     {0.7071068f, -0.3826834f, -0.5946036f},
                                                     {-0.6614378f, -0.5f, 0.5590170f},
                                                     {0.1873813f, -0.2763932f, 0.9425779f}};
-  std::vector<std::uint32_t> prims;
+  std::vector<std::uint32_t> crossed;
   int inside_votes = 0;
-  for (const auto& d : kDirections)
-    inside_votes += count_crossings(bvh, {p, 0.0f, d, INFINITY}, prims) % 2;
+  for (const auto& d : kDirections) {
+    const Ray ray{p, 0.0f, d, INFINITY};
+    const BoxRay box_ray = prepare_box_ray(ray);
+    const WatertightRay tri_ray = prepare_watertight(ray);
+    float t, u, v;
+    collect_prims(
+        bvh,
+        [&](const format::BvhNode& n) { return enter_box(n, box_ray, 0.0f, INFINITY) != INFINITY; },
+        [&](const format::BvhTriangle& tri) {
+          return intersect_watertight(tri_ray, tri.v0, tri.v1, tri.v2, 0.0f, INFINITY, t, u, v);
+        },
+        crossed);
+    inside_votes += int(crossed.size() % 2);  // distinct triangles crossed
+  }
   return inside_votes >= 3;
 }
 

@@ -22,7 +22,7 @@ struct BvhNode {
   std::uint32_t offset;  // interior: index of the second child; leaf: first reference
   float max[3];
   std::uint16_t count;  // 0 for an interior node, else the leaf's reference count
-  std::uint8_t axis;    // interior: the split axis (orders traversal); leaf: 0
+  std::uint8_t axis;    // interior: the split axis (for direction-sign ordering); leaf: 0
   std::uint8_t reserved;
 };
 static_assert(sizeof(BvhNode) == 32);
