@@ -1,7 +1,9 @@
 #include "kiln/compiler/build.hpp"
 
 #include <chrono>
+#include <stdexcept>
 
+#include "accel_entry.hpp"
 #include "kiln/compiler/atomic_file.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/formats/section_kinds.hpp"
@@ -12,6 +14,12 @@
 namespace kiln {
 
 namespace {
+
+AccelEntry make_accel_entry(const Scene& scene, const AccelRequest& request, unsigned threads) {
+  if (request.kind == "bvh" || request.kind == "sbvh")
+    return make_bvh_entry(scene, request, threads);
+  throw std::runtime_error("unknown acceleration structure '" + request.kind + "'");
+}
 
 template <class T>
 std::span<const std::byte> as_bytes(const std::vector<T>& values) {
@@ -57,27 +65,22 @@ std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& opti
                                                 scene.normals.size(), as_bytes(scene.normals));
   // Each structure is built in turn (each build is parallel inside) and kept alive until the
   // blob is serialised, since sections only borrow their bytes.
-  std::vector<FlatBvh> flat(options.accels.size());
-  std::vector<BuiltBvh> built;
-  for (std::size_t i = 0; i < options.accels.size(); ++i) {
-    const AccelRequest& request = options.accels[i];
+  std::vector<AccelEntry> entries;
+  std::vector<std::vector<std::uint32_t>> entry_sections;
+  for (const AccelRequest& request : options.accels) {
     const auto start = std::chrono::steady_clock::now();
-    BvhBuildOptions bvh_options = request.bvh;
-    bvh_options.threads = options.threads;
-    flat[i] = build_bvh(scene, bvh_options);
+    entries.push_back(make_accel_entry(scene, request, options.threads));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (reports) reports->push_back({request.kind, flat[i].stats, seconds});
-    BuiltBvh b{request.kind, &request.bvh, flat[i].stats, 0, 0, 0};
-    b.nodes = add(format::kSectionBvhNodes, sizeof(format::BvhNode), flat[i].nodes.size(),
-                  as_bytes(flat[i].nodes));
-    b.triangles = add(format::kSectionBvhTriangles, sizeof(format::BvhTriangle),
-                      flat[i].triangles.size(), as_bytes(flat[i].triangles));
-    b.prim_ids = add(format::kSectionBvhPrimIds, sizeof(std::uint32_t), flat[i].prim_ids.size(),
-                     as_bytes(flat[i].prim_ids));
-    built.push_back(b);
+    if (reports) reports->push_back({request.kind, entries.back().summary, seconds});
+    auto& owned = entry_sections.emplace_back();
+    for (const SectionPayload& section : entries.back().sections) {
+      sections.push_back(section);
+      owned.push_back(std::uint32_t(sections.size() - 1));
+    }
   }
-  const std::vector<std::byte> manifest = build_manifest(scene, options, indices, built);
+  const std::vector<std::byte> manifest =
+      build_manifest(scene, options, indices, entries, entry_sections);
   sections[0] = {format::kSectionManifest, kRequired, 1, manifest.size(), manifest, false};
   return serialize_blob(sections, options.compression, options.threads);
 }

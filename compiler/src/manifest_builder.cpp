@@ -5,13 +5,15 @@
 #include <cstring>
 #include <map>
 
+#include "accel_entry.hpp"
 #include "kiln/schema/manifest_generated.h"
 
 namespace kiln {
 
 std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& options,
                                       const GeometrySectionIndices& sections,
-                                      const std::vector<BuiltBvh>& bvhs) {
+                                      std::span<const AccelEntry> accels,
+                                      std::span<const std::vector<std::uint32_t>> accel_sections) {
   flatbuffers::FlatBufferBuilder fbb(1024);
 
   // Options that shape the output; thread counts do not, so they are not recorded.
@@ -43,17 +45,8 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
   const auto geometry = schema::CreateGeometry(fbb, sections.positions, sections.triangles,
                                                sections.triangle_mesh, sections.normals);
   std::vector<flatbuffers::Offset<schema::Acceleration>> accelerations;
-  for (const BuiltBvh& b : bvhs) {
-    const BvhBuildOptions& o = *b.options;
-    const auto desc = schema::CreateBvhDescDirect(
-        fbb, bvh_builder_name(o.builder), o.bins, o.traversal_cost, o.intersection_cost,
-        o.max_leaf_size, o.sbvh_alpha, o.sbvh_max_duplication, b.nodes, b.triangles, b.prim_ids,
-        b.stats.node_count, b.stats.leaf_count, b.stats.reference_count, b.stats.max_depth,
-        b.stats.max_leaf_size, b.stats.average_leaf_size, b.stats.duplication_factor,
-        b.stats.sah_cost, b.stats.bytes_per_triangle);
-    const std::vector<std::uint32_t> owned = {b.nodes, b.triangles, b.prim_ids};
-    accelerations.push_back(schema::CreateAccelerationDirect(fbb, b.kind.c_str(), &owned, desc));
-  }
+  for (std::size_t i = 0; i < accels.size(); ++i)
+    accelerations.push_back(accels[i].describe(fbb, accel_sections[i]));
   const auto manifest =
       schema::CreateManifestDirect(fbb, kToolName, kToolVersion, &option_offsets, &sources, stats,
                                    &meshes, geometry, &accelerations);

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "kiln/compiler/build.hpp"
@@ -11,16 +12,12 @@ struct GeometrySectionIndices {
   std::uint32_t positions, triangles, triangle_mesh, normals;
 };
 
-struct BuiltBvh {
-  std::string kind;
-  const BvhBuildOptions* options;
-  BvhStatistics stats;
-  std::uint32_t nodes, triangles, prim_ids;  // section indices
-};
+struct AccelEntry;
 
 // The manifest FlatBuffer for a scene. Deterministic: same scene and options, same bytes.
 std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& options,
                                       const GeometrySectionIndices& sections,
-                                      const std::vector<BuiltBvh>& bvhs);
+                                      std::span<const AccelEntry> accels,
+                                      std::span<const std::vector<std::uint32_t>> accel_sections);
 
 }  // namespace kiln

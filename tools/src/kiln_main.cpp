@@ -89,12 +89,9 @@ int run_build(const BuildArgs& args) {
         seconds, kiln::resolve_thread_count(args.threads));
     for (const auto& r : reports)
       std::fprintf(stderr,
-                   "kiln build: %s: built in %.3f s (%.2f Mtris/s), %llu nodes, depth %u, SAH cost "
-                   "%.3f, %.3f references/triangle, %.1f bytes/triangle\n",
-                   r.kind.c_str(), r.build_seconds,
-                   double(scene->triangle_count()) / r.build_seconds * 1e-6,
-                   (unsigned long long)r.stats.node_count, r.stats.max_depth, r.stats.sah_cost,
-                   r.stats.duplication_factor, r.stats.bytes_per_triangle);
+                   "kiln build: %s: built in %.3f s (%.2f Mtris/s), %s\n", r.kind.c_str(),
+                   r.build_seconds, double(scene->triangle_count()) / r.build_seconds * 1e-6,
+                   r.summary.c_str());
   }
   return 0;
 }

@@ -16,7 +16,8 @@ namespace kiln {
 inline constexpr const char* kToolName = "kiln";
 extern const char* const kToolVersion;
 
-// One acceleration structure to build: kind "bvh" (binned or sweep builder) or "sbvh".
+// One acceleration structure to build: kind "bvh" (binned or sweep builder) or "sbvh"; only the
+// options of its kind are read.
 struct AccelRequest {
   std::string kind;
   BvhBuildOptions bvh;
@@ -26,7 +27,7 @@ struct AccelRequest {
 // break determinism).
 struct AccelReport {
   std::string kind;
-  BvhStatistics stats;
+  std::string summary;  // its statistics in one line
   double build_seconds = 0;
 };
 
