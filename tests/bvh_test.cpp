@@ -306,10 +306,10 @@ std::vector<std::byte> blob_with_bvhs(const Scene& scene, bool compress, unsigne
   options.inputs = {"generated"};
   options.threads = threads;
   options.compression.enabled = compress;
-  options.accels.push_back({"bvh", {}});
+  options.accels.push_back({"bvh", {}, {}});
   BvhBuildOptions sbvh;
   sbvh.builder = BvhBuilder::kSpatial;
-  options.accels.push_back({"sbvh", sbvh});
+  options.accels.push_back({"sbvh", sbvh, {}});
   return compile_blob(scene, options);
 }
 

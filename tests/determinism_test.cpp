@@ -46,7 +46,7 @@ TEST(Determinism, BvhBuildsAreByteIdenticalAcrossThreadCounts) {
     BvhBuildOptions sweep, sbvh;
     sweep.builder = BvhBuilder::kSweep;
     sbvh.builder = BvhBuilder::kSpatial;
-    options.accels = {{"bvh", sweep}, {"sbvh", sbvh}};
+    options.accels = {{"bvh", sweep, {}}, {"sbvh", sbvh, {}}};
     return compile_blob(scene, options);
   };
   const auto one = blob(1);

@@ -33,5 +33,6 @@ SectionPayload raw_section(std::uint32_t kind, const std::vector<T>& values) {
 }
 
 AccelEntry make_bvh_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
+AccelEntry make_kdtree_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
 
 }  // namespace kiln

@@ -18,6 +18,7 @@ namespace {
 AccelEntry make_accel_entry(const Scene& scene, const AccelRequest& request, unsigned threads) {
   if (request.kind == "bvh" || request.kind == "sbvh")
     return make_bvh_entry(scene, request, threads);
+  if (request.kind == "kdtree") return make_kdtree_entry(scene, request, threads);
   throw std::runtime_error("unknown acceleration structure '" + request.kind + "'");
 }
 

@@ -2,6 +2,7 @@
 #include <string>
 
 #include "kiln/formats/bvh.hpp"
+#include "kiln/formats/kdtree.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 
@@ -88,6 +89,17 @@ void Blob::validate_geometry() {
         check((where + "primitive ids").c_str(), bvh->prim_ids(), format::kSectionBvhPrimIds,
               sizeof(std::uint32_t), bvh->reference_count(), false);
         if (bvh->node_count() == 0) fail_section(0, where + "has no nodes");
+      }
+      if (const auto* kd = accel->kdtree()) {
+        const auto where = "acceleration '" + kind + "' ";
+        check((where + "nodes").c_str(), kd->nodes(), format::kSectionKdNodes,
+              sizeof(format::KdNode), kd->node_count(), false);
+        check((where + "primitive ids").c_str(), kd->prim_ids(), format::kSectionKdPrimIds,
+              sizeof(std::uint32_t), kd->reference_count(), false);
+        check((where + "triangles").c_str(), kd->triangles(), format::kSectionKdTriangles,
+              sizeof(format::BvhTriangle), triangle_count, false);
+        if (kd->node_count() == 0) fail_section(0, where + "has no nodes");
+        if (kd->bounds() == nullptr) fail_section(0, where + "has no bounds");
       }
     }
   }

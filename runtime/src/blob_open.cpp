@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "kiln/formats/bvh.hpp"
+#include "kiln/formats/kdtree.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/checksum.hpp"
@@ -29,7 +30,9 @@ bool is_known_kind(std::uint32_t kind) {
   return kind == format::kSectionManifest || kind == format::kSectionPositions ||
          kind == format::kSectionNormals || kind == format::kSectionTriangles ||
          kind == format::kSectionTriangleMesh || kind == format::kSectionBvhNodes ||
-         kind == format::kSectionBvhTriangles || kind == format::kSectionBvhPrimIds;
+         kind == format::kSectionBvhTriangles || kind == format::kSectionBvhPrimIds ||
+         kind == format::kSectionKdNodes || kind == format::kSectionKdPrimIds ||
+         kind == format::kSectionKdTriangles;
 }
 
 }  // namespace

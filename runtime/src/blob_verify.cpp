@@ -1,10 +1,12 @@
 // The deep check behind `kiln verify`: everything open() skipped because it is O(bytes).
 #include <cmath>
 #include <cstring>
+#include <vector>
 #include <string>
 
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/checksum.hpp"
 #include "kiln/runtime/error.hpp"
 
@@ -66,10 +68,17 @@ void Blob::verify() const {
 void Blob::verify_accelerations() const {
   const auto* accels = manifest_->accelerations();
   if (accels == nullptr) return;
+  for (const auto* accel : *accels) {
+    if (accel->bvh() != nullptr) verify_bvh(*accel);
+    if (accel->kdtree() != nullptr) verify_kdtree(*accel);
+  }
+}
+
+void Blob::verify_bvh(const schema::Acceleration& accel_table) const {
+  const auto* accel = &accel_table;
   const auto positions_view = positions();
   const auto triangles_view = triangles();
-  for (const auto* accel : *accels) {
-    if (accel->bvh() == nullptr) continue;
+  {
     const std::string name = accel->kind()->str();
     const BvhView bvh = BvhView::from_blob(*this, name);  // structure: order, ranges, depth
     const auto nodes = bvh.nodes();
@@ -99,6 +108,55 @@ void Blob::verify_accelerations() const {
         fail_section(accel->bvh()->triangles(), name + " reference " + std::to_string(r) +
                                                     " does not match its triangle's corners");
     }
+  }
+}
+
+// Beyond the view's structural walk: splits inside their cells, the triangle copies equal to the
+// scene's, and every triangle in at least one leaf.
+void Blob::verify_kdtree(const schema::Acceleration& accel) const {
+  const std::string name = accel.kind()->str();
+  const auto* desc = accel.kdtree();
+  const KdTreeView tree = KdTreeView::from_blob(*this, name);
+  const auto positions_view = positions();
+  const auto triangles_view = triangles();
+  const auto copies = tree.triangles();
+  for (std::size_t i = 0; i < triangles_view.size(); ++i) {
+    const auto& t = triangles_view[i];
+    const format::BvhTriangle expected{positions_view[t.v[0]], positions_view[t.v[1]],
+                                       positions_view[t.v[2]]};
+    if (std::memcmp(&expected, &copies[i], sizeof(expected)) != 0)
+      fail_section(desc->triangles(), name + " triangle " + std::to_string(i) +
+                                          " does not match the scene's corners");
+  }
+  std::vector<bool> referenced(triangles_view.size());
+  for (const auto id : tree.prim_ids()) referenced[id] = true;
+  for (std::size_t i = 0; i < referenced.size(); ++i)
+    if (!referenced[i])
+      fail_section(desc->prim_ids(), name + " triangle " + std::to_string(i) + " is in no leaf");
+  struct Cell {
+    std::uint32_t node;
+    float lo[3], hi[3];
+  };
+  std::vector<Cell> stack(1);
+  stack[0].node = 0;
+  for (int a = 0; a < 3; ++a) stack[0].lo[a] = tree.bounds_min()[a], stack[0].hi[a] = tree.bounds_max()[a];
+  const auto nodes = tree.nodes();
+  while (!stack.empty()) {
+    const Cell c = stack.back();
+    stack.pop_back();
+    const format::KdNode& n = nodes[c.node];
+    if (n.is_leaf()) continue;
+    const auto a = n.axis();
+    if (!(n.split() > c.lo[a] && n.split() < c.hi[a]))
+      fail_section(desc->nodes(), name + " node " + std::to_string(c.node) +
+                                      " splits outside its cell");
+    Cell below = c, above = c;
+    below.node = c.node + 1;
+    below.hi[a] = n.split();
+    above.node = n.above_child();
+    above.lo[a] = n.split();
+    stack.push_back(above);
+    stack.push_back(below);
   }
 }
 

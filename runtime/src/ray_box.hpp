@@ -1,4 +1,4 @@
-// The conservative ray-box slab test shared by every ray walk over a BVH.
+// The conservative ray-box slab test shared by every ray walk over a BVH or a k-d tree's root.
 #pragma once
 
 #include <limits>
@@ -30,19 +30,25 @@ inline BoxRay prepare_box_ray(const Ray& ray) {
   return b;
 }
 
-// Entry distance of the ray into the node's box, or +inf when it misses within [tmin, tmax].
+// Narrows [tmin, tmax] to the part inside the box; false when nothing is left.
 // A NaN slab distance (origin on a slab plane of an axis the ray runs parallel to) loses every
 // comparison below, which leaves that axis unconstrained, as it should be.
-inline float enter_box(const format::BvhNode& n, const BoxRay& r, float tmin, float tmax) {
+inline bool clip_to_box(const float box_min[3], const float box_max[3], const BoxRay& r,
+                        float& tmin, float& tmax) {
   for (int a = 0; a < 3; ++a) {
-    const float lo = r.negative[a] ? n.max[a] : n.min[a];
-    const float hi = r.negative[a] ? n.min[a] : n.max[a];
+    const float lo = r.negative[a] ? box_max[a] : box_min[a];
+    const float hi = r.negative[a] ? box_min[a] : box_max[a];
     const float t0 = (lo - r.org[a]) * r.inv_dir[a];
     const float t1 = (hi - r.org[a]) * r.inv_dir[a] * kFarScale;
     tmin = t0 > tmin ? t0 : tmin;
     tmax = t1 < tmax ? t1 : tmax;
   }
-  return tmin <= tmax ? tmin : std::numeric_limits<float>::infinity();
+  return tmin <= tmax;
+}
+
+// Entry distance of the ray into the node's box, or +inf when it misses within [tmin, tmax].
+inline float enter_box(const format::BvhNode& n, const BoxRay& r, float tmin, float tmax) {
+  return clip_to_box(n.min, n.max, r, tmin, tmax) ? tmin : std::numeric_limits<float>::infinity();
 }
 
 }  // namespace kiln

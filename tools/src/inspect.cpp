@@ -157,6 +157,19 @@ void write_json(const Blob& blob, std::ostream& out) {
         j.field("bytes_per_triangle", b->bytes_per_triangle());
         j.end_object();
       }
+      if (const auto* k = a->kdtree()) {
+        j.key("kdtree").begin_object();
+        j.field("traversal_cost", double(k->traversal_cost()));
+        j.field("intersection_cost", double(k->intersection_cost()));
+        j.field("empty_bonus", double(k->empty_bonus())).field("depth_limit", k->depth_limit());
+        j.field("node_count", k->node_count()).field("leaf_count", k->leaf_count());
+        j.field("empty_leaf_count", k->empty_leaf_count());
+        j.field("reference_count", k->reference_count()).field("max_depth", k->max_depth());
+        j.field("largest_leaf", k->largest_leaf());
+        j.field("references_per_triangle", k->references_per_triangle());
+        j.field("sah_cost", k->sah_cost()).field("bytes_per_triangle", k->bytes_per_triangle());
+        j.end_object();
+      }
       j.end_object();
     }
   j.end_array();
@@ -247,6 +260,17 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
             b->max_depth(), b->average_leaf_size(), b->largest_leaf(),
             (unsigned long long)b->reference_count(), b->duplication_factor(), b->sah_cost(),
             b->bytes_per_triangle());
+      }
+      if (const auto* k = a->kdtree()) {
+        out << printf_string(
+            "    SAH constants Ct %g Ci %g, empty bonus %g, depth limit %u\n"
+            "    %llu nodes, %llu leaves (%llu empty), depth %u, largest leaf %u\n"
+            "    %llu references (%.3f per triangle), SAH cost %.3f, %.1f bytes/triangle\n",
+            double(k->traversal_cost()), double(k->intersection_cost()),
+            double(k->empty_bonus()), k->depth_limit(), (unsigned long long)k->node_count(),
+            (unsigned long long)k->leaf_count(), (unsigned long long)k->empty_leaf_count(),
+            k->max_depth(), k->largest_leaf(), (unsigned long long)k->reference_count(),
+            k->references_per_triangle(), k->sah_cost(), k->bytes_per_triangle());
       }
     }
 }

@@ -29,6 +29,7 @@ struct BuildArgs {
   bool stats = false;
   std::vector<std::string> accels;
   kiln::BvhBuildOptions bvh;
+  kiln::KdTreeBuildOptions kdtree;
   std::string bvh_builder = "binned";
 };
 
@@ -48,7 +49,7 @@ int run_build(const BuildArgs& args) {
         std::cerr << "kiln build: --accel " << kind << " given twice\n";
         return 2;
       }
-    kiln::AccelRequest request{kind, args.bvh};
+    kiln::AccelRequest request{kind, args.bvh, args.kdtree};
     request.bvh.builder = kind == "sbvh"                ? kiln::BvhBuilder::kSpatial
                           : args.bvh_builder == "sweep" ? kiln::BvhBuilder::kSweep
                                                         : kiln::BvhBuilder::kBinned;
@@ -124,7 +125,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   build_cmd->add_flag("--stats", build.stats, "Print build time and sizes to stderr");
   build_cmd->add_option("--accel", build.accels, "Acceleration structures to build (repeatable)")
-      ->check(CLI::IsMember({"bvh", "sbvh"}))
+      ->check(CLI::IsMember({"bvh", "sbvh", "kdtree"}))
       ->allow_extra_args(false);
   build_cmd->add_option("--bvh-builder", build.bvh_builder, "Builder for --accel bvh")
       ->check(CLI::IsMember({"binned", "sweep"}))
@@ -153,6 +154,20 @@ int main(int argc, char** argv) {
       ->add_option("--sbvh-max-duplication", build.bvh.sbvh_max_duplication,
                    "At most (1 + this) x triangles references")
       ->check(CLI::Range(0.0f, 16.0f))
+      ->capture_default_str();
+
+  build_cmd->add_option("--kd-traversal-cost", build.kdtree.traversal_cost, "k-d tree SAH node cost")
+      ->check(CLI::Range(0.0f, 1000.0f))
+      ->capture_default_str();
+  build_cmd
+      ->add_option("--kd-intersection-cost", build.kdtree.intersection_cost,
+                   "k-d tree SAH triangle cost")
+      ->check(CLI::Range(0.001f, 1000.0f))
+      ->capture_default_str();
+  build_cmd
+      ->add_option("--kd-empty-bonus", build.kdtree.empty_bonus,
+                   "k-d tree: fraction of the cost forgiven for cutting off empty space")
+      ->check(CLI::Range(0.0f, 0.99f))
       ->capture_default_str();
 
   std::string dump_path;

@@ -12,6 +12,7 @@
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/tools/ray_generator.hpp"
 
@@ -24,6 +25,29 @@ std::string default_accel(const Blob& blob) {
   if (accels == nullptr || accels->size() == 0)
     throw BlobError(blob.name() + ": holds no acceleration structure (build with --accel)");
   return accels->Get(0)->kind()->str();
+}
+
+// Traces with whichever structure `accel` names.
+void trace_with(const Blob& blob, const std::string& accel, std::span<const Ray> rays,
+                std::span<Hit> hits, bool any_hit, unsigned threads) {
+  if (const auto* accels = blob.manifest().accelerations())
+    for (const auto* a : *accels) {
+      if (a->kind()->str() != accel) continue;
+      if (a->kdtree() != nullptr)
+        return trace_rays(KdTreeView::from_blob(blob, accel), rays, hits, any_hit, threads);
+      if (a->bvh() != nullptr)
+        return trace_rays(BvhView::from_blob(blob, accel), rays, hits, any_hit, threads);
+      throw BlobError(blob.name() + ": '" + accel + "' does not trace rays");
+    }
+  throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
+}
+
+// The first BVH in the blob, if any.
+std::string first_bvh(const Blob& blob) {
+  if (const auto* accels = blob.manifest().accelerations())
+    for (const auto* a : *accels)
+      if (a->bvh() != nullptr) return a->kind()->str();
+  return {};
 }
 
 bool looks_like_blob(const std::string& path) {
@@ -41,7 +65,6 @@ int run_trace(const TraceArgs& args) {
   try {
     const Blob blob = Blob::open_file(args.blob);
     const std::string accel = args.accel.empty() ? default_accel(blob) : args.accel;
-    const BvhView bvh = BvhView::from_blob(blob, accel);
     const MappedFile rays_file(args.rays);
     const auto bytes = rays_file.bytes();
     if (bytes.size() % sizeof(Ray) != 0) {
@@ -54,7 +77,7 @@ int run_trace(const TraceArgs& args) {
                                     bytes.size() / sizeof(Ray));
     std::vector<Hit> hits(rays.size());
     const auto start = std::chrono::steady_clock::now();
-    trace_rays(bvh, rays, hits, args.any_hit, args.threads);
+    trace_with(blob, accel, rays, hits, args.any_hit, args.threads);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     write_file_atomically(args.out, std::as_bytes(std::span<const Hit>(hits)));
@@ -85,9 +108,21 @@ int run_rays(const RaysArgs& args) {
     if (looks_like_blob(args.input)) {
       const Blob blob = Blob::open_file(args.input);
       const auto* b = blob.manifest().scene()->bounds();
-      generate(BvhView::from_blob(blob, default_accel(blob)), blob.positions(), blob.triangles(),
-               {b->min().x(), b->min().y(), b->min().z()},
-               {b->max().x(), b->max().y(), b->max().z()});
+      const format::Float3 lo{b->min().x(), b->min().y(), b->min().z()};
+      const format::Float3 hi{b->max().x(), b->max().y(), b->max().z()};
+      if (const std::string bvh = first_bvh(blob); !bvh.empty()) {
+        generate(BvhView::from_blob(blob, bvh), blob.positions(), blob.triangles(), lo, hi);
+      } else {  // primary hits need a BVH: build one over the blob's own triangles
+        Scene scene;
+        scene.positions.assign(blob.positions().begin(), blob.positions().end());
+        scene.triangles.assign(blob.triangles().begin(), blob.triangles().end());
+        scene.bounds = {lo, hi};
+        BvhBuildOptions options;
+        options.threads = args.threads;
+        const FlatBvh flat = build_bvh(scene, options);
+        generate(BvhView(flat.nodes, flat.triangles, flat.prim_ids), blob.positions(),
+                 blob.triangles(), lo, hi);
+      }
     } else {
       const Scene scene = import_scene({args.input}, args.threads);
       BvhBuildOptions options;

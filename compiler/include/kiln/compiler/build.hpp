@@ -9,6 +9,7 @@
 
 #include "kiln/compiler/blob_writer.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/kdtree_builder.hpp"
 #include "kiln/compiler/scene.hpp"
 
 namespace kiln {
@@ -16,11 +17,12 @@ namespace kiln {
 inline constexpr const char* kToolName = "kiln";
 extern const char* const kToolVersion;
 
-// One acceleration structure to build: kind "bvh" (binned or sweep builder) or "sbvh"; only the
-// options of its kind are read.
+// One acceleration structure to build: kind "bvh" (binned or sweep builder), "sbvh" or
+// "kdtree"; only the options of its kind are read.
 struct AccelRequest {
   std::string kind;
   BvhBuildOptions bvh;
+  KdTreeBuildOptions kdtree;
 };
 
 // What building one structure produced, for `kiln build --stats` (never stored: timing would
