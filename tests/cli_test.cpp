@@ -11,9 +11,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string quoted(const std::string& s) {
-  return "'" + s + "'";
-}
+using test::quoted;
 
 TEST(Cli, EveryCommandHasHelp) {
   for (const char* command : {"--help", "build --help", "dump --help", "verify --help",

@@ -11,6 +11,7 @@
 
 #include "kiln/runtime/aligned_buffer.hpp"
 #include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/checksum.hpp"
 #include "kiln/runtime/error.hpp"
 
 namespace kiln::test {
@@ -95,6 +96,25 @@ CommandResult run_kiln(const std::string& arguments) {
   result.out = slurp(out);
   result.err = slurp(err);
   return result;
+}
+
+std::vector<std::byte> with_patched_section(std::vector<std::byte> blob, std::uint32_t section,
+                                            std::size_t offset, std::span<const std::byte> bytes) {
+  format::SectionEntry entry;
+  std::memcpy(&entry, blob.data() + 64 + 64 * section, 64);
+  std::memcpy(blob.data() + entry.offset + offset, bytes.data(), bytes.size());
+  entry.checksum =
+      xxh3_64(std::span<const std::byte>(blob).subspan(entry.offset, entry.stored_size));
+  std::memcpy(blob.data() + 64 + 64 * section, &entry, 64);
+  format::FileHeader h;
+  std::memcpy(&h, blob.data(), 64);
+  h.section_table_checksum =
+      xxh3_64(std::span<const std::byte>(blob).subspan(64, 64 * h.section_count));
+  h.header_checksum = 0;
+  std::memcpy(blob.data(), &h, 64);
+  h.header_checksum = xxh3_64(std::span<const std::byte>(blob).first(56));
+  std::memcpy(blob.data(), &h, 64);
+  return blob;
 }
 
 }  // namespace kiln::test

@@ -41,6 +41,16 @@ std::string open_and_verify(std::span<const std::byte> bytes);
 // Only the open (O(sections)) checks.
 std::string open_only(std::span<const std::byte> bytes);
 
+// `blob` with `bytes` written at `offset` inside raw section `section`, and the section, table and
+// header checksums recomputed: corruption that only the structural checks can catch.
+std::vector<std::byte> with_patched_section(std::vector<std::byte> blob, std::uint32_t section,
+                                            std::size_t offset, std::span<const std::byte> bytes);
+
+// A path in single quotes for run_kiln's shell.
+inline std::string quoted(const std::string& s) {
+  return "'" + s + "'";
+}
+
 struct CommandResult {
   int exit_code = -1;  // -1 when killed by a signal
   int signal = 0;

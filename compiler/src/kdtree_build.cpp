@@ -132,9 +132,9 @@ void append(Subtree& out, const Subtree& sub) {
   if (out.nodes.size() + sub.nodes.size() > format::kKdMaxIndex)
     throw std::runtime_error("k-d tree: more nodes than the layout can address");
   for (format::KdNode n : sub.nodes) {
-    n = n.is_leaf() ? format::KdNode::leaf(n.first_reference() + prim_offset, n.reference_count())
-                    : format::KdNode::interior(int(n.axis()), n.split(),
-                                               n.above_child() + node_offset);
+    n = n.is_leaf()
+            ? format::KdNode::leaf(n.first_reference() + prim_offset, n.reference_count())
+            : format::KdNode::interior(int(n.axis()), n.split(), n.above_child() + node_offset);
     out.nodes.push_back(n);
   }
   out.prims.insert(out.prims.end(), sub.prims.begin(), sub.prims.end());
@@ -143,7 +143,8 @@ void append(Subtree& out, const Subtree& sub) {
 void build_node(const Context& ctx, const Aabb& cell, EventLists events, std::uint32_t depth,
                 Subtree& out, std::vector<std::uint8_t>& side) {
   const std::size_t n = triangle_count(events);
-  const Split split = n == 0 || depth >= ctx.depth_limit ? Split{} : find_split(ctx, cell, events, n);
+  const Split split =
+      n == 0 || depth >= ctx.depth_limit ? Split{} : find_split(ctx, cell, events, n);
   if (!(split.cost < ctx.options.intersection_cost * float(n))) {
     emit_leaf(events, out);
     return;
@@ -159,10 +160,10 @@ void build_node(const Context& ctx, const Aabb& cell, EventLists events, std::ui
     } else if (e.type == kStart && e.pos >= p) {
       side[e.prim] = kRightOnly;
     } else if (e.type == kPlanar) {
-      side[e.prim] = e.pos < p                ? kLeftOnly
-                     : e.pos > p              ? kRightOnly
+      side[e.prim] = e.pos < p           ? kLeftOnly
+                     : e.pos > p         ? kRightOnly
                      : split.planar_left ? kLeftOnly
-                                              : kRightOnly;
+                                         : kRightOnly;
     }
   }
   for (const Event& e : events[axis])
@@ -174,8 +175,10 @@ void build_node(const Context& ctx, const Aabb& cell, EventLists events, std::ui
   EventLists left, right;
   for (int k = 0; k < 3; ++k) {
     for (const Event& e : events[k]) {
-      if (side[e.prim] == kLeftOnly) left[k].push_back(e);
-      else if (side[e.prim] == kRightOnly) right[k].push_back(e);
+      if (side[e.prim] == kLeftOnly)
+        left[k].push_back(e);
+      else if (side[e.prim] == kRightOnly)
+        right[k].push_back(e);
     }
   }
   for (const Event& e : events[axis]) side[e.prim] = kBoth;
@@ -298,7 +301,7 @@ FlatKdTree build_kdtree(const Scene& scene, const KdTreeBuildOptions& options) {
                     threads <= 1 ? 0u : std::uint32_t(std::ceil(std::log2(double(threads)))) + 1};
   Subtree root;
   std::vector<std::uint8_t> side(scene.triangles.size(), kBoth);
-  build_node(ctx, tree.bounds, std::move(events), 0, root, side);
+  build_node(ctx, tree.bounds, std::move(events), 1, root, side);
   tree.nodes = std::move(root.nodes);
   tree.prim_ids = std::move(root.prims);
 

@@ -28,19 +28,20 @@ struct KdTreeStatistics {
 struct FlatKdTree {
   Aabb bounds;  // the root cell
   std::vector<format::KdNode> nodes;
-  std::vector<std::uint32_t> prim_ids;           // leaf references in leaf order
+  std::vector<std::uint32_t> prim_ids;         // leaf references in leaf order
   std::vector<format::BvhTriangle> triangles;  // every triangle's corners, by primitive id
   KdTreeStatistics stats;
 };
 
-// The depth cap for n triangles: pbrt's 8 + 1.3 log2(n), at most kKdMaxDepth - 1.
+// The most levels (the root is level 1) a tree over n triangles may have: pbrt's safety cap
+// 8 + 1.3 log2(n), at most kKdMaxDepth - 1.
 std::uint32_t kd_depth_limit(std::size_t triangle_count);
 
 FlatKdTree build_kdtree(const Scene& scene, const KdTreeBuildOptions& options);
 
 // Bounds of the part of triangle (a, b, c) inside `cell`, rounded outwards to float and clamped
 // to the cell; empty when the triangle misses the cell. Sutherland-Hodgman in double.
-Aabb clip_triangle_to_box(const format::Float3& a, const format::Float3& b,
-                          const format::Float3& c, const Aabb& cell);
+Aabb clip_triangle_to_box(const format::Float3& a, const format::Float3& b, const format::Float3& c,
+                          const Aabb& cell);
 
 }  // namespace kiln
