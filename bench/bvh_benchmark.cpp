@@ -1,5 +1,6 @@
-// BVH build and traversal throughput of Kiln's builders (binned SAH, full-sweep SAH, SBVH) and,
-// when built with -DKILN_BENCH_EMBREE=ON, of Embree 3 on the same triangles and the same rays.
+// Build and traversal throughput of Kiln's ray structures (BVH with the binned SAH, full-sweep SAH
+// and SBVH builders; the SAH k-d tree) and, when built with -DKILN_BENCH_EMBREE=ON, of Embree 3
+// on the same triangles and the same rays.
 //
 // Usage: kiln_bench_bvh [--rays=N] [--seed=N] [--iterations=N] MESH... [benchmark flags]
 //   MESH    a file import_scene reads (OBJ, PLY, .drc, any of them .zst...), or
@@ -38,7 +39,9 @@
 
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/kdtree_builder.hpp"
 #include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/ray.hpp"
 #include "kiln/tools/ray_generator.hpp"
 
@@ -62,8 +65,9 @@ unsigned hardware_threads() {
 // ---------------------------------------------------------------------------------------------
 // What is measured: one row per acceleration structure and mesh.
 
-enum class Structure { kBinned, kSweep, kSbvh, kEmbreeMedium, kEmbreeHigh };
-constexpr std::array kStructures = {Structure::kBinned, Structure::kSweep, Structure::kSbvh,
+enum class Structure { kBinned, kSweep, kSbvh, kKdTree, kEmbreeMedium, kEmbreeHigh };
+constexpr std::array kStructures = {Structure::kBinned,       Structure::kSweep,
+                                    Structure::kSbvh,         Structure::kKdTree,
                                     Structure::kEmbreeMedium, Structure::kEmbreeHigh};
 
 const char* structure_name(Structure s) {
@@ -74,6 +78,8 @@ const char* structure_name(Structure s) {
       return "sweep";
     case Structure::kSbvh:
       return "sbvh";
+    case Structure::kKdTree:
+      return "kdtree";
     case Structure::kEmbreeMedium:
       return "embree-medium";
     case Structure::kEmbreeHigh:
@@ -249,6 +255,7 @@ struct MeshCase {
   std::vector<std::string> files;
   kiln::Scene scene;
   std::map<kiln::BvhBuilder, kiln::FlatBvh> bvhs;
+  std::optional<kiln::FlatKdTree> kdtree;
   std::map<kiln::RayKind, std::vector<kiln::Ray>> rays;
   std::map<Structure, Row> rows;
 #ifdef KILN_BENCH_EMBREE
@@ -277,6 +284,15 @@ const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
     it = mesh.bvhs.emplace(builder, kiln::build_bvh(mesh.scene, options)).first;
   }
   return it->second;
+}
+
+const kiln::FlatKdTree& kdtree_for(MeshCase& mesh) {
+  if (!mesh.kdtree) mesh.kdtree.emplace(kiln::build_kdtree(mesh.scene, {}));
+  return *mesh.kdtree;
+}
+
+kiln::KdTreeView kdtree_view(const kiln::FlatKdTree& t) {
+  return kiln::KdTreeView(t.nodes, t.prim_ids, t.triangles, t.bounds.lo, t.bounds.hi);
 }
 
 // The same rays for every structure: generated once from the binned BVH (any correct BVH gives
@@ -330,7 +346,8 @@ void for_each_ray_parallel(std::size_t count, const Trace& trace) {
   worker();
 }
 
-void trace_kiln_single(const kiln::BvhView& bvh, const std::vector<kiln::Ray>& rays,
+template <class View>
+void trace_kiln_single(const View& bvh, const std::vector<kiln::Ray>& rays,
                        std::vector<kiln::Hit>& hits, bool any_hit) {
   for (std::size_t i = 0; i < rays.size(); ++i) {
     if (any_hit) {
@@ -374,7 +391,23 @@ void set_build_counters(benchmark::State& state, const MeshCase& mesh, const Row
   state.counters["B/tri"] = row.bytes_per_triangle;
 }
 
+// The k-d tree's SAH cost uses its own constants (Ct 15, Ci 20); divided by Ci it counts triangle
+// tests, as the BVH's (Ct 1, Ci 1) does, so the column compares like with like.
+void bench_kiln_kdtree_build(benchmark::State& state, MeshCase* mesh) {
+  const kiln::KdTreeBuildOptions options;
+  std::optional<kiln::FlatKdTree> built;
+  Row& row = mesh->rows[Structure::kKdTree];
+  row.build_seconds = time_iterations(
+      state, [&] { built.emplace(kiln::build_kdtree(mesh->scene, options)); },
+      [&] { built.reset(); });
+  row.sah_cost = built->stats.sah_cost / options.intersection_cost;
+  row.bytes_per_triangle = built->stats.bytes_per_triangle;
+  set_build_counters(state, *mesh, row);
+  mesh->kdtree = std::move(built);
+}
+
 void bench_kiln_build(benchmark::State& state, MeshCase* mesh, Structure s) {
+  if (s == Structure::kKdTree) return bench_kiln_kdtree_build(state, mesh);
   kiln::BvhBuildOptions options;
   options.builder = kiln_builder(s);
   options.threads = 0;
@@ -398,18 +431,25 @@ void bench_kiln_trace(benchmark::State& state, MeshCase* mesh, Structure s, kiln
     state.SkipWithError(e.what());
     return;
   }
-  const kiln::FlatBvh& flat = bvh_for(*mesh, kiln_builder(s));
-  const kiln::BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);  // O(nodes) check: untimed
   std::vector<kiln::Hit> hits(rays->size());
   const bool any_hit = is_any_hit(kind);
-  const double seconds = time_iterations(state, [&] {
-    if (all_threads) {
-      kiln::trace_rays(bvh, *rays, hits, any_hit, 0);
-    } else {
-      trace_kiln_single(bvh, *rays, hits, any_hit);
-    }
-    benchmark::ClobberMemory();
-  });
+  auto time_view = [&](const auto& view) {
+    return time_iterations(state, [&] {
+      if (all_threads) {
+        kiln::trace_rays(view, *rays, hits, any_hit, 0);
+      } else {
+        trace_kiln_single(view, *rays, hits, any_hit);
+      }
+      benchmark::ClobberMemory();
+    });
+  };
+  double seconds = 0;
+  if (s == Structure::kKdTree) {
+    seconds = time_view(kdtree_view(kdtree_for(*mesh)));  // the view's O(nodes) check: untimed
+  } else {
+    const kiln::FlatBvh& flat = bvh_for(*mesh, kiln_builder(s));
+    seconds = time_view(kiln::BvhView(flat.nodes, flat.triangles, flat.prim_ids));
+  }
   const double mrays = double(rays->size()) / seconds * 1e-6;
   state.counters["Mrays/s"] = mrays;
   mesh->rows[s].mrays[kind_index(kind)][all_threads] = mrays;
@@ -722,7 +762,8 @@ void print_report() {
               hardware_threads());
   std::printf(
       "\nFastest of the timed iterations. Build: all threads (Kiln threads = 0; Embree's TBB "
-      "pool). B/tri: Kiln = nodes + leaf triangles + prim ids; Embree = net bytes allocated by "
+      "pool). SAH in triangle tests (k-d tree: its cost over Ci). B/tri: Kiln = nodes + "
+      "triangles + prim ids; Embree = net bytes allocated by "
       "rtcCommitScene (memory monitor, allocator slack included). build ÷ Embree: Kiln binned ÷ "
       "Embree MEDIUM, Kiln SBVH ÷ Embree HIGH (above 1: Kiln slower). Mrays/s: primary and diffuse "
       "= closest hit, shadow = any hit.\n");
