@@ -1,11 +1,15 @@
 // Every mesh of the shared corpus: imported triangle counts against the figures in its
 // MANIFEST.md (counted there by an independent parser), then a round trip through the blob,
 // raw and zstd-compressed.
+#include <cmath>
 #include <cstring>
 
 #include "kiln/compiler/build.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"
 #include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/kdtree.hpp"
+#include "kiln/tools/ray_generator.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
@@ -131,6 +135,40 @@ TEST_P(CorpusTest, ImportCountsMatchManifestAndRoundTrip) {
     const Blob blob = Blob::open_memory(aligned.bytes());
     EXPECT_NO_THROW(blob.verify());
     expect_blob_matches_scene(scene, blob);
+  }
+}
+
+// Every mesh through the ray structures: the k-d tree and the BVH in one blob (verified), and
+// the same closest and any hits from both on primary and diffuse rays.
+TEST_P(CorpusTest, KdTreeTracesLikeTheBvh) {
+  KILN_REQUIRE_CORPUS();
+  const Scene scene = import_scene({test::mesh_path(GetParam().path)}, 2);
+  BuildOptions options;
+  options.inputs = {test::mesh_path(GetParam().path)};
+  options.accels = {{"kdtree", {}, {}}, {"bvh", {}, {}}};
+  const std::vector<std::byte> bytes = compile_blob(scene, options);
+  AlignedBuffer aligned(bytes.size(), 64);
+  std::memcpy(aligned.data(), bytes.data(), bytes.size());
+  const Blob blob = Blob::open_memory(aligned.bytes());
+  ASSERT_NO_THROW(blob.verify());
+  const KdTreeView kdtree = KdTreeView::from_blob(blob, "kdtree");
+  const BvhView bvh = BvhView::from_blob(blob, "bvh");
+  const format::Float3 lo = scene.bounds.min, hi = scene.bounds.max;
+  for (const RayKind kind : {RayKind::kPrimary, RayKind::kDiffuse}) {
+    const auto rays =
+        generate_rays({bvh, blob.positions(), blob.triangles(), lo, hi}, kind, 2000, 3, 2);
+    for (const bool any_hit : {false, true}) {
+      std::vector<Hit> a(rays.size()), b(rays.size());
+      trace_rays(kdtree, rays, a, any_hit, 2);
+      trace_rays(bvh, rays, b, any_hit, 2);
+      std::size_t disagreements = 0;
+      for (std::size_t i = 0; i < rays.size(); ++i) {
+        disagreements += (a[i].prim == kNoHit) != (b[i].prim == kNoHit);
+        if (!any_hit && a[i].prim != kNoHit && b[i].prim != kNoHit)
+          disagreements += std::fabs(a[i].t - b[i].t) > 1e-5f * std::fabs(b[i].t);
+      }
+      EXPECT_EQ(disagreements, 0u) << (any_hit ? "any hit" : "closest hit");
+    }
   }
 }
 
