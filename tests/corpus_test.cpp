@@ -1,14 +1,19 @@
 // Every mesh of the shared corpus: imported triangle counts against the figures in its
 // MANIFEST.md (counted there by an independent parser), then a round trip through the blob,
 // raw and zstd-compressed.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <random>
 
 #include "kiln/compiler/build.hpp"
+#include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/kdtree.hpp"
+#include "kiln/runtime/point_tree.hpp"
+#include "kiln/runtime/proximity.hpp"
 #include "kiln/tools/ray_generator.hpp"
 #include "test_support.hpp"
 
@@ -138,17 +143,24 @@ TEST_P(CorpusTest, ImportCountsMatchManifestAndRoundTrip) {
   }
 }
 
+// The scene compiled with default structures of the given kinds, ready for open_memory.
+AlignedBuffer compile_with(const Scene& scene, const std::vector<std::string>& kinds) {
+  BuildOptions options;
+  options.inputs = {"corpus"};
+  for (const auto& kind : kinds) {
+    AccelRequest request;
+    request.kind = kind;
+    options.accels.push_back(request);
+  }
+  return test::aligned_copy(compile_blob(scene, options));
+}
+
 // Every mesh through the ray structures: the k-d tree and the BVH in one blob (verified), and
 // the same closest and any hits from both on primary and diffuse rays.
 TEST_P(CorpusTest, KdTreeTracesLikeTheBvh) {
   KILN_REQUIRE_CORPUS();
   const Scene scene = import_scene({test::mesh_path(GetParam().path)}, 2);
-  BuildOptions options;
-  options.inputs = {test::mesh_path(GetParam().path)};
-  options.accels = {{"kdtree", {}, {}}, {"bvh", {}, {}}};
-  const std::vector<std::byte> bytes = compile_blob(scene, options);
-  AlignedBuffer aligned(bytes.size(), 64);
-  std::memcpy(aligned.data(), bytes.data(), bytes.size());
+  const AlignedBuffer aligned = compile_with(scene, {"kdtree", "bvh"});
   const Blob blob = Blob::open_memory(aligned.bytes());
   ASSERT_NO_THROW(blob.verify());
   const KdTreeView kdtree = KdTreeView::from_blob(blob, "kdtree");
@@ -170,6 +182,68 @@ TEST_P(CorpusTest, KdTreeTracesLikeTheBvh) {
       EXPECT_EQ(disagreements, 0u) << (any_hit ? "any hit" : "closest hit");
     }
   }
+}
+
+// Every mesh through the acceptance build (`--accel kdtree --accel points`): every query family
+// answers from that blob alone. kNN and radius equal brute force; closest, inside and box on the
+// k-d tree equal the BVH's (each checked against brute force on fewer meshes elsewhere).
+TEST_P(CorpusTest, EveryQueryAnswersFromKdTreeAndPointTree) {
+  KILN_REQUIRE_CORPUS();
+  const Scene scene = import_scene({test::mesh_path(GetParam().path)}, 2);
+  const AlignedBuffer aligned = compile_with(scene, {"kdtree", "points"});
+  const Blob blob = Blob::open_memory(aligned.bytes());
+  ASSERT_NO_THROW(blob.verify());
+  const KdTreeView kdtree = KdTreeView::from_blob(blob, "kdtree");
+  const PointTreeView points = PointTreeView::from_blob(blob, "points");
+  const FlatBvh flat = build_bvh(scene, {});
+  const BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);
+
+  std::mt19937 rng(17);
+  const format::Float3 lo = scene.bounds.min, hi = scene.bounds.max;
+  const float size = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+  std::uniform_real_distribution<float> unit(-0.1f, 1.1f);
+  auto random_point = [&] {
+    return format::Float3{lo.x + (hi.x - lo.x) * unit(rng), lo.y + (hi.y - lo.y) * unit(rng),
+                          lo.z + (hi.z - lo.z) * unit(rng)};
+  };
+  std::size_t knn_wrong = 0, radius_wrong = 0, closest_wrong = 0, inside_wrong = 0, box_wrong = 0;
+  std::vector<Neighbor> found(8), within, all;
+  std::vector<std::uint32_t> kd_ids, bvh_ids;
+  for (int i = 0; i < 150; ++i) {
+    const format::Float3 q = random_point();
+    all.clear();
+    for (std::uint32_t v = 0; v < scene.positions.size(); ++v) {
+      const auto& p = scene.positions[v];
+      const float dx = p.x - q.x, dy = p.y - q.y, dz = p.z - q.z;
+      all.push_back({v, (dx * dx + dy * dy) + dz * dz});
+    }
+    std::sort(all.begin(), all.end(), closer);
+    const std::size_t n = points.nearest(q, found);
+    knn_wrong += n != std::min<std::size_t>(8, all.size());
+    for (std::size_t j = 0; j < n; ++j) knn_wrong += found[j].id != all[j].id;
+    const float radius = 0.05f * size;
+    points.within_radius(q, radius, within);
+    std::size_t expected = 0;
+    while (expected < all.size() && all[expected].distance2 <= radius * radius) ++expected;
+    radius_wrong += within.size() != expected;
+    for (std::size_t j = 0; j < std::min(expected, within.size()); ++j)
+      radius_wrong += within[j].id != all[j].id;
+
+    const ClosestPoint a = closest_point(kdtree, q), b = closest_point(bvh, q);
+    closest_wrong += a.distance != b.distance;
+    inside_wrong += point_inside(kdtree, q) != point_inside(bvh, q);
+    const format::Float3 half{0.04f * size, 0.04f * size, 0.04f * size};
+    const format::Float3 box_lo{q.x - half.x, q.y - half.y, q.z - half.z};
+    const format::Float3 box_hi{q.x + half.x, q.y + half.y, q.z + half.z};
+    triangles_in_box(kdtree, box_lo, box_hi, kd_ids);
+    triangles_in_box(bvh, box_lo, box_hi, bvh_ids);
+    box_wrong += kd_ids != bvh_ids;
+  }
+  EXPECT_EQ(knn_wrong, 0u);
+  EXPECT_EQ(radius_wrong, 0u);
+  EXPECT_EQ(closest_wrong, 0u);
+  EXPECT_EQ(inside_wrong, 0u);
+  EXPECT_EQ(box_wrong, 0u);
 }
 
 std::string test_name(const ::testing::TestParamInfo<CorpusMesh>& info) {

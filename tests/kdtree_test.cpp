@@ -225,8 +225,7 @@ TEST(KdTree, CorruptedNodeArraysAreRefused) {
   KILN_REQUIRE_CORPUS();
   const Scene scene = import_scene({test::mesh_path("classic/teapot.obj")}, 2);
   const auto blob = kdtree_blob(scene, 2);
-  AlignedBuffer aligned(blob.size(), 64);
-  std::memcpy(aligned.data(), blob.data(), blob.size());
+  const AlignedBuffer aligned = aligned_copy(blob);
   const Blob original = Blob::open_memory(aligned.bytes());
   const auto* desc = original.manifest().accelerations()->Get(0)->kdtree();
   ASSERT_NE(desc, nullptr);
@@ -236,11 +235,7 @@ TEST(KdTree, CorruptedNodeArraysAreRefused) {
   while (!nodes[leaf].is_leaf()) ++leaf;
 
   auto forge = [&](std::uint32_t section, std::size_t offset, const auto& value) {
-    const auto bad =
-        with_patched_section(blob, section, offset, std::as_bytes(std::span(&value, 1)));
-    AlignedBuffer copy(bad.size(), 64);
-    std::memcpy(copy.data(), bad.data(), bad.size());
-    return copy;
+    return forged_copy(blob, section, offset, value);
   };
   auto expect_refused = [&](const AlignedBuffer& copy, const char* what) {
     const Blob b = Blob::open_memory(copy.bytes());  // open is O(sections): it cannot see nodes

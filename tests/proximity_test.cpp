@@ -6,12 +6,14 @@
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/proximity.hpp"
 #include "kiln/runtime/triangle_geometry.hpp"
+#include "proximity_fixtures.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
 namespace {
 
 using format::Float3;
+using namespace kiln::test;
 
 struct Built {
   FlatBvh flat;
@@ -22,62 +24,6 @@ Built build(const Scene& scene, BvhBuilder builder) {
   BvhBuildOptions o;
   o.builder = builder;
   return {build_bvh(scene, o)};
-}
-
-Vec3d corner(const Scene& s, std::uint32_t prim, int k) {
-  return to_d(s.positions[s.triangles[prim].v[k]]);
-}
-
-double brute_closest(const Scene& s, const Float3& p) {
-  double best = INFINITY;
-  for (std::uint32_t i = 0; i < s.triangles.size(); ++i) {
-    double v, w;
-    const Vec3d q =
-        closest_on_triangle(to_d(p), corner(s, i, 0), corner(s, i, 1), corner(s, i, 2), v, w);
-    best = std::min(best, std::sqrt(dot(q - to_d(p), q - to_d(p))));
-  }
-  return best;
-}
-
-// Generalised winding number (sum of signed solid angles, Van Oosterom & Strackee 1983).
-double winding_number(const Scene& s, const Float3& p) {
-  double total = 0;
-  for (std::uint32_t i = 0; i < s.triangles.size(); ++i) {
-    const Vec3d a = corner(s, i, 0) - to_d(p), b = corner(s, i, 1) - to_d(p),
-                c = corner(s, i, 2) - to_d(p);
-    const double la = std::sqrt(dot(a, a)), lb = std::sqrt(dot(b, b)), lc = std::sqrt(dot(c, c));
-    const double numerator = dot(a, cross(b, c));
-    const double denominator = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
-    total += 2 * std::atan2(numerator, denominator);
-  }
-  return total / (4 * 3.14159265358979323846);
-}
-
-// Seeded points: uniform in the bounds grown by 25 % (near and far), plus points just off the
-// surface on both sides (1e-3 of the diagonal along the face normal).
-std::vector<Float3> sample_points(const Scene& s, std::size_t count, std::uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> unit(0, 1);
-  const Vec3d lo = to_d(s.bounds.min), hi = to_d(s.bounds.max), size = hi - lo;
-  const double diagonal = std::sqrt(dot(size, size));
-  std::vector<Float3> points;
-  for (std::size_t i = 0; i < count; ++i) {
-    Vec3d p;
-    if (i % 2 == 0) {
-      p = lo - size * 0.25 +
-          Vec3d{size.x * 1.5 * unit(rng), size.y * 1.5 * unit(rng), size.z * 1.5 * unit(rng)};
-    } else {
-      const auto prim = std::uint32_t(unit(rng) * double(s.triangles.size())) % s.triangles.size();
-      double r1 = unit(rng), r2 = unit(rng);
-      if (r1 + r2 > 1) r1 = 1 - r1, r2 = 1 - r2;
-      const Vec3d a = corner(s, prim, 0), b = corner(s, prim, 1), c = corner(s, prim, 2);
-      Vec3d n = cross(b - a, c - a);
-      n = n * (1 / std::sqrt(dot(n, n)));
-      p = a + (b - a) * r1 + (c - a) * r2 + n * ((i % 4 == 1 ? 1e-3 : -1e-3) * diagonal);
-    }
-    points.push_back({float(p.x), float(p.y), float(p.z)});
-  }
-  return points;
 }
 
 const char* kClosedMeshes[] = {"classic/spot.obj", "classic/fandisk.obj", "assimp/OBJ/box.obj"};
@@ -154,27 +100,14 @@ TEST(Proximity, BoxQueryMatchesBruteForce) {
   for (const char* mesh : {"classic/teapot.obj", "stanford/stanford-bunny.obj.zst"}) {
     SCOPED_TRACE(mesh);
     const Scene scene = import_scene({test::mesh_path(mesh)}, 2);
-    std::mt19937 rng(3);
-    std::uniform_real_distribution<double> unit(0, 1);
-    const Vec3d lo = to_d(scene.bounds.min), size = to_d(scene.bounds.max) - lo;
+    const auto boxes = query_boxes(scene, 200, 3);
     for (const auto builder : {BvhBuilder::kBinned, BvhBuilder::kSpatial}) {
       const Built b = build(scene, builder);
       std::vector<std::uint32_t> got;
-      for (int q = 0; q < 200; ++q) {
-        const double extent = q % 3 == 0 ? 0.3 : 0.05;  // large and small boxes
-        const Vec3d c = lo + Vec3d{size.x * unit(rng), size.y * unit(rng), size.z * unit(rng)};
-        const Vec3d half = Vec3d{size.x * extent * unit(rng), size.y * extent * unit(rng),
-                                 size.z * extent * unit(rng)};
-        const Vec3d blo = c - half, bhi = c + half;
-        const Float3 flo{float(blo.x), float(blo.y), float(blo.z)},
-            fhi{float(bhi.x), float(bhi.y), float(bhi.z)};
-        std::vector<std::uint32_t> expected;
-        for (std::uint32_t i = 0; i < scene.triangles.size(); ++i)
-          if (triangle_overlaps_box(corner(scene, i, 0), corner(scene, i, 1), corner(scene, i, 2),
-                                    to_d(flo), to_d(fhi)))
-            expected.push_back(i);
-        triangles_in_box(b.view(), flo, fhi, got);
-        ASSERT_EQ(got, expected) << "box " << q << " " << bvh_builder_name(builder);
+      for (std::size_t q = 0; q < boxes.size(); ++q) {
+        triangles_in_box(b.view(), boxes[q].lo, boxes[q].hi, got);
+        ASSERT_EQ(got, brute_box(scene, boxes[q].lo, boxes[q].hi))
+            << "box " << q << " " << bvh_builder_name(builder);
       }
     }
   }

@@ -98,6 +98,12 @@ CommandResult run_kiln(const std::string& arguments) {
   return result;
 }
 
+AlignedBuffer aligned_copy(std::span<const std::byte> bytes) {
+  AlignedBuffer copy(bytes.size(), 64);
+  std::memcpy(copy.data(), bytes.data(), bytes.size());
+  return copy;
+}
+
 std::vector<std::byte> with_patched_section(std::vector<std::byte> blob, std::uint32_t section,
                                             std::size_t offset, std::span<const std::byte> bytes) {
   format::SectionEntry entry;

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "kiln/runtime/aligned_buffer.hpp"
+
 namespace kiln::test {
 
 // Absolute path of a corpus file (../shared/data/meshes/...).
@@ -45,6 +47,18 @@ std::string open_only(std::span<const std::byte> bytes);
 // header checksums recomputed: corruption that only the structural checks can catch.
 std::vector<std::byte> with_patched_section(std::vector<std::byte> blob, std::uint32_t section,
                                             std::size_t offset, std::span<const std::byte> bytes);
+
+// A 64-byte-aligned copy of `bytes`, as Blob::open_memory wants.
+AlignedBuffer aligned_copy(std::span<const std::byte> bytes);
+
+// aligned_copy of `blob` with `value`'s bytes written at `offset` inside `section`, checksums
+// recomputed (with_patched_section).
+template <class T>
+AlignedBuffer forged_copy(const std::vector<std::byte>& blob, std::uint32_t section,
+                          std::size_t offset, const T& value) {
+  return aligned_copy(
+      with_patched_section(blob, section, offset, std::as_bytes(std::span<const T>(&value, 1))));
+}
 
 // A path in single quotes for run_kiln's shell.
 inline std::string quoted(const std::string& s) {

@@ -28,11 +28,12 @@ struct AccelEntry {
 
 template <class T>
 SectionPayload raw_section(std::uint32_t kind, const std::vector<T>& values) {
-  return {kind, std::uint16_t(format::SectionFlag::kRequired), sizeof(T), values.size(),
-          std::as_bytes(std::span<const T>(values)), true};
+  return {kind,          std::uint16_t(format::SectionFlag::kRequired), sizeof(T),
+          values.size(), std::as_bytes(std::span<const T>(values)),     true};
 }
 
 AccelEntry make_bvh_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
 AccelEntry make_kdtree_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
+AccelEntry make_point_tree_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
 
 }  // namespace kiln

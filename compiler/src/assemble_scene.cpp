@@ -128,6 +128,9 @@ Scene assemble_scene(std::vector<ImportedFile> files) {
         kept.push_back(t);
         for (const auto v : t.v) remap[v] = 0;
       }
+      if (mesh.point_cloud)
+        for (std::size_t v = 0; v < world.size(); ++v)
+          if (is_finite(world[v]) && is_finite(to_float(world[v]))) remap[v] = 0;
       // Second pass: number used vertices in their original order.
       for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
         if (remap[v] == kUnused) continue;

@@ -19,6 +19,7 @@ AccelEntry make_accel_entry(const Scene& scene, const AccelRequest& request, uns
   if (request.kind == "bvh" || request.kind == "sbvh")
     return make_bvh_entry(scene, request, threads);
   if (request.kind == "kdtree") return make_kdtree_entry(scene, request, threads);
+  if (request.kind == "points") return make_point_tree_entry(scene, request, threads);
   throw std::runtime_error("unknown acceleration structure '" + request.kind + "'");
 }
 
@@ -29,6 +30,10 @@ std::span<const std::byte> as_bytes(const std::vector<T>& values) {
 
 }  // namespace
 
+bool needs_triangles(const std::string& kind) {
+  return kind != "points";
+}
+
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
                    const BuildProgress& progress) {
   std::vector<ImportedFile> files(inputs.size());
@@ -37,7 +42,7 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
   if (progress) progress("import", inputs.size(), inputs.size());
   Scene scene = assemble_scene(std::move(files));
   // An empty scene is almost surely a broken input; an asset pipeline should hear about it.
-  if (scene.triangles.empty())
+  if (scene.triangles.empty() && scene.positions.empty())
     throw ImportError(inputs.front() + (inputs.size() > 1 ? " (and the other inputs)" : "") +
                       ": no triangles left: all " + std::to_string(scene.input_triangle_count) +
                       " are degenerate (zero area or non-finite)");
@@ -46,6 +51,15 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
 
 std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
                                     std::vector<AccelReport>* reports) {
+  if (scene.triangles.empty()) {
+    const std::string what = scene.sources.empty() ? "the scene" : scene.sources.front().path;
+    if (options.accels.empty())
+      throw ImportError(what + ": has points but no triangles; a point cloud needs --accel points");
+    for (const AccelRequest& request : options.accels)
+      if (needs_triangles(request.kind))
+        throw ImportError(what + ": has points but no triangles, so --accel " + request.kind +
+                          " cannot be built (a point cloud takes --accel points alone)");
+  }
   constexpr auto kRequired = std::uint16_t(format::SectionFlag::kRequired);
   std::vector<SectionPayload> sections;
   sections.push_back({});  // the manifest, filled in once the other indices are known

@@ -1,5 +1,6 @@
 // Assimp importer: node hierarchy walked in pre-order (children in file order), each node's
-// meshes in its list order, faces in mesh order. Point and line primitives are discarded.
+// meshes in its list order, faces in mesh order. Line primitives are discarded; a mesh of points
+// alone is kept as a point cloud.
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <assimp/Importer.hpp>
@@ -60,8 +61,8 @@ Matrix4 to_matrix4(const aiMatrix4x4& m) {
 
 ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const std::string& path) {
   ImportedMesh out;
-  if (mesh.mNumVertices == 0 || mesh.mNumFaces == 0) return out;
-  if (mesh.mVertices == nullptr || mesh.mFaces == nullptr)
+  if (mesh.mNumVertices == 0) return out;
+  if (mesh.mVertices == nullptr || (mesh.mNumFaces > 0 && mesh.mFaces == nullptr))
     throw ImportError(path + ": Assimp returned a mesh without vertex or face arrays");
   out.name = mesh.mName.length > 0 ? std::string(mesh.mName.C_Str()) : std::string();
   out.transform = to_matrix4(world);
@@ -74,14 +75,19 @@ ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const st
       out.normals.push_back({mesh.mNormals[v].x, mesh.mNormals[v].y, mesh.mNormals[v].z});
   }
   out.triangles.reserve(mesh.mNumFaces);
+  bool has_lines = false;
   for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
     const aiFace& face = mesh.mFaces[f];
+    has_lines |= face.mNumIndices == 2;
     if (face.mNumIndices != 3 || face.mIndices == nullptr)
       continue;  // points and lines carry no surface
     // Index ranges are checked once for every importer, in import_file.
     const format::Triangle t{{face.mIndices[0], face.mIndices[1], face.mIndices[2]}};
     out.triangles.push_back(t);
   }
+  // Vertices without faces, or with point faces only, are a point cloud (a PLY scan, an OBJ of
+  // `v` lines); a wireframe of lines is neither surface nor cloud and stays dropped.
+  out.point_cloud = out.triangles.empty() && !has_lines;
   return out;
 }
 
@@ -156,7 +162,7 @@ std::vector<ImportedMesh> import_with_assimp(const std::string& path,
         throw ImportError(path + ": node references a missing mesh");
       const aiMesh& mesh = *scene->mMeshes[node->mMeshes[i]];
       meshes.push_back(convert_mesh(mesh, world, path));
-      if (meshes.back().triangles.empty()) {
+      if (meshes.back().triangles.empty() && !meshes.back().point_cloud) {
         meshes.pop_back();
         continue;
       }

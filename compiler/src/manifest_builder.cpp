@@ -41,7 +41,7 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
   const auto stats = schema::CreateSceneStats(
       fbb, scene.positions.size(), scene.triangles.size(), &bounds, scene.input_triangle_count,
       scene.degenerate_triangles_dropped, !scene.normals.empty(), topology.boundary_edges,
-      topology.non_manifold_edges, topology.closed());
+      topology.non_manifold_edges, topology.closed() && !scene.triangles.empty());
   const auto geometry = schema::CreateGeometry(fbb, sections.positions, sections.triangles,
                                                sections.triangle_mesh, sections.normals);
   std::vector<flatbuffers::Offset<schema::Acceleration>> accelerations;

@@ -3,6 +3,7 @@
 
 #include "kiln/formats/bvh.hpp"
 #include "kiln/formats/kdtree.hpp"
+#include "kiln/formats/point_tree.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 
@@ -100,6 +101,21 @@ void Blob::validate_geometry() {
               sizeof(format::BvhTriangle), triangle_count, false);
         if (kd->node_count() == 0) fail_section(0, where + "has no nodes");
         if (kd->bounds() == nullptr) fail_section(0, where + "has no bounds");
+      }
+      if (const auto* pt = accel->points()) {
+        // Over every scene vertex: the ids are vertex indices.
+        const auto where = "acceleration '" + kind + "' ";
+        if (pt->point_count() != vertex_count)
+          fail_section(0, where + "holds " + std::to_string(pt->point_count()) +
+                              " points, the scene " + std::to_string(vertex_count) + " vertices");
+        check((where + "nodes").c_str(), pt->nodes(), format::kSectionPointNodes,
+              sizeof(format::PointNode), pt->node_count(), false);
+        check((where + "points").c_str(), pt->points(), format::kSectionPointPositions,
+              sizeof(format::Float3), vertex_count, false);
+        check((where + "point ids").c_str(), pt->point_ids(), format::kSectionPointIds,
+              sizeof(std::uint32_t), vertex_count, false);
+        if (pt->node_count() == 0) fail_section(0, where + "has no nodes");
+        if (pt->bounds() == nullptr) fail_section(0, where + "has no bounds");
       }
     }
   }

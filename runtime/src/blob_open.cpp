@@ -8,6 +8,7 @@
 
 #include "kiln/formats/bvh.hpp"
 #include "kiln/formats/kdtree.hpp"
+#include "kiln/formats/point_tree.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/checksum.hpp"
@@ -32,7 +33,8 @@ bool is_known_kind(std::uint32_t kind) {
          kind == format::kSectionTriangleMesh || kind == format::kSectionBvhNodes ||
          kind == format::kSectionBvhTriangles || kind == format::kSectionBvhPrimIds ||
          kind == format::kSectionKdNodes || kind == format::kSectionKdPrimIds ||
-         kind == format::kSectionKdTriangles;
+         kind == format::kSectionKdTriangles || kind == format::kSectionPointNodes ||
+         kind == format::kSectionPointPositions || kind == format::kSectionPointIds;
 }
 
 }  // namespace

@@ -1,14 +1,16 @@
 // The deep check behind `kiln verify`: everything open() skipped because it is O(bytes).
+#include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <vector>
 #include <string>
+#include <vector>
 
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/bvh.hpp"
-#include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/checksum.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/kdtree.hpp"
+#include "kiln/runtime/point_tree.hpp"
 
 namespace kiln {
 
@@ -71,6 +73,7 @@ void Blob::verify_accelerations() const {
   for (const auto* accel : *accels) {
     if (accel->bvh() != nullptr) verify_bvh(*accel);
     if (accel->kdtree() != nullptr) verify_kdtree(*accel);
+    if (accel->points() != nullptr) verify_point_tree(*accel);
   }
 }
 
@@ -125,8 +128,8 @@ void Blob::verify_kdtree(const schema::Acceleration& accel) const {
     const format::BvhTriangle expected{positions_view[t.v[0]], positions_view[t.v[1]],
                                        positions_view[t.v[2]]};
     if (std::memcmp(&expected, &copies[i], sizeof(expected)) != 0)
-      fail_section(desc->triangles(), name + " triangle " + std::to_string(i) +
-                                          " does not match the scene's corners");
+      fail_section(desc->triangles(),
+                   name + " triangle " + std::to_string(i) + " does not match the scene's corners");
   }
   std::vector<bool> referenced(triangles_view.size());
   for (const auto id : tree.prim_ids()) referenced[id] = true;
@@ -139,7 +142,8 @@ void Blob::verify_kdtree(const schema::Acceleration& accel) const {
   };
   std::vector<Cell> stack(1);
   stack[0].node = 0;
-  for (int a = 0; a < 3; ++a) stack[0].lo[a] = tree.bounds_min()[a], stack[0].hi[a] = tree.bounds_max()[a];
+  for (int a = 0; a < 3; ++a)
+    stack[0].lo[a] = tree.bounds_min()[a], stack[0].hi[a] = tree.bounds_max()[a];
   const auto nodes = tree.nodes();
   while (!stack.empty()) {
     const Cell c = stack.back();
@@ -148,13 +152,70 @@ void Blob::verify_kdtree(const schema::Acceleration& accel) const {
     if (n.is_leaf()) continue;
     const auto a = n.axis();
     if (!(n.split() > c.lo[a] && n.split() < c.hi[a]))
-      fail_section(desc->nodes(), name + " node " + std::to_string(c.node) +
-                                      " splits outside its cell");
+      fail_section(desc->nodes(),
+                   name + " node " + std::to_string(c.node) + " splits outside its cell");
     Cell below = c, above = c;
     below.node = c.node + 1;
     below.hi[a] = n.split();
     above.node = n.above_child();
     above.lo[a] = n.split();
+    stack.push_back(above);
+    stack.push_back(below);
+  }
+}
+
+// Beyond the view's structural walk: every vertex exactly once, each point a bitwise copy of its
+// vertex, the bounds and every gap true of the points below them (searches prune on them).
+void Blob::verify_point_tree(const schema::Acceleration& accel) const {
+  const std::string name = accel.kind()->str();
+  const auto* desc = accel.points();
+  const PointTreeView tree = PointTreeView::from_blob(*this, name);
+  const auto positions_view = positions();
+  const auto ids = tree.ids();
+  const auto points = tree.points();
+  std::vector<bool> seen(positions_view.size());
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    if (ids[i] >= positions_view.size() || seen[ids[i]])
+      fail_section(desc->point_ids(), name + " point " + std::to_string(i) + " names vertex " +
+                                          std::to_string(ids[i]) + " out of range or twice");
+    seen[ids[i]] = true;
+    if (std::memcmp(&points[i], &positions_view[ids[i]], sizeof(format::Float3)) != 0)
+      fail_section(desc->points(),
+                   name + " point " + std::to_string(i) + " does not match its vertex");
+  }
+  // Walk with the box every point below must lie in: the bounds, narrowed by each gap.
+  struct Cell {
+    std::uint32_t node;
+    float lo[3], hi[3];
+  };
+  std::vector<Cell> stack(1);
+  stack[0].node = 0;
+  for (int a = 0; a < 3; ++a)
+    stack[0].lo[a] = tree.bounds_min()[a], stack[0].hi[a] = tree.bounds_max()[a];
+  const auto nodes = tree.nodes();
+  while (!stack.empty()) {
+    const Cell c = stack.back();
+    stack.pop_back();
+    const format::PointNode& n = nodes[c.node];
+    if (n.is_leaf()) {
+      for (std::uint32_t i = n.first_point(); i < n.first_point() + n.point_count(); ++i) {
+        const float p[3] = {points[i].x, points[i].y, points[i].z};
+        for (int a = 0; a < 3; ++a)
+          if (!(p[a] >= c.lo[a] && p[a] <= c.hi[a]))
+            fail_section(desc->nodes(), name + " point " + std::to_string(i) +
+                                            " lies outside the bounds or gaps above it");
+      }
+      continue;
+    }
+    const auto a = n.axis();
+    if (!(n.below_max() <= n.above_min()))
+      fail_section(desc->nodes(),
+                   name + " node " + std::to_string(c.node) + " has an inverted gap");
+    Cell below = c, above = c;
+    below.node = c.node + 1;
+    below.hi[a] = std::min(c.hi[a], n.below_max());
+    above.node = n.above_child();
+    above.lo[a] = std::max(c.lo[a], n.above_min());
     stack.push_back(above);
     stack.push_back(below);
   }

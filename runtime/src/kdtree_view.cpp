@@ -1,6 +1,7 @@
 #include <string>
 #include <vector>
 
+#include "depth_first_layout.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/kdtree.hpp"
@@ -14,38 +15,12 @@ KdTreeView::KdTreeView(std::span<const format::KdNode> nodes,
     : nodes_(nodes), prim_ids_(prim_ids), triangles_(triangles) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
   for (int a = 0; a < 3; ++a) min_[a] = bounds_min[a], max_[a] = bounds_max[a];
-  if (nodes.empty()) fail("no nodes");
-  // Pre-order walk: the n-th node reached must be node n, which rules out sharing, cycles and
-  // unreachable nodes; leaves must consume the references in order.
-  struct Pending {
-    std::uint32_t node, depth;
-  };
-  std::vector<Pending> stack{{0, 1}};
-  std::uint64_t next_node = 0, next_ref = 0;
-  while (!stack.empty()) {
-    const Pending p = stack.back();
-    stack.pop_back();
-    if (p.node != next_node)
-      fail("node " + std::to_string(next_node) + " is not where depth-first order puts it");
-    if (p.depth > format::kKdMaxDepth) fail("deeper than " + std::to_string(format::kKdMaxDepth));
-    const format::KdNode& n = nodes[p.node];
-    next_node += 1;
-    if (n.is_leaf()) {
-      if (n.first_reference() != next_ref || n.reference_count() > prim_ids.size() - next_ref)
-        fail("leaf " + std::to_string(p.node) + " has references out of order or out of range");
-      next_ref += n.reference_count();
-      continue;
-    }
-    if (n.above_child() <= p.node + 1u || n.above_child() >= nodes.size())
-      fail("node " + std::to_string(p.node) + " has child index " +
-           std::to_string(n.above_child()) + " out of range");
-    stack.push_back({n.above_child(), p.depth + 1});
-    stack.push_back({p.node + 1, p.depth + 1});
-  }
-  if (next_node != nodes.size())
-    fail(std::to_string(nodes.size() - next_node) + " nodes are unreachable");
-  if (next_ref != prim_ids.size())
-    fail(std::to_string(prim_ids.size() - next_ref) + " references are in no leaf");
+  check_depth_first_layout<format::KdNode>(
+      nodes, format::kKdMaxDepth, prim_ids.size(), "references",
+      [](const format::KdNode& n) {
+        return std::pair<std::uint64_t, std::uint64_t>{n.first_reference(), n.reference_count()};
+      },
+      fail);
   for (std::size_t r = 0; r < prim_ids.size(); ++r)
     if (prim_ids[r] >= triangles.size())
       fail("reference " + std::to_string(r) + " names triangle " + std::to_string(prim_ids[r]) +

@@ -170,6 +170,14 @@ void write_json(const Blob& blob, std::ostream& out) {
         j.field("sah_cost", k->sah_cost()).field("bytes_per_triangle", k->bytes_per_triangle());
         j.end_object();
       }
+      if (const auto* p = a->points()) {
+        j.key("points").begin_object();
+        j.field("split_rule", str(p->split_rule())).field("max_leaf_size", p->max_leaf_size());
+        j.field("point_count", p->point_count()).field("node_count", p->node_count());
+        j.field("leaf_count", p->leaf_count()).field("max_depth", p->max_depth());
+        j.field("largest_leaf", p->largest_leaf()).field("bytes_per_point", p->bytes_per_point());
+        j.end_object();
+      }
       j.end_object();
     }
   j.end_array();
@@ -266,11 +274,20 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
             "    SAH constants Ct %g Ci %g, empty bonus %g, depth limit %u\n"
             "    %llu nodes, %llu leaves (%llu empty), depth %u, largest leaf %u\n"
             "    %llu references (%.3f per triangle), SAH cost %.3f, %.1f bytes/triangle\n",
-            double(k->traversal_cost()), double(k->intersection_cost()),
-            double(k->empty_bonus()), k->depth_limit(), (unsigned long long)k->node_count(),
+            double(k->traversal_cost()), double(k->intersection_cost()), double(k->empty_bonus()),
+            k->depth_limit(), (unsigned long long)k->node_count(),
             (unsigned long long)k->leaf_count(), (unsigned long long)k->empty_leaf_count(),
             k->max_depth(), k->largest_leaf(), (unsigned long long)k->reference_count(),
             k->references_per_triangle(), k->sah_cost(), k->bytes_per_triangle());
+      }
+      if (const auto* p = a->points()) {
+        out << printf_string(
+            "    %s splits, max leaf %u\n"
+            "    %llu points, %llu nodes, %llu leaves, depth %u, largest leaf %u, %.1f "
+            "bytes/point\n",
+            str(p->split_rule()).c_str(), p->max_leaf_size(), (unsigned long long)p->point_count(),
+            (unsigned long long)p->node_count(), (unsigned long long)p->leaf_count(),
+            p->max_depth(), p->largest_leaf(), p->bytes_per_point());
       }
     }
 }

@@ -30,7 +30,9 @@ struct BuildArgs {
   std::vector<std::string> accels;
   kiln::BvhBuildOptions bvh;
   kiln::KdTreeBuildOptions kdtree;
+  kiln::PointTreeBuildOptions points;
   std::string bvh_builder = "binned";
+  std::string points_split = "sliding-midpoint";
 };
 
 int run_build(const BuildArgs& args) {
@@ -49,7 +51,9 @@ int run_build(const BuildArgs& args) {
         std::cerr << "kiln build: --accel " << kind << " given twice\n";
         return 2;
       }
-    kiln::AccelRequest request{kind, args.bvh, args.kdtree};
+    kiln::AccelRequest request{kind, args.bvh, args.kdtree, args.points};
+    request.points.split = args.points_split == "median" ? kiln::PointSplitRule::kMedian
+                                                         : kiln::PointSplitRule::kSlidingMidpoint;
     request.bvh.builder = kind == "sbvh"                ? kiln::BvhBuilder::kSpatial
                           : args.bvh_builder == "sweep" ? kiln::BvhBuilder::kSweep
                                                         : kiln::BvhBuilder::kBinned;
@@ -88,11 +92,13 @@ int run_build(const BuildArgs& args) {
         args.output.c_str(), (unsigned long long)scene->triangle_count(),
         (unsigned long long)scene->vertex_count(), (unsigned long long)blob.header().file_size,
         seconds, kiln::resolve_thread_count(args.threads));
-    for (const auto& r : reports)
-      std::fprintf(stderr,
-                   "kiln build: %s: built in %.3f s (%.2f Mtris/s), %s\n", r.kind.c_str(),
-                   r.build_seconds, double(scene->triangle_count()) / r.build_seconds * 1e-6,
+    for (const auto& r : reports) {
+      const bool points = !kiln::needs_triangles(r.kind);
+      const double count = double(points ? scene->vertex_count() : scene->triangle_count());
+      std::fprintf(stderr, "kiln build: %s: built in %.3f s (%.2f %s/s), %s\n", r.kind.c_str(),
+                   r.build_seconds, count / r.build_seconds * 1e-6, points ? "Mpoints" : "Mtris",
                    r.summary.c_str());
+    }
   }
   return 0;
 }
@@ -125,7 +131,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   build_cmd->add_flag("--stats", build.stats, "Print build time and sizes to stderr");
   build_cmd->add_option("--accel", build.accels, "Acceleration structures to build (repeatable)")
-      ->check(CLI::IsMember({"bvh", "sbvh", "kdtree"}))
+      ->check(CLI::IsMember({"bvh", "sbvh", "kdtree", "points"}))
       ->allow_extra_args(false);
   build_cmd->add_option("--bvh-builder", build.bvh_builder, "Builder for --accel bvh")
       ->check(CLI::IsMember({"binned", "sweep"}))
@@ -156,7 +162,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0f, 16.0f))
       ->capture_default_str();
 
-  build_cmd->add_option("--kd-traversal-cost", build.kdtree.traversal_cost, "k-d tree SAH node cost")
+  build_cmd
+      ->add_option("--kd-traversal-cost", build.kdtree.traversal_cost, "k-d tree SAH node cost")
       ->check(CLI::Range(0.0f, 1000.0f))
       ->capture_default_str();
   build_cmd
@@ -168,6 +175,17 @@ int main(int argc, char** argv) {
       ->add_option("--kd-empty-bonus", build.kdtree.empty_bonus,
                    "k-d tree: fraction of the cost forgiven for cutting off empty space")
       ->check(CLI::Range(0.0f, 0.99f))
+      ->capture_default_str();
+
+  build_cmd
+      ->add_option("--points-split", build.points_split,
+                   "Point k-d tree cut: median (balanced) or sliding-midpoint (fat cells)")
+      ->check(CLI::IsMember({"median", "sliding-midpoint"}))
+      ->capture_default_str();
+  build_cmd
+      ->add_option("--points-leaf-size", build.points.max_leaf_size,
+                   "Point k-d tree: most points per leaf")
+      ->check(CLI::Range(1u, kiln::kMaxPointLeafSize))
       ->capture_default_str();
 
   std::string dump_path;
@@ -217,15 +235,19 @@ int main(int argc, char** argv) {
 
   kiln::QueryArgs query;
   auto* query_cmd =
-      app.add_subcommand("query", "Closest point, inside, box queries against a blob's BVH");
+      app.add_subcommand("query", "Closest point, inside, box, knn and radius queries on a blob");
   query_cmd->add_option("blob", query.blob, "The .kiln file")->required();
-  query_cmd->add_option("--op", query.op, "closest, inside, box (knn and radius: not yet)")
+  query_cmd
+      ->add_option("--op", query.op,
+                   "closest, inside, box (BVH or k-d tree); knn, radius (point k-d tree)")
       ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius"}))
       ->required();
   query_cmd->add_option("--in", query.in, "Queries: float32 x 3 per point, x 6 per box (min, max)")
       ->required();
   query_cmd->add_option("--out", query.out, "Answers (docs/FORMAT.md)")->required();
-  query_cmd->add_option("--accel", query.accel, "BVH to use (default: the first)");
+  query_cmd->add_option("--accel", query.accel,
+                        "Structure to use (default: the first BVH, else the k-d tree; knn and "
+                        "radius: the point k-d tree)");
   query_cmd
       ->add_option("--max-distance", query.max_distance, "closest: ignore surfaces farther away")
       ->check(CLI::PositiveNumber);

@@ -1,5 +1,6 @@
 #include "kiln/tools/query_command.hpp"
 
+#include <cmath>
 #include <cstring>
 #include <iostream>
 #include <vector>
@@ -7,8 +8,10 @@
 #include "kiln/compiler/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/runtime/parallel.hpp"
+#include "kiln/runtime/point_tree.hpp"
 #include "kiln/runtime/proximity.hpp"
 
 namespace kiln {
@@ -23,11 +26,37 @@ void append_pod(std::vector<std::byte>& out, const T& value) {
   out.insert(out.end(), p, p + sizeof(T));
 }
 
-std::string first_bvh(const Blob& blob) {
-  if (const auto* accels = blob.manifest().accelerations())
-    for (const auto* a : *accels)
-      if (a->bvh() != nullptr) return a->kind()->str();
-  throw BlobError(blob.name() + ": holds no BVH (build with --accel bvh or --accel sbvh)");
+bool is_bvh(const Blob& blob, const std::string& kind) {
+  for (const auto* a : *blob.manifest().accelerations())
+    if (a->kind()->str() == kind) return a->bvh() != nullptr;
+  return false;
+}
+
+// The structure a query runs on: the one named, else the first BVH, else the first k-d tree
+// (surface queries), or the first point tree (knn, radius).
+std::string pick_structure(const Blob& blob, const QueryArgs& args, bool points) {
+  const auto* accels = blob.manifest().accelerations();
+  auto fits = [&](const schema::Acceleration& a) {
+    return points ? a.points() != nullptr : (a.bvh() != nullptr || a.kdtree() != nullptr);
+  };
+  const char* wanted = points ? "a point k-d tree (build with --accel points)"
+                              : "a BVH or k-d tree (build with --accel bvh, sbvh or kdtree)";
+  if (!args.accel.empty()) {
+    if (accels)
+      for (const auto* a : *accels)
+        if (a->kind()->str() == args.accel) {
+          if (!fits(*a))
+            throw BlobError(blob.name() + ": --op " + args.op + " needs " + wanted + ", and '" +
+                            args.accel + "' is not one");
+          return args.accel;
+        }
+    throw BlobError(blob.name() + ": has no structure '" + args.accel + "'");
+  }
+  for (const bool bvh_first : {true, false})
+    if (accels)
+      for (const auto* a : *accels)
+        if (fits(*a) && (points || (a->bvh() != nullptr) == bvh_first)) return a->kind()->str();
+  throw BlobError(blob.name() + ": holds no " + wanted);
 }
 
 // Runs `answer(i, bytes)` for every query in parallel batches and concatenates the bytes in
@@ -47,14 +76,66 @@ std::vector<std::byte> answer_all(std::size_t count, unsigned threads, Answer an
 
 }  // namespace
 
+namespace {
+
+// closest, inside and box: the same code on a BVH or a k-d tree.
+template <class Tree>
+std::vector<std::byte> surface_queries(const Tree& tree, const Blob& blob, const QueryArgs& args,
+                                       const float* floats, std::size_t count) {
+  auto point = [&](std::size_t i, std::size_t stride, std::size_t k) {
+    const float* f = floats + i * stride + k;
+    return format::Float3{f[0], f[1], f[2]};
+  };
+  if (args.op == "closest")
+    return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+      const ClosestPoint c = closest_point(tree, point(i, 3, 0), args.max_distance);
+      append_pod(bytes, c.distance);
+      append_pod(bytes, c.prim);
+      append_pod(bytes, c.point);
+    });
+  if (args.op == "inside") {
+    if (!blob.manifest().scene()->closed())
+      std::cerr << "kiln query: warning: " << args.blob
+                << " is not a closed mesh; inside answers are a best guess\n";
+    return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+      append_pod(bytes, std::uint8_t(point_inside(tree, point(i, 3, 0)) ? 1 : 0));
+    });
+  }
+  return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+    std::vector<std::uint32_t> ids;
+    triangles_in_box(tree, point(i, 6, 0), point(i, 6, 3), ids);
+    append_pod(bytes, std::uint32_t(ids.size()));
+    for (const auto id : ids) append_pod(bytes, id);
+  });
+}
+
+// knn: K records per query, padded with (0xFFFFFFFF, +inf) when the tree holds fewer points;
+// radius: a count, then the ids by distance.
+std::vector<std::byte> point_queries(const PointTreeView& tree, const QueryArgs& args,
+                                     const float* floats, std::size_t count) {
+  if (args.op == "knn")
+    return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+      std::vector<Neighbor> found(args.k, Neighbor{kNoHit, INFINITY});
+      tree.nearest({floats[3 * i], floats[3 * i + 1], floats[3 * i + 2]}, found);
+      for (const Neighbor& n : found) append_pod(bytes, n);
+    });
+  return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+    std::vector<Neighbor> found;
+    tree.within_radius({floats[3 * i], floats[3 * i + 1], floats[3 * i + 2]}, args.radius, found);
+    append_pod(bytes, std::uint32_t(found.size()));
+    for (const Neighbor& n : found) append_pod(bytes, n.id);
+  });
+}
+
+}  // namespace
+
 int run_query(const QueryArgs& args) {
   try {
-    if (args.op == "knn" || args.op == "radius")
-      throw std::runtime_error(
-          "--op " + args.op +
-          " needs a point k-d tree (--accel points), which is not implemented yet");
+    const bool points = args.op == "knn" || args.op == "radius";
+    if (!points && args.op != "closest" && args.op != "inside" && args.op != "box")
+      throw std::runtime_error("unknown --op " + args.op);
     const Blob blob = Blob::open_file(args.blob);
-    const BvhView bvh = BvhView::from_blob(blob, args.accel.empty() ? first_bvh(blob) : args.accel);
+    const std::string accel = pick_structure(blob, args, points);
     const MappedFile input(args.in);
     const std::size_t stride = args.op == "box" ? 24 : 12;
     if (input.bytes().size() % stride != 0)
@@ -63,36 +144,15 @@ int run_query(const QueryArgs& args) {
                                (stride == 24 ? "float32 x 6 per box" : "float32 x 3 per point") +
                                ")");
     const std::size_t count = input.bytes().size() / stride;
+    // A mapping is page-aligned, so the floats are aligned too.
     const auto* floats = reinterpret_cast<const float*>(input.bytes().data());
-    auto point = [&](std::size_t i, std::size_t k) {
-      return format::Float3{floats[i * stride / 4 + k], floats[i * stride / 4 + k + 1],
-                            floats[i * stride / 4 + k + 2]};
-    };
     std::vector<std::byte> out;
-    if (args.op == "closest") {
-      out = answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-        const ClosestPoint c = closest_point(bvh, point(i, 0), args.max_distance);
-        append_pod(bytes, c.distance);
-        append_pod(bytes, c.prim);
-        append_pod(bytes, c.point);
-      });
-    } else if (args.op == "inside") {
-      if (!blob.manifest().scene()->closed())
-        std::cerr << "kiln query: warning: " << args.blob
-                  << " is not a closed mesh; inside answers are a best guess\n";
-      out = answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-        append_pod(bytes, std::uint8_t(point_inside(bvh, point(i, 0)) ? 1 : 0));
-      });
-    } else if (args.op == "box") {
-      out = answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-        std::vector<std::uint32_t> ids;
-        triangles_in_box(bvh, point(i, 0), point(i, 3), ids);
-        append_pod(bytes, std::uint32_t(ids.size()));
-        for (const auto id : ids) append_pod(bytes, id);
-      });
-    } else {
-      throw std::runtime_error("unknown --op " + args.op);
-    }
+    if (points)
+      out = point_queries(PointTreeView::from_blob(blob, accel), args, floats, count);
+    else if (is_bvh(blob, accel))
+      out = surface_queries(BvhView::from_blob(blob, accel), blob, args, floats, count);
+    else
+      out = surface_queries(KdTreeView::from_blob(blob, accel), blob, args, floats, count);
     write_file_atomically(args.out, out);
     return 0;
   } catch (const std::exception& e) {

@@ -10,6 +10,7 @@
 #include "kiln/compiler/blob_writer.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/kdtree_builder.hpp"
+#include "kiln/compiler/point_tree_builder.hpp"
 #include "kiln/compiler/scene.hpp"
 
 namespace kiln {
@@ -17,13 +18,17 @@ namespace kiln {
 inline constexpr const char* kToolName = "kiln";
 extern const char* const kToolVersion;
 
-// One acceleration structure to build: kind "bvh" (binned or sweep builder), "sbvh" or
-// "kdtree"; only the options of its kind are read.
+// One acceleration structure to build: kind "bvh" (binned or sweep builder), "sbvh", "kdtree"
+// or "points"; only the options of its kind are read.
 struct AccelRequest {
   std::string kind;
   BvhBuildOptions bvh;
   KdTreeBuildOptions kdtree;
+  PointTreeBuildOptions points{};
 };
+
+// Whether a structure of this kind is built over triangles (every kind but "points").
+bool needs_triangles(const std::string& kind);
 
 // What building one structure produced, for `kiln build --stats` (never stored: timing would
 // break determinism).
@@ -44,11 +49,14 @@ struct BuildOptions {
 using BuildProgress = std::function<void(std::string_view, std::uint64_t, std::uint64_t)>;
 
 // Imports every input (in parallel, one task per file) and flattens them in input order.
-// Throws ImportError naming the first failing input in command-line order.
+// Throws ImportError naming the first failing input in command-line order, or when nothing is
+// left: no triangle and no point.
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
                    const BuildProgress& progress = {});
 
-// The complete blob for a scene: manifest (section 0), then the geometry sections.
+// The complete blob for a scene: manifest (section 0), then the geometry sections, then each
+// structure's. Throws ImportError when a triangle structure is asked of a scene with no triangles
+// (a point cloud), or when such a scene is asked for nothing.
 std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
                                     std::vector<AccelReport>* reports = nullptr);
 

@@ -19,6 +19,8 @@ struct ImportedMesh {
   std::vector<format::Float3> normals;  // empty, or one per position
   std::vector<format::Triangle> triangles;
   Matrix4 transform = kIdentity;  // mesh space to world space
+  // No surface, only points (a scan): every finite vertex is kept, not just those triangles use.
+  bool point_cloud = false;
 };
 
 struct SourceFile {
@@ -72,9 +74,9 @@ Bounds3 bounds_of(std::span<const format::Float3> positions);
 
 // Concatenates imported files in order, drops degenerate triangles (zero area on the world-space
 // corners evaluated in double, or a non-finite corner), drops vertices no kept triangle uses (order
-// preserved), applies each instance's transform (mirroring ones flip the winding), and computes
-// the bounds.
-// Throws ImportError when more than 2^32 - 1 vertices result.
+// preserved; a point cloud keeps every finite vertex instead), applies each instance's transform
+// (mirroring ones flip the winding), and computes the bounds. Throws ImportError when more than
+// 2^32 - 1 vertices result.
 Scene assemble_scene(std::vector<ImportedFile> files);
 
 }  // namespace kiln

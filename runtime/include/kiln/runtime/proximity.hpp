@@ -1,5 +1,6 @@
-// Proximity, containment and range queries on a BVH: closest point on the surface, point
-// inside a closed mesh, triangles overlapping a box.
+// Proximity, containment and range queries on a BVH or a SAH k-d tree: closest point on the
+// surface, point inside a closed mesh, triangles overlapping a box. Both structures give the same
+// answers under the same tie rules.
 #pragma once
 
 #include <cstdint>
@@ -8,6 +9,7 @@
 
 #include "kiln/formats/geometry.hpp"
 #include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/kdtree.hpp"
 
 namespace kiln {
 
@@ -31,5 +33,14 @@ void triangles_in_box(const BvhView& bvh, const format::Float3& lo, const format
 // distinct triangles it crosses; the majority wins. Meaningful for closed meshes; on an open
 // mesh it still answers (the manifest says whether the mesh is closed).
 bool point_inside(const BvhView& bvh, const format::Float3& p);
+
+// The same three queries on a k-d tree: cells are walked from the tree's root bounds (nearest
+// cell first for the closest point, pruned by cell distance), and the whole triangles a leaf
+// references are tested. A point outside the root bounds is fine.
+ClosestPoint closest_point(const KdTreeView& tree, const format::Float3& p,
+                           float max_distance = std::numeric_limits<float>::infinity());
+void triangles_in_box(const KdTreeView& tree, const format::Float3& lo, const format::Float3& hi,
+                      std::vector<std::uint32_t>& out);
+bool point_inside(const KdTreeView& tree, const format::Float3& p);
 
 }  // namespace kiln

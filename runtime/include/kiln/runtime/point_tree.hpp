@@ -1,0 +1,62 @@
+// k-nearest-neighbour and radius searches on a point k-d tree, straight on its mapped sections.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "kiln/formats/geometry.hpp"
+#include "kiln/formats/point_tree.hpp"
+
+namespace kiln {
+
+class Blob;
+
+// One answer: a point's id (its vertex index) and its squared distance to the query, computed
+// in float as (dx*dx + dy*dy) + dz*dz. The layout is the knn output record of `kiln query`.
+struct Neighbor {
+  std::uint32_t id;
+  float distance2;
+};
+static_assert(sizeof(Neighbor) == 8);
+
+// Answers are ordered by distance, then id: ties always go to the lower id, so results equal a
+// brute-force scan's exactly.
+inline bool closer(const Neighbor& a, const Neighbor& b) {
+  return a.distance2 < b.distance2 || (a.distance2 == b.distance2 && a.id < b.id);
+}
+
+// A validated view of one point k-d tree. Creating it walks the nodes once (O(nodes)): nodes in
+// depth-first order, no deeper than format::kPointMaxDepth, leaf ranges consecutive and covering
+// every point exactly once; so a search cannot read out of range, loop or recurse too deep,
+// whatever the bytes. Throws BlobError otherwise.
+class PointTreeView {
+ public:
+  PointTreeView(std::span<const format::PointNode> nodes, std::span<const format::Float3> points,
+                std::span<const std::uint32_t> ids, const float bounds_min[3],
+                const float bounds_max[3], const std::string& name = "points");
+  // The point tree named `name` in a blob; throws BlobError when absent.
+  static PointTreeView from_blob(const Blob& blob, const std::string& name = "points");
+
+  // The min(k, point count) nearest points, k = out.size(), written to `out` sorted by
+  // (distance, id); returns how many were written. No allocation.
+  std::size_t nearest(const format::Float3& query, std::span<Neighbor> out) const;
+  // Every point with squared distance <= radius * radius (in float), sorted by (distance, id),
+  // into `out` (cleared first).
+  void within_radius(const format::Float3& query, float radius, std::vector<Neighbor>& out) const;
+
+  std::span<const format::PointNode> nodes() const { return nodes_; }
+  std::span<const format::Float3> points() const { return points_; }
+  std::span<const std::uint32_t> ids() const { return ids_; }
+  const float* bounds_min() const { return min_; }
+  const float* bounds_max() const { return max_; }
+
+ private:
+  std::span<const format::PointNode> nodes_;
+  std::span<const format::Float3> points_;
+  std::span<const std::uint32_t> ids_;
+  float min_[3], max_[3];
+};
+
+}  // namespace kiln

@@ -1,0 +1,100 @@
+// Pieces shared by the proximity queries on the BVH (proximity.cpp) and on the k-d tree
+// (kdtree_proximity.cpp): box distances, the per-triangle predicates with their tie rules, and
+// the ray-parity vote.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "kiln/formats/bvh.hpp"
+#include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/triangle_geometry.hpp"
+#include "kiln/runtime/watertight.hpp"
+
+namespace kiln::proximity_detail {
+
+// Squared distance from p to the closed box [lo, hi]; 0 inside.
+inline double box_distance_squared(const float lo[3], const float hi[3], const Vec3d& p) {
+  const double q[3] = {p.x, p.y, p.z};
+  double sum = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double d = std::max({double(lo[a]) - q[a], 0.0, q[a] - double(hi[a])});
+    sum += d * d;
+  }
+  return sum;
+}
+
+// Whether the closed boxes [lo, hi] and [qlo, qhi] share a point.
+inline bool box_overlaps(const float lo[3], const float hi[3], const Vec3d& qlo, const Vec3d& qhi) {
+  return lo[0] <= qhi.x && hi[0] >= qlo.x && lo[1] <= qhi.y && hi[1] >= qlo.y && lo[2] <= qhi.z &&
+         hi[2] >= qlo.z;
+}
+
+// Offers triangle `prim` to a closest-point search whose best squared distance so far is
+// `best`. Ties go to the lower primitive id, so duplicated references and traversal order never
+// change the answer.
+inline void consider_closest(const Vec3d& p, const format::BvhTriangle& t, std::uint32_t prim,
+                             double& best, ClosestPoint& result) {
+  double v = 0, w = 0;
+  const Vec3d q = closest_on_triangle(p, to_d(t.v0), to_d(t.v1), to_d(t.v2), v, w);
+  const double d2 = dot(q - p, q - p);
+  if (d2 < best || (d2 == best && prim < result.prim)) {
+    best = d2;
+    result.prim = prim;
+    result.point = {float(q.x), float(q.y), float(q.z)};
+    result.u = float(v);
+    result.v = float(w);
+  }
+}
+
+inline void finish_closest(double best, ClosestPoint& result) {
+  if (result.prim != kNoHit) result.distance = float(std::sqrt(best));
+}
+
+// The query box in double; false when it is empty or has a NaN corner.
+inline bool prepare_query_box(const format::Float3& lo_f, const format::Float3& hi_f, Vec3d& lo,
+                              Vec3d& hi) {
+  lo = to_d(lo_f), hi = to_d(hi_f);
+  return lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z;
+}
+
+inline bool triangle_in_box(const format::BvhTriangle& t, const Vec3d& lo, const Vec3d& hi) {
+  return triangle_overlaps_box(to_d(t.v0), to_d(t.v1), to_d(t.v2), lo, hi);
+}
+
+// Whether the ray crosses the triangle anywhere in (0, inf).
+inline bool ray_crosses(const WatertightRay& ray, const format::BvhTriangle& t) {
+  float hit_t, u, v;
+  return intersect_watertight(ray, t.v0, t.v1, t.v2, 0.0f, INFINITY, hit_t, u, v);
+}
+
+// Primitive ids gathered from leaves (where a triangle may be referenced several times) as a
+// sorted set.
+inline void sort_unique(std::vector<std::uint32_t>& ids) {
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+}
+
+// Inside/outside by a majority of five ray-parity votes. `crossed(ray, ids)` fills `ids` with
+// the distinct triangles the ray crosses in (0, inf).
+template <class Crossed>
+bool inside_by_vote(const format::Float3& p, Crossed&& crossed) {
+  // Directions with no rational relation to the axes or each other: exact hits on the edges of
+  // axis-aligned or grid-like meshes are vanishingly unlikely, and the vote absorbs the rest.
+  static constexpr format::Float3 kDirections[5] = {{0.5773503f, 0.5773503f, 0.5773503f},
+                                                    {-0.3124515f, 0.8517410f, -0.4206537f},
+                                                    {0.7071068f, -0.3826834f, -0.5946036f},
+                                                    {-0.6614378f, -0.5f, 0.5590170f},
+                                                    {0.1873813f, -0.2763932f, 0.9425779f}};
+  std::vector<std::uint32_t> ids;
+  int inside_votes = 0;
+  for (const auto& d : kDirections) {
+    crossed(Ray{p, 0.0f, d, INFINITY}, ids);
+    inside_votes += int(ids.size() % 2);
+  }
+  return inside_votes >= 3;
+}
+
+}  // namespace kiln::proximity_detail
