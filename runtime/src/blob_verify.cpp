@@ -14,6 +14,41 @@
 
 namespace kiln {
 
+namespace {
+
+struct Cell {
+  float lo[3], hi[3];
+};
+
+// Depth-first walk of a validated two-way tree (below child next, `above_child()` beside),
+// handing each node the cell it owns: the root's box, cut on the way down by `split(index, node,
+// below, above)`, which receives two copies of the parent's cell to narrow.
+template <class Node, class Split, class Leaf>
+void walk_cells(std::span<const Node> nodes, const float lo[3], const float hi[3], Split split,
+                Leaf leaf) {
+  struct Pending {
+    std::uint32_t node;
+    Cell cell;
+  };
+  std::vector<Pending> stack(1);
+  for (int a = 0; a < 3; ++a) stack[0].cell.lo[a] = lo[a], stack[0].cell.hi[a] = hi[a];
+  while (!stack.empty()) {
+    const Pending p = stack.back();
+    stack.pop_back();
+    const Node& n = nodes[p.node];
+    if (n.is_leaf()) {
+      leaf(n, p.cell);
+      continue;
+    }
+    Pending below{p.node + 1, p.cell}, above{n.above_child(), p.cell};
+    split(p.node, n, below.cell, above.cell);
+    stack.push_back(above);
+    stack.push_back(below);
+  }
+}
+
+}  // namespace
+
 void Blob::verify() const {
   std::uint64_t previous_end =
       header_.section_table_offset + sections_.size() * sizeof(format::SectionEntry);
@@ -136,32 +171,16 @@ void Blob::verify_kdtree(const schema::Acceleration& accel) const {
   for (std::size_t i = 0; i < referenced.size(); ++i)
     if (!referenced[i])
       fail_section(desc->prim_ids(), name + " triangle " + std::to_string(i) + " is in no leaf");
-  struct Cell {
-    std::uint32_t node;
-    float lo[3], hi[3];
-  };
-  std::vector<Cell> stack(1);
-  stack[0].node = 0;
-  for (int a = 0; a < 3; ++a)
-    stack[0].lo[a] = tree.bounds_min()[a], stack[0].hi[a] = tree.bounds_max()[a];
-  const auto nodes = tree.nodes();
-  while (!stack.empty()) {
-    const Cell c = stack.back();
-    stack.pop_back();
-    const format::KdNode& n = nodes[c.node];
-    if (n.is_leaf()) continue;
-    const auto a = n.axis();
-    if (!(n.split() > c.lo[a] && n.split() < c.hi[a]))
-      fail_section(desc->nodes(),
-                   name + " node " + std::to_string(c.node) + " splits outside its cell");
-    Cell below = c, above = c;
-    below.node = c.node + 1;
-    below.hi[a] = n.split();
-    above.node = n.above_child();
-    above.lo[a] = n.split();
-    stack.push_back(above);
-    stack.push_back(below);
-  }
+  walk_cells<format::KdNode>(
+      tree.nodes(), tree.bounds_min(), tree.bounds_max(),
+      [&](std::uint32_t index, const format::KdNode& n, Cell& below, Cell& above) {
+        const auto a = n.axis();
+        if (!(n.split() > below.lo[a] && n.split() < below.hi[a]))
+          fail_section(desc->nodes(),
+                       name + " node " + std::to_string(index) + " splits outside its cell");
+        below.hi[a] = above.lo[a] = n.split();
+      },
+      [](const format::KdNode&, const Cell&) {});
 }
 
 // Beyond the view's structural walk: every vertex exactly once, each point a bitwise copy of its
@@ -184,41 +203,25 @@ void Blob::verify_point_tree(const schema::Acceleration& accel) const {
                    name + " point " + std::to_string(i) + " does not match its vertex");
   }
   // Walk with the box every point below must lie in: the bounds, narrowed by each gap.
-  struct Cell {
-    std::uint32_t node;
-    float lo[3], hi[3];
-  };
-  std::vector<Cell> stack(1);
-  stack[0].node = 0;
-  for (int a = 0; a < 3; ++a)
-    stack[0].lo[a] = tree.bounds_min()[a], stack[0].hi[a] = tree.bounds_max()[a];
-  const auto nodes = tree.nodes();
-  while (!stack.empty()) {
-    const Cell c = stack.back();
-    stack.pop_back();
-    const format::PointNode& n = nodes[c.node];
-    if (n.is_leaf()) {
-      for (std::uint32_t i = n.first_point(); i < n.first_point() + n.point_count(); ++i) {
-        const float p[3] = {points[i].x, points[i].y, points[i].z};
-        for (int a = 0; a < 3; ++a)
-          if (!(p[a] >= c.lo[a] && p[a] <= c.hi[a]))
-            fail_section(desc->nodes(), name + " point " + std::to_string(i) +
-                                            " lies outside the bounds or gaps above it");
-      }
-      continue;
-    }
-    const auto a = n.axis();
-    if (!(n.below_max() <= n.above_min()))
-      fail_section(desc->nodes(),
-                   name + " node " + std::to_string(c.node) + " has an inverted gap");
-    Cell below = c, above = c;
-    below.node = c.node + 1;
-    below.hi[a] = std::min(c.hi[a], n.below_max());
-    above.node = n.above_child();
-    above.lo[a] = std::max(c.lo[a], n.above_min());
-    stack.push_back(above);
-    stack.push_back(below);
-  }
+  walk_cells<format::PointNode>(
+      tree.nodes(), tree.bounds_min(), tree.bounds_max(),
+      [&](std::uint32_t index, const format::PointNode& n, Cell& below, Cell& above) {
+        const auto a = n.axis();
+        if (!(n.below_max() <= n.above_min()))
+          fail_section(desc->nodes(),
+                       name + " node " + std::to_string(index) + " has an inverted gap");
+        below.hi[a] = std::min(below.hi[a], n.below_max());
+        above.lo[a] = std::max(above.lo[a], n.above_min());
+      },
+      [&](const format::PointNode& n, const Cell& c) {
+        for (std::uint32_t i = n.first_point(); i < n.first_point() + n.point_count(); ++i) {
+          const float p[3] = {points[i].x, points[i].y, points[i].z};
+          for (int a = 0; a < 3; ++a)
+            if (!(p[a] >= c.lo[a] && p[a] <= c.hi[a]))
+              fail_section(desc->nodes(), name + " point " + std::to_string(i) +
+                                              " lies outside the bounds or gaps above it");
+        }
+      });
 }
 
 }  // namespace kiln
