@@ -4,6 +4,7 @@
 #include "kiln/formats/bvh.hpp"
 #include "kiln/formats/kdtree.hpp"
 #include "kiln/formats/point_tree.hpp"
+#include "kiln/formats/voxel_dag.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 
@@ -116,6 +117,19 @@ void Blob::validate_geometry() {
               sizeof(std::uint32_t), vertex_count, false);
         if (pt->node_count() == 0) fail_section(0, where + "has no nodes");
         if (pt->bounds() == nullptr) fail_section(0, where + "has no bounds");
+      }
+      if (const auto* dag = accel->dag()) {
+        const auto where = "acceleration '" + kind + "' ";
+        check((where + "words").c_str(), dag->words(), format::kSectionDagWords,
+              sizeof(std::uint32_t), dag->dag_bytes() / 4, false);
+        const bool has_codes = dag->voxel_codes() != kNoSection;
+        if (has_codes != (dag->voxel_normals() != kNoSection))
+          fail_section(0, where + "has voxel codes without normals or the reverse");
+        check((where + "voxel codes").c_str(), dag->voxel_codes(), format::kSectionVoxelCodes,
+              sizeof(std::uint64_t), dag->voxel_count(), true);
+        check((where + "voxel normals").c_str(), dag->voxel_normals(),
+              format::kSectionVoxelNormals, sizeof(std::uint32_t), dag->voxel_count(), true);
+        if (dag->level_stats() == nullptr) fail_section(0, where + "has no level table");
       }
     }
   }

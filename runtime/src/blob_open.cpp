@@ -9,6 +9,7 @@
 #include "kiln/formats/bvh.hpp"
 #include "kiln/formats/kdtree.hpp"
 #include "kiln/formats/point_tree.hpp"
+#include "kiln/formats/voxel_dag.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/checksum.hpp"
@@ -34,7 +35,9 @@ bool is_known_kind(std::uint32_t kind) {
          kind == format::kSectionBvhTriangles || kind == format::kSectionBvhPrimIds ||
          kind == format::kSectionKdNodes || kind == format::kSectionKdPrimIds ||
          kind == format::kSectionKdTriangles || kind == format::kSectionPointNodes ||
-         kind == format::kSectionPointPositions || kind == format::kSectionPointIds;
+         kind == format::kSectionPointPositions || kind == format::kSectionPointIds ||
+         kind == format::kSectionDagWords || kind == format::kSectionVoxelCodes ||
+         kind == format::kSectionVoxelNormals;
 }
 
 }  // namespace

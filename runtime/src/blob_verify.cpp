@@ -11,6 +11,7 @@
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/point_tree.hpp"
+#include "kiln/runtime/voxel_dag.hpp"
 
 namespace kiln {
 
@@ -109,6 +110,7 @@ void Blob::verify_accelerations() const {
     if (accel->bvh() != nullptr) verify_bvh(*accel);
     if (accel->kdtree() != nullptr) verify_kdtree(*accel);
     if (accel->points() != nullptr) verify_point_tree(*accel);
+    if (accel->dag() != nullptr) verify_voxel_dag(*accel);
   }
 }
 
@@ -222,6 +224,23 @@ void Blob::verify_point_tree(const schema::Acceleration& accel) const {
                                               " lies outside the bounds or gaps above it");
         }
       });
+}
+
+// Beyond the view's parse: the attachment's codes ascending, each naming a set voxel, one per
+// voxel the manifest counts.
+void Blob::verify_voxel_dag(const schema::Acceleration& accel) const {
+  const std::string name = accel.kind()->str();
+  const auto* desc = accel.dag();
+  const VoxelDagView dag = VoxelDagView::from_blob(*this, name);
+  const auto codes = section_view<std::uint64_t>(desc->voxel_codes());
+  for (std::size_t i = 0; i < codes.size(); ++i) {
+    const std::uint64_t c = codes[i];
+    if ((i > 0 && codes[i - 1] >= c) ||
+        !dag.occupied(format::compact_bits(c), format::compact_bits(c >> 1),
+                      format::compact_bits(c >> 2)))
+      fail_section(desc->voxel_codes(), name + " voxel code " + std::to_string(i) +
+                                            " is out of order or names an empty voxel");
+  }
 }
 
 }  // namespace kiln

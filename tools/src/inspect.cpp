@@ -170,6 +170,24 @@ void write_json(const Blob& blob, std::ostream& out) {
         j.field("sah_cost", k->sah_cost()).field("bytes_per_triangle", k->bytes_per_triangle());
         j.end_object();
       }
+      if (const auto* d = a->dag()) {
+        j.key("dag").begin_object();
+        j.field("resolution", d->resolution()).field("levels", d->levels());
+        j.field("origin_x", d->origin_x()).field("origin_y", d->origin_y());
+        j.field("origin_z", d->origin_z()).field("voxel_size", d->voxel_size());
+        j.field("voxel_count", d->voxel_count()).field("svo_bytes", d->svo_bytes());
+        j.field("dag_bytes", d->dag_bytes()).field("bits_per_voxel", d->bits_per_voxel());
+        j.field("svo_dag_ratio", double(d->svo_bytes()) / double(d->dag_bytes()));
+        j.field("normals", d->voxel_normals() != kNoSection);
+        j.key("levels_table").begin_array();
+        if (d->level_stats())
+          for (const auto* l : *d->level_stats()) {
+            j.begin_object().field("svo_nodes", l->svo_nodes()).field("dag_nodes", l->dag_nodes());
+            j.field("bytes", l->bytes()).end_object();
+          }
+        j.end_array();
+        j.end_object();
+      }
       if (const auto* p = a->points()) {
         j.key("points").begin_object();
         j.field("split_rule", str(p->split_rule())).field("max_leaf_size", p->max_leaf_size());
@@ -279,6 +297,28 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
             (unsigned long long)k->leaf_count(), (unsigned long long)k->empty_leaf_count(),
             k->max_depth(), k->largest_leaf(), (unsigned long long)k->reference_count(),
             k->references_per_triangle(), k->sah_cost(), k->bytes_per_triangle());
+      }
+      if (const auto* d = a->dag()) {
+        out << printf_string(
+            "    %u^3 voxels of %g (origin %g, %g, %g), %llu voxels set%s\n"
+            "    %llu DAG bytes, %.4f bits/voxel; SVO %llu bytes, SVO/DAG %.2f\n"
+            "    %5s %14s %14s %8s %14s\n",
+            d->resolution(), d->voxel_size(), d->origin_x(), d->origin_y(), d->origin_z(),
+            (unsigned long long)d->voxel_count(),
+            d->voxel_normals() != kNoSection ? ", normals attached" : "",
+            (unsigned long long)d->dag_bytes(), d->bits_per_voxel(),
+            (unsigned long long)d->svo_bytes(), double(d->svo_bytes()) / double(d->dag_bytes()),
+            "level", "SVO nodes", "DAG nodes", "SVO/DAG", "DAG bytes");
+        if (d->level_stats())
+          for (std::uint32_t l = 0; l < d->level_stats()->size(); ++l) {
+            const auto* s = d->level_stats()->Get(l);
+            out << printf_string("    %5u %14llu %14llu %8.2f %14llu%s\n", l,
+                                 (unsigned long long)s->svo_nodes(),
+                                 (unsigned long long)s->dag_nodes(),
+                                 double(s->svo_nodes()) / double(std::max<std::uint64_t>(1, s->dag_nodes())),
+                                 (unsigned long long)s->bytes(),
+                                 l + 1 == d->level_stats()->size() ? "  (4x4x4 leaf masks)" : "");
+          }
       }
       if (const auto* p = a->points()) {
         out << printf_string(

@@ -1,6 +1,9 @@
 // The `kiln` command line: build, dump, verify.
 #include <CLI/CLI.hpp>
 
+#include <sys/resource.h>
+
+#include <bit>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -9,6 +12,7 @@
 #include "kiln/compiler/atomic_file.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/import.hpp"
+#include "kiln/formats/voxel_dag.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/inspect.hpp"
@@ -31,6 +35,7 @@ struct BuildArgs {
   kiln::BvhBuildOptions bvh;
   kiln::KdTreeBuildOptions kdtree;
   kiln::PointTreeBuildOptions points;
+  kiln::VoxelizeOptions voxels;
   std::string bvh_builder = "binned";
   std::string points_split = "sliding-midpoint";
 };
@@ -43,6 +48,17 @@ int run_build(const BuildArgs& args) {
       std::cerr << "kiln build: output " << args.output << " is also an input\n";
       return 2;
     }
+  for (const auto& kind : args.accels)
+    if (kind == "dag") {
+      const std::uint32_t n = args.voxels.resolution;
+      if (!std::has_single_bit(n) || n < kiln::format::kDagMinResolution ||
+          n > kiln::format::kDagMaxResolution) {
+        std::cerr << "kiln build: --resolution " << n << " must be a power of two in "
+                  << kiln::format::kDagMinResolution << ".." << kiln::format::kDagMaxResolution
+                  << "\n";
+        return 1;
+      }
+    }
   kiln::BuildOptions options;
   options.inputs = args.inputs;
   for (const auto& kind : args.accels) {
@@ -51,7 +67,7 @@ int run_build(const BuildArgs& args) {
         std::cerr << "kiln build: --accel " << kind << " given twice\n";
         return 2;
       }
-    kiln::AccelRequest request{kind, args.bvh, args.kdtree, args.points};
+    kiln::AccelRequest request{kind, args.bvh, args.kdtree, args.points, args.voxels};
     request.points.split = args.points_split == "median" ? kiln::PointSplitRule::kMedian
                                                          : kiln::PointSplitRule::kSlidingMidpoint;
     request.bvh.builder = kind == "sbvh"                ? kiln::BvhBuilder::kSpatial
@@ -92,6 +108,9 @@ int run_build(const BuildArgs& args) {
         args.output.c_str(), (unsigned long long)scene->triangle_count(),
         (unsigned long long)scene->vertex_count(), (unsigned long long)blob.header().file_size,
         seconds, kiln::resolve_thread_count(args.threads));
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    std::fprintf(stderr, "kiln build: peak memory %.1f MiB\n", double(usage.ru_maxrss) / 1024.0);
     for (const auto& r : reports) {
       const bool points = !kiln::needs_triangles(r.kind);
       const double count = double(points ? scene->vertex_count() : scene->triangle_count());
@@ -131,7 +150,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   build_cmd->add_flag("--stats", build.stats, "Print build time and sizes to stderr");
   build_cmd->add_option("--accel", build.accels, "Acceleration structures to build (repeatable)")
-      ->check(CLI::IsMember({"bvh", "sbvh", "kdtree", "points"}))
+      ->check(CLI::IsMember({"bvh", "sbvh", "kdtree", "points", "dag"}))
       ->allow_extra_args(false);
   build_cmd->add_option("--bvh-builder", build.bvh_builder, "Builder for --accel bvh")
       ->check(CLI::IsMember({"binned", "sweep"}))
@@ -188,6 +207,13 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1u, kiln::kMaxPointLeafSize))
       ->capture_default_str();
 
+  build_cmd
+      ->add_option("--resolution", build.voxels.resolution,
+                   "Voxel grid side for --accel dag: a power of two, 8..16384")
+      ->capture_default_str();
+  build_cmd->add_flag("--voxel-normals", build.voxels.normals,
+                      "--accel dag: attach each voxel's averaged triangle normal");
+
   std::string dump_path;
   kiln::DumpOptions dump_options;
   auto* dump_cmd = app.add_subcommand("dump", "Print a blob's header, sections and manifest");
@@ -208,7 +234,9 @@ int main(int argc, char** argv) {
   trace_cmd->add_option("--rays", trace.rays, "RAYS file: 8 float32 per ray (org, tmin, dir, tmax)")
       ->required();
   trace_cmd
-      ->add_option("--out", trace.out, "HITS file: float32 t, uint32 prim, float32 u, v per ray")
+      ->add_option("--out", trace.out,
+                   "HITS file: float32 t, uint32 prim, float32 u, v per ray (voxel structures: "
+                   "the 40-byte voxel-hit record, docs/FORMAT.md)")
       ->required();
   trace_cmd->add_option("--accel", trace.accel,
                         "Structure to use (default: the first in the blob)");

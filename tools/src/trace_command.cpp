@@ -14,6 +14,7 @@
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/mapped_file.hpp"
+#include "kiln/runtime/voxel_dag.hpp"
 #include "kiln/tools/ray_generator.hpp"
 
 namespace kiln {
@@ -40,6 +41,13 @@ void trace_with(const Blob& blob, const std::string& accel, std::span<const Ray>
       throw BlobError(blob.name() + ": '" + accel + "' does not trace rays");
     }
   throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
+}
+
+bool is_voxel_structure(const Blob& blob, const std::string& accel) {
+  if (const auto* accels = blob.manifest().accelerations())
+    for (const auto* a : *accels)
+      if (a->kind()->str() == accel) return a->dag() != nullptr;
+  return false;
 }
 
 // The first BVH in the blob, if any.
@@ -75,14 +83,26 @@ int run_trace(const TraceArgs& args) {
     // The mapping is page-aligned, so the rays can be read in place.
     const std::span<const Ray> rays(reinterpret_cast<const Ray*>(bytes.data()),
                                     bytes.size() / sizeof(Ray));
-    std::vector<Hit> hits(rays.size());
     const auto start = std::chrono::steady_clock::now();
-    trace_with(blob, accel, rays, hits, args.any_hit, args.threads);
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    write_file_atomically(args.out, std::as_bytes(std::span<const Hit>(hits)));
     std::size_t hit_count = 0;
-    for (const auto& h : hits) hit_count += h.prim != kNoHit;
+    double seconds = 0;
+    auto elapsed = [&] {
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    if (is_voxel_structure(blob, accel)) {
+      // A voxel has no triangle id: voxel structures write the 40-byte voxel-hit record.
+      std::vector<VoxelHit> hits(rays.size());
+      trace_rays(VoxelDagView::from_blob(blob, accel), rays, hits, args.any_hit, args.threads);
+      seconds = elapsed();
+      write_file_atomically(args.out, std::as_bytes(std::span<const VoxelHit>(hits)));
+      for (const auto& h : hits) hit_count += h.hit();
+    } else {
+      std::vector<Hit> hits(rays.size());
+      trace_with(blob, accel, rays, hits, args.any_hit, args.threads);
+      seconds = elapsed();
+      write_file_atomically(args.out, std::as_bytes(std::span<const Hit>(hits)));
+      for (const auto& h : hits) hit_count += h.prim != kNoHit;
+    }
     std::fprintf(stderr, "kiln trace: %zu rays on %s, %zu hits, %.3f Mrays/s\n", rays.size(),
                  accel.c_str(), hit_count,
                  seconds > 0 ? double(rays.size()) / seconds * 1e-6 : 0.0);

@@ -12,19 +12,21 @@
 #include "kiln/compiler/kdtree_builder.hpp"
 #include "kiln/compiler/point_tree_builder.hpp"
 #include "kiln/compiler/scene.hpp"
+#include "kiln/compiler/voxelizer.hpp"
 
 namespace kiln {
 
 inline constexpr const char* kToolName = "kiln";
 extern const char* const kToolVersion;
 
-// One acceleration structure to build: kind "bvh" (binned or sweep builder), "sbvh", "kdtree"
-// or "points"; only the options of its kind are read.
+// One acceleration structure to build: kind "bvh" (binned or sweep builder), "sbvh", "kdtree",
+// "points" or "dag"; only the options of its kind are read.
 struct AccelRequest {
   std::string kind;
   BvhBuildOptions bvh;
   KdTreeBuildOptions kdtree;
   PointTreeBuildOptions points{};
+  VoxelizeOptions voxels{};
 };
 
 // Whether a structure of this kind is built over triangles (every kind but "points").

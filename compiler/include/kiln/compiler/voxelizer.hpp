@@ -1,0 +1,53 @@
+// Conservative surface voxelization on a cubic grid fitted to the scene: a voxel is set when a
+// triangle meets its closed box (separating-axis test, Akenine-Moller 2001). Sparse: the output
+// is the sorted Morton codes of the set voxels, produced brick by brick, never a dense N^3 array.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "kiln/compiler/scene.hpp"
+#include "kiln/runtime/triangle_geometry.hpp"
+
+namespace kiln {
+
+// Voxel (x, y, z) spans origin + [x, x+1] * voxel_size (likewise y, z), 0 <= x, y, z < resolution.
+struct VoxelGrid {
+  std::array<double, 3> origin{};
+  double voxel_size = 1;
+  std::uint32_t resolution = 0;
+};
+
+// The cube of side = the bounds' largest extent, centred on the bounds (no padding: a triangle
+// on the bounds' faces sets the boundary voxels, whose closed boxes reach the faces).
+VoxelGrid fit_voxel_grid(const Bounds3& bounds, std::uint32_t resolution);
+
+// A triangle's corners in grid units (voxel (x, y, z) is the box [x, x+1] x [y, y+1] x [z, z+1]).
+struct GridTriangle {
+  Vec3d v[3];
+};
+GridTriangle to_grid(const VoxelGrid& grid, const format::Float3& a, const format::Float3& b,
+                     const format::Float3& c);
+
+// The voxelizer's one predicate, shared with every brute-force check.
+bool triangle_touches_voxel(const GridTriangle& t, std::uint32_t x, std::uint32_t y,
+                            std::uint32_t z);
+
+struct VoxelizeOptions {
+  std::uint32_t resolution = 512;
+  bool normals = false;  // also average the touching triangles' normals per voxel
+  unsigned threads = 0;  // never changes the result
+};
+
+struct Voxels {
+  VoxelGrid grid;
+  std::vector<std::uint64_t> codes;    // Morton codes (formats/voxel_dag.hpp), ascending, unique
+  std::vector<std::uint32_t> normals;  // octahedral, parallel to codes; empty unless asked
+};
+
+// Throws std::invalid_argument for a resolution that is not a power of two in
+// [kDagMinResolution, kDagMaxResolution].
+Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options);
+
+}  // namespace kiln
