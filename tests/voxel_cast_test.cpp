@@ -12,6 +12,7 @@
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
 #include "kiln/tools/ray_generator.hpp"
+#include "proximity_fixtures.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
@@ -49,7 +50,8 @@ VoxelHit dda(const BuiltDag& b, const Ray& ray) {
   const double org[3] = {ray.org.x, ray.org.y, ray.org.z};
   const double dir[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
   double o[3], d[3];
-  for (int a = 0; a < 3; ++a) o[a] = (org[a] - g.origin[a]) / g.voxel_size, d[a] = dir[a] / g.voxel_size;
+  for (int a = 0; a < 3; ++a)
+    o[a] = (org[a] - g.origin[a]) / g.voxel_size, d[a] = dir[a] / g.voxel_size;
   double t0 = ray.tmin, t1 = ray.tmax;
   int entry_axis = -1;
   for (int a = 0; a < 3; ++a) {
@@ -76,8 +78,8 @@ VoxelHit dda(const BuiltDag& b, const Ray& ray) {
   double t_enter = t0;
   int axis = entry_axis;
   for (;;) {
-    const std::uint64_t code = format::morton_code(std::uint32_t(v[0]), std::uint32_t(v[1]),
-                                                   std::uint32_t(v[2]));
+    const std::uint64_t code =
+        format::morton_code(std::uint32_t(v[0]), std::uint32_t(v[1]), std::uint32_t(v[2]));
     if (std::binary_search(b.voxels.codes.begin(), b.voxels.codes.end(), code)) {
       VoxelHit hit;
       hit.t = float(t_enter);
@@ -101,9 +103,9 @@ VoxelHit dda(const BuiltDag& b, const Ray& ray) {
 std::vector<Ray> test_rays(const Scene& scene, std::size_t count, std::uint32_t seed) {
   const FlatBvh flat = build_bvh(scene, {});
   const BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);
-  std::vector<Ray> rays = generate_rays({bvh, scene.positions, scene.triangles, scene.bounds.min,
-                                         scene.bounds.max},
-                                        RayKind::kPrimary, count / 2, seed, 2);
+  std::vector<Ray> rays =
+      generate_rays({bvh, scene.positions, scene.triangles, scene.bounds.min, scene.bounds.max},
+                    RayKind::kPrimary, count / 2, seed, 2);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> unit(0, 1), sym(-1, 1);
   const Float3 lo = scene.bounds.min, hi = scene.bounds.max;
@@ -164,9 +166,8 @@ TEST(VoxelCast, OccupancyMatchesTheVoxelSet) {
   for (std::uint32_t z = 0; z < 64; ++z)
     for (std::uint32_t y = 0; y < 64; ++y)
       for (std::uint32_t x = 0; x < 64; ++x) {
-        const bool expected = std::binary_search(built.voxels.codes.begin(),
-                                                 built.voxels.codes.end(),
-                                                 format::morton_code(x, y, z));
+        const bool expected = std::binary_search(
+            built.voxels.codes.begin(), built.voxels.codes.end(), format::morton_code(x, y, z));
         ASSERT_EQ(view.occupied(x, y, z), expected) << x << " " << y << " " << z;
         set += expected;
       }
@@ -267,13 +268,65 @@ TEST(VoxelCast, CommandLineBuildDumpTrace) {
   }
   EXPECT_EQ(wrong, 0u);
   for (const char* bad : {"100", "0", "4", "32768"}) {
-    const auto result = run_kiln("build " + quoted(mesh_path("classic/teapot.obj")) +
-                                 " --accel dag --resolution " + bad + " -o " +
-                                 quoted(dir.file("x.kiln")));
+    const auto result =
+        run_kiln("build " + quoted(mesh_path("classic/teapot.obj")) + " --accel dag --resolution " +
+                 bad + " -o " + quoted(dir.file("x.kiln")));
     EXPECT_EQ(result.exit_code, 1) << bad;
     EXPECT_NE(result.err.find("power of two"), std::string::npos) << result.err;
     EXPECT_FALSE(std::filesystem::exists(dir.file("x.kiln")));
   }
+}
+
+// Solid voxelization: the surface plus exactly the voxels whose centre has winding number 1
+// (brute force over every triangle), on closed meshes; voxels the surface already holds are
+// excluded from the comparison (their centres may lie just outside).
+TEST(VoxelSolid, InteriorMatchesTheWindingNumber) {
+  KILN_REQUIRE_CORPUS();
+  for (const auto& [mesh, resolution] : std::vector<std::pair<const char*, std::uint32_t>>{
+           {"classic/spot.obj", 32}, {"classic/fandisk.obj", 16}, {"assimp/OBJ/box.obj", 16}}) {
+    const Scene scene = import_scene({mesh_path(mesh)}, 2);
+    const Voxels surface = voxelize_surface(scene, {resolution, false, 2});
+    const VoxelLeaves solid = solid_leaves(scene, surface.grid, surface.codes, 2);
+    const FlatVoxelDag dag = build_voxel_dag(solid, resolution);
+    const auto codes = expand_voxel_dag(dag.words, dag.levels);
+    EXPECT_EQ(codes.size(), solid.voxel_count);
+    EXPECT_TRUE(
+        std::includes(codes.begin(), codes.end(), surface.codes.begin(), surface.codes.end()));
+    std::size_t inside = 0, wrong = 0;
+    const VoxelGrid& g = surface.grid;
+    for (std::uint32_t z = 0; z < resolution; ++z)
+      for (std::uint32_t y = 0; y < resolution; ++y)
+        for (std::uint32_t x = 0; x < resolution; ++x) {
+          const std::uint64_t code = format::morton_code(x, y, z);
+          if (std::binary_search(surface.codes.begin(), surface.codes.end(), code)) continue;
+          const Float3 centre{float(g.origin[0] + (x + 0.5) * g.voxel_size),
+                              float(g.origin[1] + (y + 0.5) * g.voxel_size),
+                              float(g.origin[2] + (z + 0.5) * g.voxel_size)};
+          const bool expected = std::lround(test::winding_number(scene, centre)) == 1;
+          inside += expected;
+          wrong += expected != std::binary_search(codes.begin(), codes.end(), code);
+        }
+    EXPECT_GT(inside, 0u) << mesh;
+    EXPECT_EQ(wrong, 0u) << mesh;
+  }
+}
+
+TEST(VoxelSolid, ByteIdenticalAcrossThreadCounts) {
+  KILN_REQUIRE_CORPUS();
+  const Scene scene = import_scene({mesh_path("classic/spot.obj")}, 2);
+  BuildOptions options;
+  options.inputs = {"spot"};
+  AccelRequest request;
+  request.kind = "dag";
+  request.voxels.resolution = 256;  // two bricks per axis
+  request.voxels.solid = true;
+  request.voxels.normals = true;
+  options.accels.push_back(request);
+  options.threads = 1;
+  const auto one = compile_blob(scene, options);
+  options.threads = 3;
+  EXPECT_EQ(one, compile_blob(scene, options));
+  EXPECT_EQ(open_and_verify(one), "");
 }
 
 }  // namespace

@@ -32,10 +32,14 @@ struct Level {
 }  // namespace
 
 FlatVoxelDag build_voxel_dag(std::span<const std::uint64_t> codes, std::uint32_t resolution) {
-  if (codes.empty()) throw std::invalid_argument("a voxel DAG needs at least one voxel");
+  return build_voxel_dag(leaves_of(codes), resolution);
+}
+
+FlatVoxelDag build_voxel_dag(const VoxelLeaves& leaves, std::uint32_t resolution) {
+  if (leaves.keys.empty()) throw std::invalid_argument("a voxel DAG needs at least one voxel");
   FlatVoxelDag dag;
   dag.levels = std::uint32_t(std::bit_width(resolution) - 1);
-  dag.voxel_count = codes.size();
+  dag.voxel_count = leaves.voxel_count;
   const std::uint32_t leaf_level = dag.levels - 2;
   dag.level_stats.resize(leaf_level + 1);
 
@@ -44,13 +48,11 @@ FlatVoxelDag build_voxel_dag(std::span<const std::uint64_t> codes, std::uint32_t
   Level below;
   {
     std::unordered_map<std::uint64_t, std::uint32_t> ids;
-    for (std::size_t i = 0; i < codes.size();) {
-      const std::uint64_t key = codes[i] >> 6;
-      std::uint64_t mask = 0;
-      for (; i < codes.size() && codes[i] >> 6 == key; ++i) mask |= std::uint64_t{1} << (codes[i] & 63);
+    for (std::size_t i = 0; i < leaves.keys.size(); ++i) {
+      const std::uint64_t mask = leaves.masks[i];
       const auto [it, fresh] = ids.emplace(mask, std::uint32_t(leaf_masks.size()));
       if (fresh) leaf_masks.push_back(mask);
-      below.keys.push_back(key);
+      below.keys.push_back(leaves.keys[i]);
       below.ids.push_back(it->second);
     }
     auto& s = dag.level_stats[leaf_level];

@@ -114,8 +114,7 @@ bool triangle_touches_voxel(const GridTriangle& t, std::uint32_t x, std::uint32_
 
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
   const std::uint32_t n = options.resolution;
-  if (!std::has_single_bit(n) || n < format::kDagMinResolution ||
-      n > format::kDagMaxResolution)
+  if (!std::has_single_bit(n) || n < format::kDagMinResolution || n > format::kDagMaxResolution)
     throw std::invalid_argument("--resolution " + std::to_string(n) +
                                 " must be a power of two in " +
                                 std::to_string(format::kDagMinResolution) + ".." +
@@ -131,8 +130,8 @@ Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
                                                bricks_per_axis);
   for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
     const auto& tri = scene.triangles[i];
-    const GridTriangle t = to_grid(out.grid, scene.positions[tri.v[0]],
-                                   scene.positions[tri.v[1]], scene.positions[tri.v[2]]);
+    const GridTriangle t = to_grid(out.grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
+                                   scene.positions[tri.v[2]]);
     const VoxelRange r = candidate_range(t, whole);
     if (r.lo[0] > r.hi[0] || r.lo[1] > r.hi[1] || r.lo[2] > r.hi[2]) continue;
     for (std::int64_t bz = r.lo[2] / brick; bz <= r.hi[2] / brick; ++bz)
@@ -147,16 +146,16 @@ Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
     if (bins[b].empty()) return;
     const std::uint32_t bx = format::compact_bits(b), by = format::compact_bits(b >> 1),
                         bz = format::compact_bits(b >> 2);
-    const VoxelRange clip{{std::int64_t(bx) * brick, std::int64_t(by) * brick,
-                           std::int64_t(bz) * brick},
-                          {std::int64_t(bx + 1) * brick - 1, std::int64_t(by + 1) * brick - 1,
-                           std::int64_t(bz + 1) * brick - 1}};
+    const VoxelRange clip{
+        {std::int64_t(bx) * brick, std::int64_t(by) * brick, std::int64_t(bz) * brick},
+        {std::int64_t(bx + 1) * brick - 1, std::int64_t(by + 1) * brick - 1,
+         std::int64_t(bz + 1) * brick - 1}};
     // (code, triangle) pairs: sorting them fixes the order normals are summed in.
     std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
     for (const std::uint32_t i : bins[b]) {
       const auto& tri = scene.triangles[i];
-      const GridTriangle t = to_grid(out.grid, scene.positions[tri.v[0]],
-                                     scene.positions[tri.v[1]], scene.positions[tri.v[2]]);
+      const GridTriangle t = to_grid(out.grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
+                                     scene.positions[tri.v[2]]);
       voxelize_triangle(t, clip, [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
         hits.emplace_back(format::morton_code(x, y, z), i);
       });

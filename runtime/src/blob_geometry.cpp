@@ -4,8 +4,8 @@
 #include "kiln/formats/bvh.hpp"
 #include "kiln/formats/kdtree.hpp"
 #include "kiln/formats/point_tree.hpp"
-#include "kiln/formats/voxel_dag.hpp"
 #include "kiln/formats/section_kinds.hpp"
+#include "kiln/formats/voxel_dag.hpp"
 #include "kiln/runtime/blob.hpp"
 
 namespace kiln {
@@ -126,9 +126,9 @@ void Blob::validate_geometry() {
         if (has_codes != (dag->voxel_normals() != kNoSection))
           fail_section(0, where + "has voxel codes without normals or the reverse");
         check((where + "voxel codes").c_str(), dag->voxel_codes(), format::kSectionVoxelCodes,
-              sizeof(std::uint64_t), dag->voxel_count(), true);
-        check((where + "voxel normals").c_str(), dag->voxel_normals(),
-              format::kSectionVoxelNormals, sizeof(std::uint32_t), dag->voxel_count(), true);
+              sizeof(std::uint64_t), dag->surface_voxel_count(), true);
+        check((where + "voxel normals").c_str(), dag->voxel_normals(), format::kSectionVoxelNormals,
+              sizeof(std::uint32_t), dag->surface_voxel_count(), true);
         if (dag->level_stats() == nullptr) fail_section(0, where + "has no level table");
       }
     }

@@ -23,8 +23,8 @@ struct GridRay {
 
 // Entry distance of the ray into the box [lo, lo + size]^3 within [tmin, tmax] and the axis
 // whose face it enters through (-1: it starts inside); false when it misses.
-bool enter(const GridRay& r, std::uint32_t x, std::uint32_t y, std::uint32_t z,
-           std::uint32_t size, float& t_enter, int& axis) {
+bool enter(const GridRay& r, std::uint32_t x, std::uint32_t y, std::uint32_t z, std::uint32_t size,
+           float& t_enter, int& axis) {
   const float lo[3] = {float(x), float(y), float(z)};
   float t_near = r.tmin, t_far = r.tmax;
   axis = -1;
@@ -99,8 +99,7 @@ VoxelHit VoxelDagView::cast(const Ray& ray) const {
       const int count = order_children(r, mask, c.x, c.y, c.z, half, order);
       for (int i = count; i-- > 0;) {
         const std::uint32_t octant = order[i].index;
-        const std::uint32_t child =
-            words_[c.word + 1 + std::popcount(mask & ((1u << octant) - 1))];
+        const std::uint32_t child = words_[c.word + 1 + std::popcount(mask & ((1u << octant) - 1))];
         stack[top++] = {child, c.level + 1, c.x + (octant & 1) * half,
                         c.y + (octant >> 1 & 1) * half, c.z + (octant >> 2 & 1) * half};
       }
@@ -115,8 +114,8 @@ VoxelHit VoxelDagView::cast(const Ray& ray) const {
       const std::uint32_t b = order[q].index;
       const std::uint32_t qx = c.x + (b & 1) * 2, qy = c.y + (b >> 1 & 1) * 2,
                           qz = c.z + (b >> 2 & 1) * 2;
-      const int voxels = order_children(r, std::uint32_t(leaf >> (8 * b) & 0xFF), qx, qy, qz, 1,
-                                        inner);
+      const int voxels =
+          order_children(r, std::uint32_t(leaf >> (8 * b) & 0xFF), qx, qy, qz, 1, inner);
       if (voxels == 0) continue;
       const Candidate& v = inner[0];
       hit.t = v.t;

@@ -52,11 +52,10 @@ VoxelDagView::VoxelDagView(std::span<const std::uint32_t> words, const VoxelGrid
       const std::uint64_t count = std::popcount(words[w]);
       for (std::uint64_t i = 1; i <= count; ++i) {
         const std::uint64_t p = words[w + i];
-        const bool ok = l + 1 < leaf_level
-                            ? p >= level_first_words[l + 1] && p < level_first_words[l + 2] &&
-                                  starts[p]
-                            : p >= leaf_first_word && (p - leaf_first_word) % 2 == 0 &&
-                                  p + 1 < words.size();
+        const bool ok =
+            l + 1 < leaf_level
+                ? p >= level_first_words[l + 1] && p < level_first_words[l + 2] && starts[p]
+                : p >= leaf_first_word && (p - leaf_first_word) % 2 == 0 && p + 1 < words.size();
         if (!ok) fail("node at word " + std::to_string(w) + " points at " + std::to_string(p));
       }
       w += 1 + count;
@@ -76,10 +75,10 @@ VoxelDagView VoxelDagView::from_blob(const Blob& blob, const std::string& name) 
         std::vector<std::uint64_t> firsts;
         if (d->level_stats())
           for (const auto* level : *d->level_stats()) firsts.push_back(level->first_word());
-        return VoxelDagView(blob.section_view<std::uint32_t>(d->words()), frame, firsts,
-                            d->leaf_first_word(), blob.section_view<std::uint64_t>(d->voxel_codes()),
-                            blob.section_view<std::uint32_t>(d->voxel_normals()),
-                            blob.name() + ": " + name);
+        return VoxelDagView(
+            blob.section_view<std::uint32_t>(d->words()), frame, firsts, d->leaf_first_word(),
+            blob.section_view<std::uint64_t>(d->voxel_codes()),
+            blob.section_view<std::uint32_t>(d->voxel_normals()), blob.name() + ": " + name);
       }
   throw BlobError(blob.name() + ": has no voxel DAG '" + name + "' (build with --accel dag)");
 }

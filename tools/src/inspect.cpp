@@ -312,12 +312,12 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
         if (d->level_stats())
           for (std::uint32_t l = 0; l < d->level_stats()->size(); ++l) {
             const auto* s = d->level_stats()->Get(l);
-            out << printf_string("    %5u %14llu %14llu %8.2f %14llu%s\n", l,
-                                 (unsigned long long)s->svo_nodes(),
-                                 (unsigned long long)s->dag_nodes(),
-                                 double(s->svo_nodes()) / double(std::max<std::uint64_t>(1, s->dag_nodes())),
-                                 (unsigned long long)s->bytes(),
-                                 l + 1 == d->level_stats()->size() ? "  (4x4x4 leaf masks)" : "");
+            out << printf_string(
+                "    %5u %14llu %14llu %8.2f %14llu%s\n", l, (unsigned long long)s->svo_nodes(),
+                (unsigned long long)s->dag_nodes(),
+                double(s->svo_nodes()) / double(std::max<std::uint64_t>(1, s->dag_nodes())),
+                (unsigned long long)s->bytes(),
+                l + 1 == d->level_stats()->size() ? "  (4x4x4 leaf masks)" : "");
           }
       }
       if (const auto* p = a->points()) {

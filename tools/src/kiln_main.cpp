@@ -213,6 +213,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   build_cmd->add_flag("--voxel-normals", build.voxels.normals,
                       "--accel dag: attach each voxel's averaged triangle normal");
+  build_cmd->add_flag("--solid", build.voxels.solid,
+                      "--accel dag: fill the inside too (closed meshes: kiln dump says which)");
 
   std::string dump_path;
   kiln::DumpOptions dump_options;

@@ -6,6 +6,8 @@
 #include <span>
 #include <vector>
 
+#include "kiln/compiler/voxelizer.hpp"
+
 namespace kiln {
 
 struct VoxelDagLevelStats {
@@ -25,6 +27,8 @@ struct FlatVoxelDag {
 // Morton order, so the words depend on the codes alone. `codes` must be ascending, unique,
 // non-empty and below resolution^3.
 FlatVoxelDag build_voxel_dag(std::span<const std::uint64_t> codes, std::uint32_t resolution);
+// The same from 4x4x4 blocks (keys ascending, masks non-zero), as solid_leaves makes them.
+FlatVoxelDag build_voxel_dag(const VoxelLeaves& leaves, std::uint32_t resolution);
 
 // Every voxel of the DAG as sorted Morton codes (the inverse, for tests and tools).
 std::vector<std::uint64_t> expand_voxel_dag(std::span<const std::uint32_t> words,

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "kiln/compiler/scene.hpp"
@@ -38,6 +39,7 @@ struct VoxelizeOptions {
   std::uint32_t resolution = 512;
   bool normals = false;  // also average the touching triangles' normals per voxel
   unsigned threads = 0;  // never changes the result
+  bool solid = false;    // the DAG also holds the interior (solid_leaves); closed meshes only
 };
 
 struct Voxels {
@@ -49,5 +51,21 @@ struct Voxels {
 // Throws std::invalid_argument for a resolution that is not a power of two in
 // [kDagMinResolution, kDagMaxResolution].
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options);
+
+// Voxels as 4x4x4 blocks: 8 bytes per 64 voxels, so a solid interior stays small.
+struct VoxelLeaves {
+  std::vector<std::uint64_t> keys;   // Morton code >> 6 of each non-empty block, ascending
+  std::vector<std::uint64_t> masks;  // bit i: the voxel with Morton index i inside the block
+  std::uint64_t voxel_count = 0;
+};
+VoxelLeaves leaves_of(std::span<const std::uint64_t> codes);
+
+// The surface voxels plus every voxel whose centre lies inside the mesh: along each column of
+// voxel centres parallel to z, the crossings with the triangles (one per triangle whose xy
+// projection holds the column, shared edges counted once) are paired in order, and the centres
+// between a pair are inside. Meaningful for closed meshes; an unpaired last crossing is ignored.
+// Brick by brick like the surface; the bricks' leaf masks are concatenated in Morton order.
+VoxelLeaves solid_leaves(const Scene& scene, const VoxelGrid& grid,
+                         std::span<const std::uint64_t> surface_codes, unsigned threads);
 
 }  // namespace kiln

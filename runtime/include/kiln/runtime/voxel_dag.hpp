@@ -18,8 +18,9 @@ class Blob;
 struct VoxelHit {
   float t = std::numeric_limits<float>::infinity();  // +inf on a miss
   std::uint32_t x = kNoHit, y = kNoHit, z = kNoHit;  // the voxel; 0xFFFFFFFF on a miss
-  float face_normal[3] = {0, 0, 0};  // the entered face's outward normal; 0 if the ray starts inside
-  float normal[3] = {0, 0, 0};       // the voxel's attached normal; 0 when the blob has none
+  float face_normal[3] = {0, 0,
+                          0};   // the entered face's outward normal; 0 if the ray starts inside
+  float normal[3] = {0, 0, 0};  // the voxel's attached normal; 0 when the blob has none
   bool hit() const { return x != kNoHit; }
 };
 static_assert(sizeof(VoxelHit) == 40);

@@ -1,0 +1,213 @@
+// Voxel DAG: voxelization and DAG construction time, sizes per resolution, and ray casts per
+// second (single thread and all threads) on primary rays.
+//
+// Usage: kiln_bench_voxels [--resolutions=1024,2048,4096] [--rays=N] MESH... [benchmark flags]
+//   MESH as kiln_bench_bvh takes it: a file, or LABEL=@DIR/PATTERN for many files as one scene.
+//   Each benchmark keeps its fastest iteration; a Markdown table is printed at the end.
+#include <benchmark/benchmark.h>
+#include <fnmatch.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "kiln/compiler/build.hpp"
+#include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/voxel_dag_builder.hpp"
+#include "kiln/compiler/voxelizer.hpp"
+#include "kiln/runtime/voxel_dag.hpp"
+#include "kiln/tools/ray_generator.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct Settings {
+  std::vector<std::uint32_t> resolutions{1024, 2048, 4096};
+  std::size_t rays = 200000;
+} g_settings;
+
+struct Row {
+  double voxelize_s = NAN, dag_s = NAN, cast_1t = NAN, cast_all = NAN;
+  std::uint64_t voxels = 0, dag_bytes = 0, svo_bytes = 0, hits = 0;
+};
+
+struct Case {
+  std::string label;
+  kiln::Scene scene;
+  std::vector<kiln::Ray> rays;
+  std::map<std::uint32_t, Row> rows;
+  std::map<std::uint32_t, std::shared_ptr<kiln::Voxels>> voxels;
+  std::map<std::uint32_t, std::shared_ptr<kiln::FlatVoxelDag>> dags;
+};
+std::vector<std::unique_ptr<Case>> g_cases;
+
+template <class Body>
+void timed(benchmark::State& state, double& best, Body body) {
+  for (auto _ : state) {
+    const auto start = Clock::now();
+    body();
+    const double s = std::chrono::duration<double>(Clock::now() - start).count();
+    state.SetIterationTime(s);
+    best = std::isnan(best) ? s : std::min(best, s);
+  }
+}
+
+kiln::VoxelDagView view_of(const kiln::Voxels& v, const kiln::FlatVoxelDag& dag,
+                           std::vector<std::uint64_t>& firsts) {
+  kiln::VoxelGridFrame frame;
+  for (int a = 0; a < 3; ++a) frame.origin[a] = v.grid.origin[a];
+  frame.voxel_size = v.grid.voxel_size;
+  frame.resolution = v.grid.resolution;
+  firsts.clear();
+  for (const auto& l : dag.level_stats) firsts.push_back(l.first_word);
+  return kiln::VoxelDagView(dag.words, frame, firsts, dag.leaf_first_word, {}, {});
+}
+
+void register_case(Case* c) {
+  for (const std::uint32_t n : g_settings.resolutions) {
+    const std::string prefix = c->label + "/" + std::to_string(n) + "/";
+    benchmark::RegisterBenchmark((prefix + "voxelize").c_str(),
+                                 [=](benchmark::State& state) {
+                                   Row& row = c->rows[n];
+                                   timed(state, row.voxelize_s, [&] {
+                                     c->voxels[n] = std::make_shared<kiln::Voxels>(
+                                         kiln::voxelize_surface(c->scene, {n, false, 0}));
+                                   });
+                                   row.voxels = c->voxels[n]->codes.size();
+                                 })
+        ->UseManualTime()
+        ->Iterations(2)
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(
+        (prefix + "dag").c_str(),
+        [=](benchmark::State& state) {
+          Row& row = c->rows[n];
+          if (!c->voxels[n])
+            c->voxels[n] =
+                std::make_shared<kiln::Voxels>(kiln::voxelize_surface(c->scene, {n, false, 0}));
+          timed(state, row.dag_s, [&] {
+            c->dags[n] =
+                std::make_shared<kiln::FlatVoxelDag>(kiln::build_voxel_dag(c->voxels[n]->codes, n));
+          });
+          row.voxels = c->voxels[n]->codes.size();
+          row.dag_bytes = c->dags[n]->dag_bytes;
+          row.svo_bytes = c->dags[n]->svo_bytes;
+          std::vector<std::uint64_t>().swap(c->voxels[n]->codes);  // keep only what casts need
+        })
+        ->UseManualTime()
+        ->Iterations(2)
+        ->Unit(benchmark::kMillisecond);
+    for (const unsigned threads : {1u, 0u}) {
+      benchmark::RegisterBenchmark(
+          (prefix + (threads == 1 ? "cast1T" : "castAll")).c_str(),
+          [=](benchmark::State& state) {
+            Row& row = c->rows[n];
+            if (!c->dags[n]) {
+              state.SkipWithError("run the dag benchmark first");
+              return;
+            }
+            std::vector<std::uint64_t> firsts;
+            const kiln::VoxelDagView view = view_of(*c->voxels[n], *c->dags[n], firsts);
+            std::vector<kiln::VoxelHit> hits(c->rays.size());
+            double best = NAN;
+            timed(state, best, [&] { kiln::trace_rays(view, c->rays, hits, false, threads); });
+            (threads == 1 ? row.cast_1t : row.cast_all) = double(c->rays.size()) / best * 1e-6;
+            row.hits = std::count_if(hits.begin(), hits.end(), [](auto& h) { return h.hit(); });
+          })
+          ->UseManualTime()
+          ->Iterations(3)
+          ->Unit(benchmark::kMillisecond);
+    }
+  }
+}
+
+void print_report() {
+  std::printf(
+      "\n| mesh | resolution | voxels | voxelize s | DAG build s | DAG MB | bits/voxel | SVO MB | "
+      "SVO/DAG | cast 1T Mrays/s | cast %uT Mrays/s | hit rays |\n",
+      std::max(1u, std::thread::hardware_concurrency()));
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const auto& c : g_cases)
+    for (const auto& [n, r] : c->rows)
+      std::printf(
+          "| %s | %u^3 | %llu | %.3f | %.3f | %.2f | %.3f | %.2f | %.2f | %.2f | %.2f | %.1f %% "
+          "|\n",
+          c->label.c_str(), n, (unsigned long long)r.voxels, r.voxelize_s, r.dag_s,
+          double(r.dag_bytes) / 1e6, double(r.dag_bytes) * 8 / double(r.voxels),
+          double(r.svo_bytes) / 1e6, double(r.svo_bytes) / double(r.dag_bytes), r.cast_1t,
+          r.cast_all, 100.0 * double(r.hits) / double(c->rays.size()));
+}
+
+std::vector<std::string> expand_inputs(const std::string& spec, std::string& label) {
+  const auto at = spec.find("=@");
+  if (at == std::string::npos) {
+    label = std::filesystem::path(spec).filename().string();
+    return {spec};
+  }
+  label = spec.substr(0, at);
+  const std::filesystem::path pattern(spec.substr(at + 2));
+  std::vector<std::string> files;
+  for (const auto& entry : std::filesystem::directory_iterator(pattern.parent_path()))
+    if (fnmatch(pattern.filename().c_str(), entry.path().filename().c_str(), 0) == 0)
+      files.push_back(entry.path().string());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  std::vector<std::string> specs;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg.starts_with("--resolutions=")) {
+      g_settings.resolutions.clear();
+      std::string list = arg.substr(14);
+      for (std::size_t pos = 0; pos <= list.size();) {
+        const auto comma = std::min(list.find(',', pos), list.size());
+        g_settings.resolutions.push_back(std::uint32_t(std::stoul(list.substr(pos, comma - pos))));
+        pos = comma + 1;
+      }
+    } else if (arg.starts_with("--rays=")) {
+      g_settings.rays = std::stoull(arg.substr(7));
+    } else if (arg.starts_with("--")) {
+      std::fprintf(stderr, "unknown option '%s'\n", arg.c_str());
+      return 2;
+    } else {
+      specs.push_back(arg);
+    }
+  }
+  if (specs.empty()) {
+    std::fprintf(stderr, "usage: kiln_bench_voxels [--resolutions=1024,2048] [--rays=N] MESH...\n");
+    return 2;
+  }
+  for (const auto& spec : specs) {
+    auto c = std::make_unique<Case>();
+    try {
+      c->scene = kiln::import_scene(expand_inputs(spec, c->label), 0);
+      const kiln::FlatBvh flat = kiln::build_bvh(c->scene, {});
+      const kiln::BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);
+      c->rays = kiln::generate_rays(
+          {bvh, c->scene.positions, c->scene.triangles, c->scene.bounds.min, c->scene.bounds.max},
+          kiln::RayKind::kPrimary, g_settings.rays, 1, 0);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "%s\n", e.what());
+      return 1;
+    }
+    g_cases.push_back(std::move(c));
+  }
+  for (const auto& c : g_cases) register_case(c.get());
+  benchmark::RunSpecifiedBenchmarks();
+  print_report();
+  benchmark::Shutdown();
+  return 0;
+}
