@@ -1,0 +1,183 @@
+// The voxelizer against brute force (every voxel of the grid against every triangle, with the
+// same exact predicate) on corpus meshes and generated worst cases; the DAG against the voxel
+// set it was built from.
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "kiln/compiler/build.hpp"
+#include "kiln/compiler/voxel_dag_builder.hpp"
+#include "kiln/compiler/voxelizer.hpp"
+#include "kiln/formats/voxel_dag.hpp"
+#include "test_support.hpp"
+
+namespace kiln {
+namespace {
+
+using format::Float3;
+
+// Every voxel of the grid tested against every triangle: no binning, no column walk.
+std::vector<std::uint64_t> brute_force_voxels(const Scene& scene, const VoxelGrid& grid) {
+  std::vector<std::uint64_t> codes;
+  const std::uint32_t n = grid.resolution;
+  for (const auto& tri : scene.triangles) {
+    const GridTriangle t = to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
+                                   scene.positions[tri.v[2]]);
+    for (std::uint32_t z = 0; z < n; ++z)
+      for (std::uint32_t y = 0; y < n; ++y)
+        for (std::uint32_t x = 0; x < n; ++x)
+          if (triangle_touches_voxel(t, x, y, z)) codes.push_back(format::morton_code(x, y, z));
+  }
+  std::sort(codes.begin(), codes.end());
+  codes.erase(std::unique(codes.begin(), codes.end()), codes.end());
+  return codes;
+}
+
+Scene triangles_scene(const std::vector<std::array<Float3, 3>>& triangles) {
+  Scene scene;
+  for (const auto& t : triangles) {
+    const auto base = std::uint32_t(scene.positions.size());
+    scene.positions.insert(scene.positions.end(), t.begin(), t.end());
+    scene.triangles.push_back({{base, base + 1, base + 2}});
+    scene.triangle_mesh.push_back(0);
+  }
+  scene.bounds = bounds_of(scene.positions);
+  scene.sources.push_back({"generated", 0, 0});
+  scene.meshes.push_back({"generated", 0, 0, scene.triangles.size(), 0, scene.positions.size()});
+  return scene;
+}
+
+void expect_matches_brute_force(const Scene& scene, std::uint32_t n, const std::string& what) {
+  const Voxels voxels = voxelize_surface(scene, {n, false, 2});
+  ASSERT_FALSE(voxels.codes.empty()) << what;
+  EXPECT_LT(voxels.codes.back(), std::uint64_t(n) * n * n);
+  EXPECT_EQ(voxels.codes, brute_force_voxels(scene, voxels.grid)) << what << " at " << n;
+  // The grid holds the bounds.
+  const float lo[3] = {scene.bounds.min.x, scene.bounds.min.y, scene.bounds.min.z};
+  const float hi[3] = {scene.bounds.max.x, scene.bounds.max.y, scene.bounds.max.z};
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_LE(voxels.grid.origin[a], lo[a]);
+    EXPECT_GE(voxels.grid.origin[a] + n * voxels.grid.voxel_size, hi[a]);
+  }
+}
+
+TEST(Voxelizer, MatchesBruteForceOnCorpusMeshes) {
+  KILN_REQUIRE_CORPUS();
+  for (const auto& [mesh, resolutions] :
+       std::vector<std::pair<const char*, std::vector<std::uint32_t>>>{
+           {"assimp/OBJ/spider.obj", {8, 16, 32}},
+           {"classic/spot.obj", {16, 32}},
+           {"classic/fandisk.obj", {16}},
+           {"assimp/OBJ/box.obj", {8, 16}}}) {
+    const Scene scene = import_scene({test::mesh_path(mesh)}, 2);
+    for (const auto n : resolutions) expect_matches_brute_force(scene, n, mesh);
+  }
+}
+
+TEST(Voxelizer, MatchesBruteForceOnWorstCases) {
+  // On grid planes (the grid is [0, 8]^3 for these), on voxel faces and edges, slivers, a huge
+  // slanted triangle, tiny ones inside one voxel, and triangles on the grid's outer faces.
+  const std::vector<std::array<Float3, 3>> cases = {
+      {{{0, 0, 0}, {8, 0, 0}, {0, 8, 8}}},             // the grid's diagonal slab
+      {{{1, 1, 2}, {5, 1, 2}, {1, 5, 2}}},             // exactly in the plane z = 2
+      {{{2, 3, 0}, {2, 7, 8}, {2, 3, 8}}},             // exactly in the plane x = 2
+      {{{0.1f, 0.1f, 0.1f}, {7.9f, 7.9f, 7.9f}, {7.9f, 7.9f, 7.90001f}}},  // sliver
+      {{{3.2f, 3.2f, 3.2f}, {3.3f, 3.2f, 3.2f}, {3.2f, 3.3f, 3.25f}}},    // inside one voxel
+      {{{8, 0, 0}, {8, 8, 0}, {8, 0, 8}}},             // on the grid's max face
+      {{{4, 4, 4}, {6, 4, 4}, {4, 4.000001f, 6}}},     // nearly edge-on
+  };
+  const Scene all = triangles_scene(cases);
+  for (const std::uint32_t n : {8u, 16u, 32u}) expect_matches_brute_force(all, n, "worst cases");
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    std::vector<std::array<Float3, 3>> one = {cases[i]};
+    one.push_back({{{0, 0, 0}, {8, 0, 0}, {0, 8, 8}}});  // fix the grid to [0, 8]^3
+    expect_matches_brute_force(triangles_scene(one), 8, "case " + std::to_string(i));
+  }
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> unit(-1, 1);
+  std::vector<std::array<Float3, 3>> random;
+  for (int i = 0; i < 60; ++i)
+    random.push_back({{{unit(rng), unit(rng), unit(rng)},
+                       {unit(rng), unit(rng), unit(rng)},
+                       {unit(rng), unit(rng), unit(rng)}}});
+  expect_matches_brute_force(triangles_scene(random), 16, "random");
+}
+
+TEST(Voxelizer, RefusesBadResolutions) {
+  const Scene scene = triangles_scene({{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}});
+  for (const std::uint32_t n : {0u, 3u, 4u, 100u, format::kDagMaxResolution * 2})
+    EXPECT_THROW(voxelize_surface(scene, {n, false, 1}), std::invalid_argument) << n;
+}
+
+TEST(Voxelizer, NormalsAreDeterministicAndUnit) {
+  KILN_REQUIRE_CORPUS();
+  const Scene scene = import_scene({test::mesh_path("stanford/stanford-bunny.obj.zst")}, 2);
+  const Voxels one = voxelize_surface(scene, {256, true, 1});
+  for (const unsigned threads : {2u, 8u}) {
+    const Voxels other = voxelize_surface(scene, {256, true, threads});
+    EXPECT_EQ(one.codes, other.codes);
+    EXPECT_EQ(one.normals, other.normals);
+  }
+  ASSERT_EQ(one.normals.size(), one.codes.size());
+  for (const auto bits : one.normals) {
+    float n[3];
+    format::decode_octahedral(bits, n);
+    EXPECT_NEAR(n[0] * n[0] + n[1] * n[1] + n[2] * n[2], 1.0f, 1e-4f);
+  }
+  // A flat square facing +z: every voxel's normal is +z.
+  const Scene flat = triangles_scene({{{{0, 0, 1}, {4, 0, 1}, {4, 4, 1}}}, {{{0, 0, 1}, {4, 4, 1}, {0, 4, 1}}}});
+  const Voxels v = voxelize_surface(flat, {32, true, 2});
+  for (const auto bits : v.normals) {
+    float n[3];
+    format::decode_octahedral(bits, n);
+    EXPECT_NEAR(n[2], 1.0f, 1e-3f);
+  }
+}
+
+TEST(VoxelDag, ExpandsToExactlyTheVoxelSet) {
+  std::vector<std::pair<std::string, std::pair<std::vector<std::uint64_t>, std::uint32_t>>> sets;
+  sets.push_back({"one voxel", {{format::morton_code(5, 1, 7)}, 8}});
+  std::vector<std::uint64_t> full8(512);
+  for (std::uint64_t i = 0; i < 512; ++i) full8[i] = i;
+  sets.push_back({"full 8^3", {full8, 8}});
+  std::vector<std::uint64_t> checker;
+  for (std::uint32_t z = 0; z < 16; ++z)
+    for (std::uint32_t y = 0; y < 16; ++y)
+      for (std::uint32_t x = 0; x < 16; ++x)
+        if ((x + y + z) % 2 == 0) checker.push_back(format::morton_code(x, y, z));
+  std::sort(checker.begin(), checker.end());
+  sets.push_back({"checkerboard 16^3", {checker, 16}});
+  std::mt19937_64 rng(8);
+  std::vector<std::uint64_t> sparse;
+  for (int i = 0; i < 3000; ++i) sparse.push_back(rng() % (std::uint64_t{1} << 24));
+  std::sort(sparse.begin(), sparse.end());
+  sparse.erase(std::unique(sparse.begin(), sparse.end()), sparse.end());
+  sets.push_back({"random sparse 256^3", {sparse, 256}});
+  if (test::corpus_present()) {
+    const Scene bunny = import_scene({test::mesh_path("stanford/stanford-bunny.obj.zst")}, 2);
+    sets.push_back({"bunny 256^3", {voxelize_surface(bunny, {256, false, 2}).codes, 256}});
+  }
+  for (const auto& [name, set] : sets) {
+    const auto& [codes, n] = set;
+    const FlatVoxelDag dag = build_voxel_dag(codes, n);
+    EXPECT_EQ(expand_voxel_dag(dag.words, dag.levels), codes) << name;
+    EXPECT_EQ(dag.voxel_count, codes.size());
+    EXPECT_EQ(dag.level_stats[0].svo_nodes, 1u);
+    std::uint64_t bytes = 0;
+    for (const auto& l : dag.level_stats) {
+      EXPECT_LE(l.dag_nodes, l.svo_nodes) << name;
+      bytes += l.bytes;
+    }
+    EXPECT_EQ(bytes, dag.dag_bytes);
+    EXPECT_EQ(dag.dag_bytes, 4 * dag.words.size());
+    EXPECT_GE(dag.svo_bytes, dag.dag_bytes);
+  }
+  // Merging: a full grid and a checkerboard have one distinct node per level.
+  for (const auto* codes : {&full8, &checker}) {
+    const FlatVoxelDag dag = build_voxel_dag(*codes, codes == &full8 ? 8 : 16);
+    for (const auto& l : dag.level_stats) EXPECT_EQ(l.dag_nodes, 1u);
+  }
+}
+
+}  // namespace
+}  // namespace kiln
