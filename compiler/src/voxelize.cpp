@@ -89,8 +89,20 @@ VoxelGrid fit_voxel_grid(const Bounds3& bounds, std::uint32_t resolution) {
   if (!(side > 0)) side = 1;  // a single point: any cube around it
   VoxelGrid grid;
   grid.resolution = resolution;
-  grid.voxel_size = side / resolution;
-  for (int a = 0; a < 3; ++a) grid.origin[a] = 0.5 * (lo[a] + hi[a]) - 0.5 * side;
+  // Centred, but never past the bounds: rounding must not leave a face of the scene outside the
+  // grid (a triangle lying in it would then touch no voxel). The voxel grows by a few ulps when
+  // needed so the max corner, as to_grid computes it, is at most `resolution`.
+  double size = side / resolution;
+  for (int a = 0; a < 3; ++a) {
+    grid.origin[a] = std::min(lo[a], 0.5 * (lo[a] + hi[a]) - 0.5 * side);
+    size = std::max(size, (hi[a] - grid.origin[a]) / resolution);
+  }
+  for (int a = 0, tries = 0; a < 3 && tries < 64;)
+    if ((hi[a] - grid.origin[a]) / size > resolution || grid.origin[a] + size * resolution < hi[a])
+      size = std::nextafter(size, INFINITY), ++tries;
+    else
+      ++a;
+  grid.voxel_size = size;
   return grid;
 }
 

@@ -21,7 +21,9 @@ struct VoxelGrid {
 };
 
 // The cube of side = the bounds' largest extent, centred on the bounds (no padding: a triangle
-// on the bounds' faces sets the boundary voxels, whose closed boxes reach the faces).
+// on the bounds' faces sets the boundary voxels, whose closed boxes reach the faces). Rounding is
+// resolved outwards: the origin never exceeds the bounds' min and the voxel size grows by a few
+// ulps when needed, so every corner of the bounds lies in [0, resolution] in grid units.
 VoxelGrid fit_voxel_grid(const Bounds3& bounds, std::uint32_t resolution);
 
 // A triangle's corners in grid units (voxel (x, y, z) is the box [x, x+1] x [y, y+1] x [z, z+1]).

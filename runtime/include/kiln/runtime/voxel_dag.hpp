@@ -48,6 +48,8 @@ class VoxelDagView {
   VoxelHit intersect(const Ray& ray) const;
   // Whether any voxel lies along the ray in [tmin, tmax].
   bool occluded(const Ray& ray) const;
+  // intersect() without the attached normal (stays 0).
+  VoxelHit intersect_any(const Ray& ray) const;
   bool occupied(std::uint32_t x, std::uint32_t y, std::uint32_t z) const;
   // The attached normal of a set voxel; false when the blob has no normals or the voxel is empty.
   bool attached_normal(std::uint32_t x, std::uint32_t y, std::uint32_t z, float n[3]) const;
