@@ -16,7 +16,6 @@
 // the minimum is the least noisy estimate.
 #include <benchmark/benchmark.h>
 
-#include <fnmatch.h>
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -25,7 +24,6 @@
 #include <cstdint>
 #include <cstdio>
 #include <exception>
-#include <filesystem>
 #include <functional>
 #include <limits>
 #include <map>
@@ -37,6 +35,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/kdtree_builder.hpp"
@@ -588,44 +587,15 @@ void register_mesh(MeshCase* mesh) {
 
 // "[LABEL=]@DIR[/PATTERN]" -> the matching files, sorted; a plain path -> itself.
 std::optional<MeshCase> parse_mesh(const std::string& arg) {
+  std::optional<kiln::bench::MeshSpec> spec = kiln::bench::parse_mesh_spec(arg);
+  if (!spec) return std::nullopt;
   MeshCase mesh;
-  const std::size_t at = arg.find('@');
-  const bool is_set = at != std::string::npos && (at == 0 || arg[at - 1] == '=');
-  if (!is_set) {
-    mesh.files = {arg};
-    mesh.label = std::filesystem::path(arg).filename().string();
-    return mesh;
-  }
-  std::filesystem::path dir = arg.substr(at + 1);
-  std::string pattern = "*.obj";
-  if (!std::filesystem::is_directory(dir)) {
-    pattern = dir.filename().string();
-    dir = dir.parent_path();
-  }
-  std::error_code error;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, error)) {
-    const std::string name = entry.path().filename().string();
-    if (entry.is_regular_file() && fnmatch(pattern.c_str(), name.c_str(), 0) == 0)
-      mesh.files.push_back(entry.path().string());
-  }
-  if (error || mesh.files.empty()) {
-    std::fprintf(stderr, "%s: no file matches '%s' in '%s'\n", arg.c_str(), pattern.c_str(),
-                 dir.c_str());
-    return std::nullopt;
-  }
-  std::sort(mesh.files.begin(), mesh.files.end());
-  mesh.label = at > 0 ? arg.substr(0, at - 1) : dir.filename().string() + "/" + pattern;
+  mesh.label = std::move(spec->label);
+  mesh.files = std::move(spec->files);
   return mesh;
 }
 
-// Reads "--NAME=VALUE" into `value`; false when `arg` is not that option.
-bool parse_number_option(std::string_view arg, std::string_view name, auto& value) {
-  const std::string prefix = "--" + std::string(name) + "=";
-  if (!arg.starts_with(prefix)) return false;
-  value =
-      std::remove_reference_t<decltype(value)>(std::stoull(std::string(arg.substr(prefix.size()))));
-  return true;
-}
+using kiln::bench::parse_number_option;
 
 bool import_meshes(std::vector<MeshCase> meshes) {
   for (MeshCase& mesh : meshes) {

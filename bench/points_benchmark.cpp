@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/kdtree_builder.hpp"
@@ -329,13 +330,6 @@ void print_report() {
   }
 }
 
-bool parse_option(const std::string& arg, const char* name, auto& value) {
-  const std::string prefix = std::string("--") + name + "=";
-  if (!arg.starts_with(prefix)) return false;
-  value = decltype(value + 0)(std::stoull(arg.substr(prefix.size())));
-  return true;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -344,8 +338,8 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     try {
-      if (parse_option(arg, "queries", g_settings.queries) ||
-          parse_option(arg, "seed", g_settings.seed))
+      if (kiln::bench::parse_number_option(arg, "queries", g_settings.queries) ||
+          kiln::bench::parse_number_option(arg, "seed", g_settings.seed))
         continue;
     } catch (const std::exception&) {
       std::fprintf(stderr, "bad number in '%s'\n", arg.c_str());

@@ -5,12 +5,10 @@
 //   MESH as kiln_bench_bvh takes it: a file, or LABEL=@DIR/PATTERN for many files as one scene.
 //   Each benchmark keeps its fastest iteration; a Markdown table is printed at the end.
 #include <benchmark/benchmark.h>
-#include <fnmatch.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <filesystem>
 #include <map>
 #include <memory>
 #include <optional>
@@ -18,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/voxel_dag_builder.hpp"
@@ -146,22 +145,6 @@ void print_report() {
           r.cast_all, 100.0 * double(r.hits) / double(c->rays.size()));
 }
 
-std::vector<std::string> expand_inputs(const std::string& spec, std::string& label) {
-  const auto at = spec.find("=@");
-  if (at == std::string::npos) {
-    label = std::filesystem::path(spec).filename().string();
-    return {spec};
-  }
-  label = spec.substr(0, at);
-  const std::filesystem::path pattern(spec.substr(at + 2));
-  std::vector<std::string> files;
-  for (const auto& entry : std::filesystem::directory_iterator(pattern.parent_path()))
-    if (fnmatch(pattern.filename().c_str(), entry.path().filename().c_str(), 0) == 0)
-      files.push_back(entry.path().string());
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -193,7 +176,10 @@ int main(int argc, char** argv) {
   for (const auto& spec : specs) {
     auto c = std::make_unique<Case>();
     try {
-      c->scene = kiln::import_scene(expand_inputs(spec, c->label), 0);
+      const auto mesh = kiln::bench::parse_mesh_spec(spec);
+      if (!mesh) return 1;
+      c->label = mesh->label;
+      c->scene = kiln::import_scene(mesh->files, 0);
       const kiln::FlatBvh flat = kiln::build_bvh(c->scene, {});
       const kiln::BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);
       c->rays = kiln::generate_rays(

@@ -78,13 +78,13 @@ TEST(Voxelizer, MatchesBruteForceOnWorstCases) {
   // On grid planes (the grid is [0, 8]^3 for these), on voxel faces and edges, slivers, a huge
   // slanted triangle, tiny ones inside one voxel, and triangles on the grid's outer faces.
   const std::vector<std::array<Float3, 3>> cases = {
-      {{{0, 0, 0}, {8, 0, 0}, {0, 8, 8}}},             // the grid's diagonal slab
-      {{{1, 1, 2}, {5, 1, 2}, {1, 5, 2}}},             // exactly in the plane z = 2
-      {{{2, 3, 0}, {2, 7, 8}, {2, 3, 8}}},             // exactly in the plane x = 2
+      {{{0, 0, 0}, {8, 0, 0}, {0, 8, 8}}},  // the grid's diagonal slab
+      {{{1, 1, 2}, {5, 1, 2}, {1, 5, 2}}},  // exactly in the plane z = 2
+      {{{2, 3, 0}, {2, 7, 8}, {2, 3, 8}}},  // exactly in the plane x = 2
       {{{0.1f, 0.1f, 0.1f}, {7.9f, 7.9f, 7.9f}, {7.9f, 7.9f, 7.90001f}}},  // sliver
-      {{{3.2f, 3.2f, 3.2f}, {3.3f, 3.2f, 3.2f}, {3.2f, 3.3f, 3.25f}}},    // inside one voxel
-      {{{8, 0, 0}, {8, 8, 0}, {8, 0, 8}}},             // on the grid's max face
-      {{{4, 4, 4}, {6, 4, 4}, {4, 4.000001f, 6}}},     // nearly edge-on
+      {{{3.2f, 3.2f, 3.2f}, {3.3f, 3.2f, 3.2f}, {3.2f, 3.3f, 3.25f}}},     // inside one voxel
+      {{{8, 0, 0}, {8, 8, 0}, {8, 0, 8}}},                                 // on the grid's max face
+      {{{4, 4, 4}, {6, 4, 4}, {4, 4.000001f, 6}}},                         // nearly edge-on
   };
   const Scene all = triangles_scene(cases);
   for (const std::uint32_t n : {8u, 16u, 32u}) expect_matches_brute_force(all, n, "worst cases");
@@ -125,7 +125,8 @@ TEST(Voxelizer, NormalsAreDeterministicAndUnit) {
     EXPECT_NEAR(n[0] * n[0] + n[1] * n[1] + n[2] * n[2], 1.0f, 1e-4f);
   }
   // A flat square facing +z: every voxel's normal is +z.
-  const Scene flat = triangles_scene({{{{0, 0, 1}, {4, 0, 1}, {4, 4, 1}}}, {{{0, 0, 1}, {4, 4, 1}, {0, 4, 1}}}});
+  const Scene flat =
+      triangles_scene({{{{0, 0, 1}, {4, 0, 1}, {4, 4, 1}}}, {{{0, 0, 1}, {4, 4, 1}, {0, 4, 1}}}});
   const Voxels v = voxelize_surface(flat, {32, true, 2});
   for (const auto bits : v.normals) {
     float n[3];

@@ -54,6 +54,7 @@ Cut cut_range(const Context& ctx, std::span<std::uint32_t> ids, std::size_t begi
     if (spread(a) > spread(axis)) axis = a;
   if (!(spread(axis) > 0.0f)) return cut;  // identical points: nothing separates them
   const auto first = ids.begin() + std::ptrdiff_t(begin), last = ids.begin() + std::ptrdiff_t(end);
+  auto at = [&](std::uint32_t id) { return coordinate(ctx.points[id], axis); };  // reads `axis` now
   auto middle = last;
   if (ctx.options.split == PointSplitRule::kSlidingMidpoint && depth < kSlidingMidpointDepth) {
     // Maneewongvatana and Mount: halve the cell's longest side (of near-equal sides, the one the
@@ -68,13 +69,11 @@ Cut cut_range(const Context& ctx, std::span<std::uint32_t> ids, std::size_t begi
     // Halves written separately so huge coordinates cannot overflow to infinity.
     const float half = 0.5f * cell.lo[axis] + 0.5f * cell.hi[axis];
     const float split = std::clamp(half, box.lo[axis], box.hi[axis]);
-    auto at = [&](std::uint32_t id) { return coordinate(ctx.points[id], axis); };
     middle = std::partition(first, last, [&](std::uint32_t id) { return at(id) < split; });
     if (middle == first)  // slid onto the lowest points: they go below
       middle = std::partition(first, last, [&](std::uint32_t id) { return at(id) <= split; });
     cut.plane = split;
   }
-  auto at = [&](std::uint32_t id) { return coordinate(ctx.points[id], axis); };
   if (middle == first || middle == last) {
     // Median, ordered by (coordinate, id) so ties split the same way on every standard library.
     middle = first + std::ptrdiff_t((end - begin) / 2);

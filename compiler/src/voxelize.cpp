@@ -4,7 +4,6 @@
 // then sorts its codes. Concatenating bricks in Morton order gives the global order, so no global
 // sort and no dense grid is needed, and every brick is a pure function of its triangles.
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -126,7 +125,7 @@ bool triangle_touches_voxel(const GridTriangle& t, std::uint32_t x, std::uint32_
 
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
   const std::uint32_t n = options.resolution;
-  if (!std::has_single_bit(n) || n < format::kDagMinResolution || n > format::kDagMaxResolution)
+  if (!format::is_valid_dag_resolution(n))
     throw std::invalid_argument("--resolution " + std::to_string(n) +
                                 " must be a power of two in " +
                                 std::to_string(format::kDagMinResolution) + ".." +

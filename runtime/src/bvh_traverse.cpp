@@ -102,13 +102,8 @@ bool BvhView::occluded(const Ray& ray, float* t) const {
 
 void trace_rays(const BvhView& bvh, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
                 unsigned threads) {
-  constexpr std::size_t kBatch = 4096;  // rays per task: amortises scheduling, keeps order fixed
-  const std::size_t batches = (rays.size() + kBatch - 1) / kBatch;
-  parallel_for(batches, threads, [&](std::size_t b) {
-    const std::size_t end = std::min(rays.size(), (b + 1) * kBatch);
-    for (std::size_t i = b * kBatch; i < end; ++i) {
-      hits[i] = any_hit ? traverse<true, false>(bvh, rays[i], nullptr) : bvh.intersect(rays[i]);
-    }
+  parallel_for_batched(rays.size(), kRaysPerTask, threads, [&](std::size_t i) {
+    hits[i] = any_hit ? traverse<true, false>(bvh, rays[i], nullptr) : bvh.intersect(rays[i]);
   });
 }
 

@@ -142,14 +142,10 @@ VoxelHit VoxelDagView::intersect_any(const Ray& ray) const {
 
 void trace_rays(const VoxelDagView& dag, std::span<const Ray> rays, std::span<VoxelHit> hits,
                 bool any_hit, unsigned threads) {
-  constexpr std::size_t kBatch = 4096;  // rays per task: amortises scheduling, keeps order fixed
-  const std::size_t batches = (rays.size() + kBatch - 1) / kBatch;
-  parallel_for(batches, threads, [&](std::size_t b) {
-    const std::size_t end = std::min(rays.size(), (b + 1) * kBatch);
-    // The walk is front to back, so the first voxel found is the closest: any-hit casts differ
-    // only in skipping the attachment lookup.
-    for (std::size_t i = b * kBatch; i < end; ++i)
-      hits[i] = any_hit ? dag.intersect_any(rays[i]) : dag.intersect(rays[i]);
+  // The walk is front to back, so the first voxel found is the closest: any-hit casts differ
+  // only in skipping the attachment lookup.
+  parallel_for_batched(rays.size(), kRaysPerTask, threads, [&](std::size_t i) {
+    hits[i] = any_hit ? dag.intersect_any(rays[i]) : dag.intersect(rays[i]);
   });
 }
 

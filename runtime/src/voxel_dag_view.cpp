@@ -16,7 +16,7 @@ VoxelDagView::VoxelDagView(std::span<const std::uint32_t> words, const VoxelGrid
     : words_(words), frame_(frame), codes_(codes), normals_(normals) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
   const std::uint32_t n = frame.resolution;
-  if (!std::has_single_bit(n) || n < format::kDagMinResolution || n > format::kDagMaxResolution)
+  if (!format::is_valid_dag_resolution(n))
     fail("resolution " + std::to_string(n) + " is not a power of two in range");
   if (!(frame.voxel_size > 0)) fail("voxel size is not positive");
   levels_ = std::uint32_t(std::bit_width(n) - 1);

@@ -3,7 +3,6 @@
 
 #include <sys/resource.h>
 
-#include <bit>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -51,8 +50,7 @@ int run_build(const BuildArgs& args) {
   for (const auto& kind : args.accels)
     if (kind == "dag") {
       const std::uint32_t n = args.voxels.resolution;
-      if (!std::has_single_bit(n) || n < kiln::format::kDagMinResolution ||
-          n > kiln::format::kDagMaxResolution) {
+      if (!kiln::format::is_valid_dag_resolution(n)) {
         std::cerr << "kiln build: --resolution " << n << " must be a power of two in "
                   << kiln::format::kDagMinResolution << ".." << kiln::format::kDagMaxResolution
                   << "\n";

@@ -26,37 +26,40 @@ void append_pod(std::vector<std::byte>& out, const T& value) {
   out.insert(out.end(), p, p + sizeof(T));
 }
 
-bool is_bvh(const Blob& blob, const std::string& kind) {
-  for (const auto* a : *blob.manifest().accelerations())
-    if (a->kind()->str() == kind) return a->bvh() != nullptr;
-  return false;
-}
-
-// The structure a query runs on: the one named, else the first BVH, else the first k-d tree
-// (surface queries), or the first point tree (knn, radius).
-std::string pick_structure(const Blob& blob, const QueryArgs& args, bool points) {
+// The structure a query runs on: the one --accel names, else the first BVH, else the first k-d
+// tree (surface queries), or the first point tree (knn, radius).
+const schema::Acceleration& pick_structure(const Blob& blob, const QueryArgs& args, bool points) {
   const auto* accels = blob.manifest().accelerations();
+  const char* wanted = points ? "a point k-d tree (build with --accel points)"
+                              : "a BVH or k-d tree (build with --accel bvh, sbvh or kdtree)";
+  auto first = [&](auto accepts) -> const schema::Acceleration* {
+    if (accels)
+      for (const auto* a : *accels)
+        if (accepts(*a)) return a;
+    return nullptr;
+  };
   auto fits = [&](const schema::Acceleration& a) {
     return points ? a.points() != nullptr : (a.bvh() != nullptr || a.kdtree() != nullptr);
   };
-  const char* wanted = points ? "a point k-d tree (build with --accel points)"
-                              : "a BVH or k-d tree (build with --accel bvh, sbvh or kdtree)";
   if (!args.accel.empty()) {
-    if (accels)
-      for (const auto* a : *accels)
-        if (a->kind()->str() == args.accel) {
-          if (!fits(*a))
-            throw BlobError(blob.name() + ": --op " + args.op + " needs " + wanted + ", and '" +
-                            args.accel + "' is not one");
-          return args.accel;
-        }
-    throw BlobError(blob.name() + ": has no structure '" + args.accel + "'");
+    const auto* named = first([&](const auto& a) { return a.kind()->str() == args.accel; });
+    if (named == nullptr) throw BlobError(blob.name() + ": has no structure '" + args.accel + "'");
+    if (!fits(*named))
+      throw BlobError(blob.name() + ": --op " + args.op + " needs " + wanted + ", and '" +
+                      args.accel + "' is not one");
+    return *named;
   }
-  for (const bool bvh_first : {true, false})
-    if (accels)
-      for (const auto* a : *accels)
-        if (fits(*a) && (points || (a->bvh() != nullptr) == bvh_first)) return a->kind()->str();
-  throw BlobError(blob.name() + ": holds no " + wanted);
+  const auto* found =
+      points ? first(fits) : first([](const auto& a) { return a.bvh() != nullptr; });
+  if (found == nullptr && !points) found = first(fits);
+  if (found == nullptr) throw BlobError(blob.name() + ": holds no " + wanted);
+  return *found;
+}
+
+// Query i's point (or a box's corner at offset k) in an input of `stride` floats per query.
+format::Float3 point_at(const float* floats, std::size_t i, std::size_t stride, std::size_t k) {
+  const float* f = floats + i * stride + k;
+  return {f[0], f[1], f[2]};
 }
 
 // Runs `answer(i, bytes)` for every query in parallel batches and concatenates the bytes in
@@ -74,21 +77,13 @@ std::vector<std::byte> answer_all(std::size_t count, unsigned threads, Answer an
   return out;
 }
 
-}  // namespace
-
-namespace {
-
 // closest, inside and box: the same code on a BVH or a k-d tree.
 template <class Tree>
 std::vector<std::byte> surface_queries(const Tree& tree, const Blob& blob, const QueryArgs& args,
                                        const float* floats, std::size_t count) {
-  auto point = [&](std::size_t i, std::size_t stride, std::size_t k) {
-    const float* f = floats + i * stride + k;
-    return format::Float3{f[0], f[1], f[2]};
-  };
   if (args.op == "closest")
     return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-      const ClosestPoint c = closest_point(tree, point(i, 3, 0), args.max_distance);
+      const ClosestPoint c = closest_point(tree, point_at(floats, i, 3, 0), args.max_distance);
       append_pod(bytes, c.distance);
       append_pod(bytes, c.prim);
       append_pod(bytes, c.point);
@@ -98,12 +93,12 @@ std::vector<std::byte> surface_queries(const Tree& tree, const Blob& blob, const
       std::cerr << "kiln query: warning: " << args.blob
                 << " is not a closed mesh; inside answers are a best guess\n";
     return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-      append_pod(bytes, std::uint8_t(point_inside(tree, point(i, 3, 0)) ? 1 : 0));
+      append_pod(bytes, std::uint8_t(point_inside(tree, point_at(floats, i, 3, 0)) ? 1 : 0));
     });
   }
   return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
     std::vector<std::uint32_t> ids;
-    triangles_in_box(tree, point(i, 6, 0), point(i, 6, 3), ids);
+    triangles_in_box(tree, point_at(floats, i, 6, 0), point_at(floats, i, 6, 3), ids);
     append_pod(bytes, std::uint32_t(ids.size()));
     for (const auto id : ids) append_pod(bytes, id);
   });
@@ -116,12 +111,12 @@ std::vector<std::byte> point_queries(const PointTreeView& tree, const QueryArgs&
   if (args.op == "knn")
     return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
       std::vector<Neighbor> found(args.k, Neighbor{kNoHit, INFINITY});
-      tree.nearest({floats[3 * i], floats[3 * i + 1], floats[3 * i + 2]}, found);
+      tree.nearest(point_at(floats, i, 3, 0), found);
       for (const Neighbor& n : found) append_pod(bytes, n);
     });
   return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
     std::vector<Neighbor> found;
-    tree.within_radius({floats[3 * i], floats[3 * i + 1], floats[3 * i + 2]}, args.radius, found);
+    tree.within_radius(point_at(floats, i, 3, 0), args.radius, found);
     append_pod(bytes, std::uint32_t(found.size()));
     for (const Neighbor& n : found) append_pod(bytes, n.id);
   });
@@ -135,7 +130,8 @@ int run_query(const QueryArgs& args) {
     if (!points && args.op != "closest" && args.op != "inside" && args.op != "box")
       throw std::runtime_error("unknown --op " + args.op);
     const Blob blob = Blob::open_file(args.blob);
-    const std::string accel = pick_structure(blob, args, points);
+    const schema::Acceleration& structure = pick_structure(blob, args, points);
+    const std::string accel = structure.kind()->str();
     const MappedFile input(args.in);
     const std::size_t stride = args.op == "box" ? 24 : 12;
     if (input.bytes().size() % stride != 0)
@@ -149,7 +145,7 @@ int run_query(const QueryArgs& args) {
     std::vector<std::byte> out;
     if (points)
       out = point_queries(PointTreeView::from_blob(blob, accel), args, floats, count);
-    else if (is_bvh(blob, accel))
+    else if (structure.bvh() != nullptr)
       out = surface_queries(BvhView::from_blob(blob, accel), blob, args, floats, count);
     else
       out = surface_queries(KdTreeView::from_blob(blob, accel), blob, args, floats, count);

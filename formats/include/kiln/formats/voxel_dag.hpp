@@ -20,6 +20,10 @@ inline constexpr std::uint32_t kSectionVoxelNormals = fourcc('V', 'X', 'N', 'O')
 inline constexpr std::uint32_t kDagMinResolution = 8;
 inline constexpr std::uint32_t kDagMaxResolution = 16384;
 
+inline bool is_valid_dag_resolution(std::uint32_t n) {
+  return (n & (n - 1)) == 0 && n >= kDagMinResolution && n <= kDagMaxResolution;
+}
+
 // Morton code of a voxel: bit 3i holds bit i of x, 3i+1 of y, 3i+2 of z.
 inline std::uint64_t spread_bits(std::uint32_t v) {
   std::uint64_t x = v & 0x1FFFFFu;

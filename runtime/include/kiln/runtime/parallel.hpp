@@ -14,4 +14,14 @@ unsigned resolve_thread_count(unsigned requested);
 void parallel_for(std::size_t count, unsigned threads,
                   const std::function<void(std::size_t)>& body);
 
+// parallel_for in tasks of `batch` consecutive indices: amortises scheduling for cheap bodies
+// (one ray, one query) and keeps each index's output slot fixed.
+template <class Body>
+void parallel_for_batched(std::size_t count, std::size_t batch, unsigned threads, Body body) {
+  parallel_for((count + batch - 1) / batch, threads, [&](std::size_t b) {
+    const std::size_t end = count < (b + 1) * batch ? count : (b + 1) * batch;
+    for (std::size_t i = b * batch; i < end; ++i) body(i);
+  });
+}
+
 }  // namespace kiln

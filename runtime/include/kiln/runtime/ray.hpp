@@ -1,6 +1,7 @@
 // Rays and hits, laid out exactly as the RAYS and HITS files (docs/FORMAT.md).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 
@@ -17,6 +18,9 @@ struct Ray {
 static_assert(sizeof(Ray) == 32);
 
 inline constexpr std::uint32_t kNoHit = 0xFFFFFFFFu;
+
+// Rays per task of the batch trace_rays functions.
+inline constexpr std::size_t kRaysPerTask = 4096;
 
 struct Hit {
   float t = std::numeric_limits<float>::infinity();
