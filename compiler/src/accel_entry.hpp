@@ -35,6 +35,7 @@ SectionPayload raw_section(std::uint32_t kind, const std::vector<T>& values) {
 AccelEntry make_bvh_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
 AccelEntry make_kdtree_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
 AccelEntry make_voxel_dag_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
+AccelEntry make_esvo_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
 AccelEntry make_point_tree_entry(const Scene& scene, const AccelRequest& request, unsigned threads);
 
 }  // namespace kiln

@@ -21,6 +21,7 @@ AccelEntry make_accel_entry(const Scene& scene, const AccelRequest& request, uns
   if (request.kind == "kdtree") return make_kdtree_entry(scene, request, threads);
   if (request.kind == "points") return make_point_tree_entry(scene, request, threads);
   if (request.kind == "dag") return make_voxel_dag_entry(scene, request, threads);
+  if (request.kind == "esvo") return make_esvo_entry(scene, request, threads);
   throw std::runtime_error("unknown acceleration structure '" + request.kind + "'");
 }
 

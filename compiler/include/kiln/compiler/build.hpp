@@ -9,6 +9,7 @@
 
 #include "kiln/compiler/blob_writer.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/esvo_builder.hpp"
 #include "kiln/compiler/kdtree_builder.hpp"
 #include "kiln/compiler/point_tree_builder.hpp"
 #include "kiln/compiler/scene.hpp"
@@ -20,13 +21,14 @@ inline constexpr const char* kToolName = "kiln";
 extern const char* const kToolVersion;
 
 // One acceleration structure to build: kind "bvh" (binned or sweep builder), "sbvh", "kdtree",
-// "points" or "dag"; only the options of its kind are read.
+// "points", "dag" or "esvo"; only the options of its kind are read.
 struct AccelRequest {
   std::string kind;
   BvhBuildOptions bvh;
   KdTreeBuildOptions kdtree;
   PointTreeBuildOptions points{};
-  VoxelizeOptions voxels{};
+  VoxelizeOptions voxels{};  // "dag"
+  EsvoBuildOptions esvo{};
 };
 
 // Whether a structure of this kind is built over triangles (every kind but "points").

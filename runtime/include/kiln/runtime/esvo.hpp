@@ -1,0 +1,75 @@
+// Ray casts and occupancy lookups on an Efficient Sparse Voxel Octree's mapped words, following
+// Laine & Karras 2010: the octree lives in [1,2]^3, mirrored so the ray runs towards -x, -y, -z,
+// with a stack of (parent, t_max) per level and the float-exponent trick to find the level on POP.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include "kiln/formats/esvo.hpp"
+#include "kiln/runtime/ray.hpp"
+#include "kiln/runtime/voxel_dag.hpp"
+
+namespace kiln {
+
+class Blob;
+
+// Level-of-detail stop: a voxel counts as hit once it is smaller than the ray's cone footprint
+// at the voxel's exit, footprint(t) = coef * t + bias in world units. {0, 0}: never.
+struct EsvoLod {
+  float coef = 0, bias = 0;
+};
+
+// An ESVO hit: the voxel-hit record (t; the finest-grid voxel holding the hit point; the normal
+// of the surface entered, the contour's plane when its slab set t, else the cube's face; the
+// attached normal) plus the level of the leaf that was hit.
+struct EsvoHit {
+  VoxelHit hit;
+  std::uint32_t level = 0;
+};
+
+// A validated view of one ESVO. Creating it walks every descriptor once (O(descriptors)): each
+// pointer lands inside the words on an even, forward index; the tree is no deeper than `levels`;
+// masks agree (non-leaf and contour bits only on valid children); runs, far pointers, pages,
+// blocks and attachment indices stay in range. So a cast cannot read out of range or loop.
+class EsvoView {
+ public:
+  EsvoView(std::span<const std::uint32_t> words, std::span<const std::uint32_t> pages,
+           std::span<const format::EsvoBlockInfo> blocks, std::span<const std::uint32_t> normals,
+           const VoxelGridFrame& frame, const std::string& name = "esvo");
+  static EsvoView from_blob(const Blob& blob, const std::string& name = "esvo");
+
+  // The first leaf region (cube cut by its own and its ancestors' contours) along the ray.
+  EsvoHit intersect(const Ray& ray, const EsvoLod& lod = {}) const;
+  // Any leaf region along the ray (no attachment lookup).
+  bool occluded(const Ray& ray, const EsvoLod& lod = {}) const;
+  // intersect() without the attachment lookup (the normal stays 0): the walk is front to back,
+  // so the first leaf found is the closest either way.
+  EsvoHit intersect_any(const Ray& ray, const EsvoLod& lod = {}) const;
+  // Whether the world-space point lies in a leaf's region.
+  bool occupied(const format::Float3& point) const;
+
+  const VoxelGridFrame& frame() const { return frame_; }
+  std::uint32_t levels() const { return levels_; }
+  std::span<const std::uint32_t> words() const { return words_; }
+  std::uint64_t descriptor_count() const { return descriptor_count_; }
+
+ private:
+  template <bool kAnyHit>
+  EsvoHit cast(const Ray& ray, const EsvoLod& lod) const;
+  std::uint64_t attachment_index(std::uint64_t descriptor_word, std::uint32_t octant) const;
+
+  std::span<const std::uint32_t> words_, pages_;
+  std::span<const format::EsvoBlockInfo> blocks_;
+  std::span<const std::uint32_t> normals_;
+  VoxelGridFrame frame_;
+  std::uint32_t levels_ = 0;
+  std::uint64_t descriptor_count_ = 0;
+};
+
+// Casts many rays on up to `threads` threads (0 = all cores).
+void trace_rays(const EsvoView& esvo, std::span<const Ray> rays, std::span<VoxelHit> hits,
+                bool any_hit, unsigned threads, const EsvoLod& lod = {});
+
+}  // namespace kiln

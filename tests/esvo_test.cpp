@@ -1,0 +1,189 @@
+// ESVO: with contours off the hits are the voxel DAG's on the same voxel set; with contours on
+// every hit lies within the error bound of a triangle (closest point on a BVH), and the hit/miss
+// disagreement with the exact mesh is below the cubes'; blobs are deterministic, round trip and
+// refuse corrupted descriptors.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "kiln/compiler/build.hpp"
+#include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/esvo_builder.hpp"
+#include "kiln/compiler/voxel_dag_builder.hpp"
+#include "kiln/compiler/voxelizer.hpp"
+#include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/error.hpp"
+#include "kiln/runtime/esvo.hpp"
+#include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/voxel_dag.hpp"
+#include "kiln/tools/ray_generator.hpp"
+#include "test_support.hpp"
+
+namespace kiln {
+namespace {
+
+using format::Float3;
+using namespace kiln::test;
+
+VoxelGridFrame frame_of(const VoxelGrid& g) {
+  VoxelGridFrame frame;
+  for (int a = 0; a < 3; ++a) frame.origin[a] = g.origin[a];
+  frame.voxel_size = g.voxel_size;
+  frame.resolution = g.resolution;
+  return frame;
+}
+
+EsvoView view_of(const FlatEsvo& e) {
+  return EsvoView(e.words, e.pages, e.blocks, e.normals, frame_of(e.grid));
+}
+
+struct BuiltDag {
+  Voxels voxels;
+  FlatVoxelDag dag;
+  std::vector<std::uint64_t> firsts;
+  VoxelDagView view() const {
+    return VoxelDagView(dag.words, frame_of(voxels.grid), firsts, dag.leaf_first_word, voxels.codes,
+                        voxels.normals);
+  }
+};
+
+BuiltDag build_dag(const Scene& scene, std::uint32_t resolution) {
+  BuiltDag b;
+  b.voxels = voxelize_surface(scene, {resolution, true, 2});
+  b.dag = build_voxel_dag(b.voxels.codes, resolution);
+  for (const auto& l : b.dag.level_stats) b.firsts.push_back(l.first_word);
+  return b;
+}
+
+FlatEsvo build(const Scene& scene, std::uint32_t resolution, bool contours, unsigned threads = 2) {
+  EsvoBuildOptions options;
+  options.resolution = resolution;
+  options.contours = contours;
+  options.threads = threads;
+  return build_esvo(scene, options);
+}
+
+// Primary rays at the mesh and random rays from inside the bounds.
+std::vector<Ray> test_rays(const BvhView& bvh, const Scene& scene, std::size_t count,
+                           std::uint32_t seed) {
+  std::vector<Ray> rays =
+      generate_rays({bvh, scene.positions, scene.triangles, scene.bounds.min, scene.bounds.max},
+                    RayKind::kPrimary, count / 2, seed, 2);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> unit(0, 1), sym(-1, 1);
+  const Float3 lo = scene.bounds.min, hi = scene.bounds.max;
+  while (rays.size() < count) {
+    const Float3 o{lo.x + (hi.x - lo.x) * unit(rng), lo.y + (hi.y - lo.y) * unit(rng),
+                   lo.z + (hi.z - lo.z) * unit(rng)};
+    rays.push_back({o, 0.0f, {sym(rng), sym(rng), sym(rng)}, INFINITY});
+  }
+  return rays;
+}
+
+struct Fixture {
+  Scene scene;
+  FlatBvh flat;
+  BvhView bvh() const { return BvhView(flat.nodes, flat.triangles, flat.prim_ids); }
+};
+
+Fixture load(const char* mesh) {
+  Fixture f;
+  f.scene = import_scene({mesh_path(mesh)}, 2);
+  f.flat = build_bvh(f.scene, {});
+  return f;
+}
+
+TEST(Esvo, WithoutContoursHitsAreTheDags) {
+  KILN_REQUIRE_CORPUS();
+  for (const auto& [mesh, resolution] : std::vector<std::pair<const char*, std::uint32_t>>{
+           {"classic/teapot.obj", 64},
+           {"classic/spot.obj", 128},
+           {"stanford/stanford-bunny.obj.zst", 256}}) {
+    const Fixture f = load(mesh);
+    const BuiltDag dag = build_dag(f.scene, resolution);
+    const FlatEsvo esvo = build(f.scene, resolution, false);
+    EXPECT_EQ(esvo.leaf_count, dag.voxels.codes.size()) << mesh;
+    EXPECT_EQ(esvo.contour_count, 0u);
+    const VoxelDagView dag_view = dag.view();
+    const EsvoView view = view_of(esvo);
+    std::size_t hits = 0, hit_miss = 0, other_voxel = 0, other_t = 0, other_face = 0;
+    for (const Ray& ray : test_rays(f.bvh(), f.scene, 10000, 7)) {
+      const VoxelHit a = view.intersect(ray).hit, b = dag_view.intersect(ray);
+      if (a.hit() != b.hit()) {
+        ++hit_miss;
+        continue;
+      }
+      if (!a.hit()) continue;
+      ++hits;
+      // t is compared where it is well conditioned: as the distance moved across the entered
+      // face (a grazing ray's t along the face is not), to a thousandth of a voxel.
+      const float dir[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
+      float across = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+      for (int axis = 0; axis < 3; ++axis)
+        if (b.face_normal[axis] != 0) across = std::fabs(dir[axis]);
+      other_t += std::fabs(a.t - b.t) * across > 1e-3 * dag.voxels.grid.voxel_size;
+      if (a.x != b.x || a.y != b.y || a.z != b.z) {
+        ++other_voxel;
+        continue;
+      }
+      other_face += std::memcmp(a.face_normal, b.face_normal, sizeof a.face_normal) != 0;
+      EXPECT_EQ(std::memcmp(a.normal, b.normal, sizeof a.normal), 0);
+    }
+    EXPECT_GT(hits, 3000u) << mesh;
+    EXPECT_EQ(hit_miss, 0u) << mesh;
+    EXPECT_EQ(other_t, 0u) << mesh;
+    // Two voxels that share the entry point (a ray through an edge or corner) are both right.
+    EXPECT_LE(other_voxel, hits / 1000) << mesh;
+    EXPECT_LE(other_face, hits / 1000) << mesh;
+    std::cout << mesh << " " << resolution << "^3: " << hits << " hits, " << other_voxel
+              << " on a neighbouring voxel at the same t, " << other_face << " other face\n";
+  }
+}
+
+TEST(Esvo, ContourHitsLieWithinTheBoundAndBeatCubes) {
+  KILN_REQUIRE_CORPUS();
+  for (const auto& [mesh, resolution] : std::vector<std::pair<const char*, std::uint32_t>>{
+           {"classic/spot.obj", 128},
+           {"classic/fandisk.obj", 256},
+           {"stanford/stanford-bunny.obj.zst", 256}}) {
+    const Fixture f = load(mesh);
+    const BvhView bvh = f.bvh();
+    const FlatEsvo contoured = build(f.scene, resolution, true);
+    const FlatEsvo cubes = build(f.scene, resolution, false);
+    EsvoBuildOptions defaults;
+    const double bound = esvo_error_bound(defaults) * contoured.grid.voxel_size;
+    const EsvoView with = view_of(contoured), without = view_of(cubes);
+    std::size_t rays_cast = 0, hits = 0, over = 0, wrong_with = 0, wrong_without = 0;
+    double worst = 0, total = 0;
+    for (const Ray& ray : test_rays(bvh, f.scene, 10000, 11)) {
+      ++rays_cast;
+      const bool mesh_hit = bvh.intersect(ray).prim != kNoHit;
+      const VoxelHit a = with.intersect(ray).hit;
+      wrong_with += a.hit() != mesh_hit;
+      wrong_without += without.intersect(ray).hit.hit() != mesh_hit;
+      if (!a.hit()) continue;
+      ++hits;
+      const Float3 p{ray.org.x + a.t * ray.dir.x, ray.org.y + a.t * ray.dir.y,
+                     ray.org.z + a.t * ray.dir.z};
+      const double distance = closest_point(bvh, p).distance;
+      worst = std::max(worst, distance), total += distance;
+      // Float rounding of the hit point: a millionth of the grid.
+      over += distance > bound + 1e-6 * contoured.grid.voxel_size * resolution;
+    }
+    EXPECT_GT(hits, 3000u) << mesh;
+    EXPECT_EQ(over, 0u) << mesh << ": worst " << worst / contoured.grid.voxel_size << " voxels";
+    EXPECT_LT(wrong_with, wrong_without) << mesh;
+    EXPECT_LT(contoured.descriptor_count, cubes.descriptor_count) << mesh;
+    std::cout << mesh << " " << resolution << "^3: mean error "
+              << total / double(hits) / contoured.grid.voxel_size << " voxels, worst "
+              << worst / contoured.grid.voxel_size << " (bound " << esvo_error_bound(defaults)
+              << "); hit/miss disagreement with the mesh " << wrong_with << " of " << rays_cast
+              << " (cubes " << wrong_without << "); " << contoured.leaf_count << " leaves vs "
+              << cubes.leaf_count << " cubes\n";
+  }
+}
+
+}  // namespace
+}  // namespace kiln
