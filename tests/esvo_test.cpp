@@ -185,5 +185,164 @@ TEST(Esvo, ContourHitsLieWithinTheBoundAndBeatCubes) {
   }
 }
 
+std::vector<std::byte> esvo_blob(const Scene& scene, std::uint32_t resolution, bool contours,
+                                 unsigned threads, bool compress = false) {
+  BuildOptions options;
+  options.inputs = {"generated"};
+  options.threads = threads;
+  options.compression.enabled = compress;
+  AccelRequest request;
+  request.kind = "esvo";
+  request.esvo.resolution = resolution;
+  request.esvo.contours = contours;
+  options.accels.push_back(request);
+  return compile_blob(scene, options);
+}
+
+TEST(Esvo, BlobsAreByteIdenticalAndRoundTrip) {
+  KILN_REQUIRE_CORPUS();
+  const Fixture f = load("stanford/stanford-bunny.obj.zst");
+  for (const bool contours : {true, false}) {
+    const auto one = esvo_blob(f.scene, 256, contours, 1);
+    EXPECT_EQ(one, esvo_blob(f.scene, 256, contours, 2));
+    EXPECT_EQ(one, esvo_blob(f.scene, 256, contours, 3));
+    EXPECT_EQ(one, esvo_blob(f.scene, 256, contours, 8));
+    EXPECT_EQ(open_and_verify(one), "");
+    EXPECT_EQ(open_and_verify(esvo_blob(f.scene, 256, contours, 2, true)), "");
+    // The mapped blob answers as the builder's arrays do.
+    const FlatEsvo flat = build(f.scene, 256, contours);
+    const AlignedBuffer aligned = aligned_copy(one);
+    const Blob blob = Blob::open_memory(aligned.bytes());
+    const EsvoView mapped = EsvoView::from_blob(blob), direct = view_of(flat);
+    EXPECT_EQ(mapped.descriptor_count(), flat.descriptor_count);
+    for (const Ray& ray : test_rays(f.bvh(), f.scene, 2000, 3)) {
+      const VoxelHit a = mapped.intersect(ray).hit, b = direct.intersect(ray).hit;
+      ASSERT_EQ(std::memcmp(&a, &b, sizeof a), 0);
+    }
+  }
+}
+
+TEST(Esvo, CorruptedDescriptorsAreRefused) {
+  KILN_REQUIRE_CORPUS();
+  const Fixture f = load("classic/teapot.obj");
+  const auto blob = esvo_blob(f.scene, 64, true, 2);
+  const AlignedBuffer aligned = aligned_copy(blob);
+  const Blob original = Blob::open_memory(aligned.bytes());
+  const auto* desc = original.manifest().accelerations()->Get(0)->esvo();
+  ASSERT_NE(desc, nullptr);
+  const auto words = original.section_view<std::uint32_t>(desc->words());
+  auto expect_refused = [&](std::uint32_t section, std::size_t offset, std::uint32_t value,
+                            const char* what) {
+    const AlignedBuffer bad = forged_copy(blob, section, offset, value);
+    const Blob b = Blob::open_memory(bad.bytes());  // open is O(sections)
+    EXPECT_THROW(EsvoView::from_blob(b), BlobError) << what;
+    EXPECT_THROW(b.verify(), BlobError) << what;
+  };
+  const std::uint32_t root = words[0];
+  expect_refused(desc->words(), 0, (root & 0x1FFFF) | 0x7FFFu << 17, "child pointer past the end");
+  expect_refused(desc->words(), 0, root & 0x1FFFF, "child pointer at itself");
+  expect_refused(desc->words(), 0, root | 0x10000 | 0xFFFEu << 17, "far pointer past the end");
+  expect_refused(desc->words(), 0, root & ~0xFF00u, "no valid children, non-leaf bits set");
+  expect_refused(desc->words(), 4, 0xFFFFFFFFu, "contour pointer past the end");
+  expect_refused(desc->pages(), 0, 7, "page header naming a missing block");
+  expect_refused(desc->blocks(), 16, 1, "block starting inside block 0's first word");
+
+  // Any single flipped bit in the descriptors: refused, or still a tree that casts safely
+  // (under the sanitizers this also proves no read leaves the words).
+  const auto rays = test_rays(f.bvh(), f.scene, 200, 9);
+  std::size_t refused = 0, tried = 0;
+  for (std::size_t word = 0; word < std::min<std::size_t>(words.size(), 400); word += 3)
+    for (const int bit : {0, 9, 17, 20, 31}) {
+      ++tried;
+      const AlignedBuffer bad = forged_copy(blob, desc->words(), 4 * word, words[word] ^ 1u << bit);
+      const Blob b = Blob::open_memory(bad.bytes());
+      try {
+        const EsvoView view = EsvoView::from_blob(b);
+        for (const Ray& ray : rays) (void)view.intersect(ray);
+      } catch (const BlobError&) {
+        ++refused;
+      }
+    }
+  EXPECT_GT(refused, tried / 4);
+}
+
+TEST(Esvo, OccupancyWithoutContoursIsTheVoxelSet) {
+  KILN_REQUIRE_CORPUS();
+  const Fixture f = load("classic/spot.obj");
+  const BuiltDag dag = build_dag(f.scene, 32);
+  const FlatEsvo esvo = build(f.scene, 32, false);
+  const EsvoView view = view_of(esvo);
+  const VoxelGrid& g = esvo.grid;
+  for (std::uint32_t z = 0; z < 32; ++z)
+    for (std::uint32_t y = 0; y < 32; ++y)
+      for (std::uint32_t x = 0; x < 32; ++x) {
+        const Float3 centre{float(g.origin[0] + (x + 0.5) * g.voxel_size),
+                            float(g.origin[1] + (y + 0.5) * g.voxel_size),
+                            float(g.origin[2] + (z + 0.5) * g.voxel_size)};
+        ASSERT_EQ(view.occupied(centre), dag.view().occupied(x, y, z)) << x << " " << y << " " << z;
+      }
+}
+
+TEST(Esvo, ContourLeavesHoldTheirHits) {
+  KILN_REQUIRE_CORPUS();
+  // A hit point lies on its leaf's region, so nudged a hundredth of a voxel along the ray it is
+  // occupied (unless it was the region's far side, which a ray never enters through).
+  const Fixture f = load("classic/fandisk.obj");
+  const FlatEsvo esvo = build(f.scene, 128, true);
+  const EsvoView view = view_of(esvo);
+  std::size_t hits = 0, inside = 0;
+  for (const Ray& ray : test_rays(f.bvh(), f.scene, 4000, 5)) {
+    const VoxelHit h = view.intersect(ray).hit;
+    if (!h.hit()) continue;
+    ++hits;
+    const float length =
+        std::sqrt(ray.dir.x * ray.dir.x + ray.dir.y * ray.dir.y + ray.dir.z * ray.dir.z);
+    const float t = h.t + 0.01f * float(esvo.grid.voxel_size) / length;
+    inside += view.occupied(
+        {ray.org.x + t * ray.dir.x, ray.org.y + t * ray.dir.y, ray.org.z + t * ray.dir.z});
+  }
+  EXPECT_GT(hits, 1000u);
+  EXPECT_GE(double(inside), 0.99 * double(hits));
+}
+
+TEST(Esvo, LevelOfDetailStopsEarlier) {
+  KILN_REQUIRE_CORPUS();
+  const Fixture f = load("stanford/stanford-bunny.obj.zst");
+  const FlatEsvo esvo = build(f.scene, 256, true);
+  const EsvoView view = view_of(esvo);
+  // A cone 1024 voxels wide per unit of distance (the bunny is ~0.15 across): most rays stop
+  // well above the leaves.
+  const EsvoLod lod{float(esvo.grid.voxel_size * 1024), 0};
+  std::size_t hits = 0, coarser = 0;
+  for (const Ray& ray : test_rays(f.bvh(), f.scene, 2000, 13)) {
+    const EsvoHit fine = view.intersect(ray), coarse = view.intersect(ray, lod);
+    if (!fine.hit.hit()) continue;
+    ++hits;
+    // The coarse voxel encloses the fine hit's region, so it is hit, no later.
+    ASSERT_TRUE(coarse.hit.hit());
+    EXPECT_LE(coarse.hit.t, fine.hit.t + 1e-4f);
+    EXPECT_LE(coarse.level, fine.level);
+    coarser += coarse.level < fine.level;
+  }
+  EXPECT_GT(coarser, hits / 2);
+}
+
+TEST(Esvo, BadOptionsAreRefused) {
+  KILN_REQUIRE_CORPUS();
+  const Fixture f = load("classic/teapot.obj");
+  EsvoBuildOptions options;
+  options.resolution = 100;
+  EXPECT_THROW(build_esvo(f.scene, options), std::invalid_argument);
+  options.resolution = 64;
+  options.contour_error = 1.5;
+  EXPECT_THROW(build_esvo(f.scene, options), std::invalid_argument);
+  options.contour_error = NAN;
+  EXPECT_THROW(build_esvo(f.scene, options), std::invalid_argument);
+  options.contour_error = std::sqrt(3.0);
+  EXPECT_NEAR(esvo_error_bound(options), std::sqrt(3.0), 1e-12);
+  options.contour_error = 3.4;
+  EXPECT_NEAR(esvo_error_bound(options), std::sqrt(11.0), 1e-12);
+}
+
 }  // namespace
 }  // namespace kiln

@@ -32,7 +32,8 @@ AccelEntry make_esvo_entry(const Scene& scene, const AccelRequest& request, unsi
         fbb, f.grid.resolution, f.levels, f.grid.origin[0], f.grid.origin[1], f.grid.origin[2],
         f.grid.voxel_size, contours, bound, index[0], index[1], index[2], index[3], &levels,
         f.descriptor_count, f.voxel_count, f.leaf_count, f.contour_count, f.far_pointer_count,
-        f.max_depth, f.hierarchy_bytes, f.contour_bytes, f.attachment_bytes, per_leaf);
+        f.max_depth, f.hierarchy_bytes, f.contour_bytes, f.attachment_bytes, per_leaf,
+        f.words.size(), f.blocks.size());
     const std::vector<std::uint32_t> owned(index.begin(), index.end());
     return schema::CreateAccelerationDirect(fbb, kind.c_str(), &owned, 0, 0, 0, 0, desc);
   };

@@ -2,6 +2,7 @@
 #include <string>
 
 #include "kiln/formats/bvh.hpp"
+#include "kiln/formats/esvo.hpp"
 #include "kiln/formats/kdtree.hpp"
 #include "kiln/formats/point_tree.hpp"
 #include "kiln/formats/section_kinds.hpp"
@@ -130,6 +131,22 @@ void Blob::validate_geometry() {
         check((where + "voxel normals").c_str(), dag->voxel_normals(), format::kSectionVoxelNormals,
               sizeof(std::uint32_t), dag->surface_voxel_count(), true);
         if (dag->level_stats() == nullptr) fail_section(0, where + "has no level table");
+      }
+      if (const auto* e = accel->esvo()) {
+        const auto where = "acceleration '" + kind + "' ";
+        const std::uint64_t pages =
+            (e->word_count() + format::kEsvoPageWords - 1) / format::kEsvoPageWords;
+        check((where + "words").c_str(), e->words(), format::kSectionEsvoWords,
+              sizeof(std::uint32_t), e->word_count(), false);
+        check((where + "page headers").c_str(), e->pages(), format::kSectionEsvoPages,
+              sizeof(std::uint32_t), pages, false);
+        check((where + "blocks").c_str(), e->blocks(), format::kSectionEsvoBlocks,
+              sizeof(format::EsvoBlockInfo), e->block_count(), false);
+        check((where + "normals").c_str(), e->normals(), format::kSectionEsvoNormals,
+              sizeof(std::uint32_t), e->voxel_count(), false);
+        if (e->level_stats() == nullptr || e->level_stats()->size() != e->levels())
+          fail_section(0,
+                       where + "has no level table of " + std::to_string(e->levels()) + " levels");
       }
     }
   }

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "kiln/formats/bvh.hpp"
+#include "kiln/formats/esvo.hpp"
 #include "kiln/formats/kdtree.hpp"
 #include "kiln/formats/point_tree.hpp"
 #include "kiln/formats/section_kinds.hpp"
@@ -37,7 +38,9 @@ bool is_known_kind(std::uint32_t kind) {
          kind == format::kSectionKdTriangles || kind == format::kSectionPointNodes ||
          kind == format::kSectionPointPositions || kind == format::kSectionPointIds ||
          kind == format::kSectionDagWords || kind == format::kSectionVoxelCodes ||
-         kind == format::kSectionVoxelNormals;
+         kind == format::kSectionVoxelNormals || kind == format::kSectionEsvoWords ||
+         kind == format::kSectionEsvoPages || kind == format::kSectionEsvoBlocks ||
+         kind == format::kSectionEsvoNormals;
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // The deep check behind `kiln verify`: everything open() skipped because it is O(bytes).
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -9,6 +10,7 @@
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/checksum.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/esvo.hpp"
 #include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/point_tree.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
@@ -111,6 +113,7 @@ void Blob::verify_accelerations() const {
     if (accel->kdtree() != nullptr) verify_kdtree(*accel);
     if (accel->points() != nullptr) verify_point_tree(*accel);
     if (accel->dag() != nullptr) verify_voxel_dag(*accel);
+    if (accel->esvo() != nullptr) verify_esvo(*accel);
   }
 }
 
@@ -241,6 +244,50 @@ void Blob::verify_voxel_dag(const schema::Acceleration& accel) const {
       fail_section(desc->voxel_codes(), name + " voxel code " + std::to_string(i) +
                                             " is out of order or names an empty voxel");
   }
+}
+
+// Beyond the view's walk: the manifest's counts are the tree's, every contour is a real slab
+// (non-zero normal), every attachment a unit normal.
+void Blob::verify_esvo(const schema::Acceleration& accel) const {
+  const std::string name = accel.kind()->str();
+  const auto* desc = accel.esvo();
+  const EsvoView esvo = EsvoView::from_blob(*this, name);
+  const auto words = esvo.words();
+  std::uint64_t descriptors = 0, voxels = 0, leaves = 0, contours = 0;
+  // Every reachable descriptor, level by level (the view has already bounded the walk).
+  std::vector<std::uint64_t> level{0}, next;
+  while (!level.empty()) {
+    next.clear();
+    for (const std::uint64_t w : level) {
+      const format::EsvoDescriptor d = format::decode_descriptor(words[w], words[w + 1]);
+      ++descriptors;
+      voxels += std::popcount(d.valid);
+      leaves += std::popcount(std::uint8_t(d.valid & ~d.non_leaf));
+      contours += std::popcount(d.contour_mask);
+      const std::uint64_t run = w + d.contour_pointer;
+      for (int k = 0; k < std::popcount(d.contour_mask); ++k) {
+        const format::Contour c = format::decode_contour(words[run + 1 + k]);
+        if (format::contour_extent(c) == 0 || c.thickness > 127)
+          fail_section(desc->words(),
+                       name + " contour at word " + std::to_string(run + 1 + k) + " has no normal");
+      }
+      if (d.non_leaf == 0) continue;
+      const std::uint64_t child =
+          w + (d.far ? words[w + d.child_pointer] : 2 * std::uint64_t(d.child_pointer));
+      for (int i = 0; i < std::popcount(d.non_leaf); ++i) next.push_back(child + 2 * i);
+    }
+    std::swap(level, next);
+  }
+  if (descriptors != desc->descriptor_count() || voxels != desc->voxel_count() ||
+      leaves != desc->leaf_count() || contours != desc->contour_count())
+    fail_section(desc->words(), name + " holds " + std::to_string(descriptors) + " descriptors, " +
+                                    std::to_string(voxels) + " voxels, " + std::to_string(leaves) +
+                                    " leaves, " + std::to_string(contours) +
+                                    " contours; the manifest says otherwise");
+  const auto normals = section_view<std::uint32_t>(desc->normals());
+  if (normals.size() != voxels)
+    fail_section(desc->normals(), name + " has " + std::to_string(normals.size()) +
+                                      " attachments for " + std::to_string(voxels) + " voxels");
 }
 
 }  // namespace kiln

@@ -51,8 +51,8 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
   }
 
   // Depth-first over every descriptor reachable from the root. Pointers only go forward, so
-  // there is no cycle; `seen` (level + 1 per descriptor) keeps shared descriptors from being
-  // walked twice and insists they sit at one level.
+  // there is no cycle, and an octree shares nothing: a descriptor reached twice is refused, so
+  // the walk (and any later one) is linear in the words.
   std::vector<std::uint8_t> seen(words.size() / 2);
   std::vector<std::pair<std::uint64_t, std::uint32_t>> stack{{0, 0}};
   seen[0] = 1;
@@ -88,11 +88,8 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
       fail(where + " points at word " + std::to_string(child) + ", out of range");
     for (std::uint64_t i = 0; i < count; ++i) {
       const std::uint64_t c = child + 2 * i;
-      if (seen[c / 2] != 0) {
-        if (seen[c / 2] != level + 2) fail(where + " shares a child across levels");
-        continue;
-      }
-      seen[c / 2] = std::uint8_t(level + 2);
+      if (seen[c / 2] != 0) fail(where + " shares a child with another descriptor");
+      seen[c / 2] = 1;
       stack.push_back({c, level + 1});
     }
   }

@@ -67,6 +67,7 @@ class Blob {
   void verify_kdtree(const schema::Acceleration& accel) const;
   void verify_point_tree(const schema::Acceleration& accel) const;
   void verify_voxel_dag(const schema::Acceleration& accel) const;
+  void verify_esvo(const schema::Acceleration& accel) const;
   [[noreturn]] void fail(const std::string& what) const;
   [[noreturn]] void fail_section(std::uint32_t index, const std::string& what) const;
 
