@@ -36,7 +36,7 @@ VoxelGridFrame frame_of(const VoxelGrid& g) {
 }
 
 EsvoView view_of(const FlatEsvo& e) {
-  return EsvoView(e.words, e.pages, e.blocks, e.normals, frame_of(e.grid));
+  return EsvoView(e.words, e.pages, e.blocks, e.normals, e.colors, frame_of(e.grid));
 }
 
 struct BuiltDag {
@@ -342,6 +342,51 @@ TEST(Esvo, BadOptionsAreRefused) {
   EXPECT_NEAR(esvo_error_bound(options), std::sqrt(3.0), 1e-12);
   options.contour_error = 3.4;
   EXPECT_NEAR(esvo_error_bound(options), std::sqrt(11.0), 1e-12);
+}
+
+TEST(Esvo, ColourAttachmentIsTheTouchingTrianglesMean) {
+  KILN_REQUIRE_CORPUS();
+  Fixture f = load("classic/spot.obj");
+  // A colour per vertex from its position, so neighbouring triangles differ.
+  for (const Float3& p : f.scene.positions) {
+    const auto channel = [](float v) {
+      return std::uint32_t(std::lround(127.5f + 127.5f * std::sin(9 * v)));
+    };
+    f.scene.colors.push_back(channel(p.x) | channel(p.y) << 8 | channel(p.z) << 16 | 0xFFu << 24);
+  }
+  const FlatEsvo esvo = build(f.scene, 64, true);
+  ASSERT_EQ(esvo.colors.size(), esvo.normals.size());
+  const EsvoView view = view_of(esvo);
+  const VoxelGrid& g = esvo.grid;
+  std::size_t hits = 0;
+  for (const Ray& ray : test_rays(f.bvh(), f.scene, 1000, 17)) {
+    const EsvoHit h = view.intersect(ray);
+    if (!h.hit.hit()) continue;
+    ++hits;
+    // The leaf's cube, then every triangle touching it, by brute force.
+    const std::uint32_t side = g.resolution >> h.level;
+    const Vec3d lo{double(h.hit.x / side * side), double(h.hit.y / side * side),
+                   double(h.hit.z / side * side)};
+    const Vec3d hi{lo.x + side, lo.y + side, lo.z + side};
+    double sum[4] = {0, 0, 0, 0};
+    std::size_t count = 0;
+    for (const auto& tri : f.scene.triangles) {
+      const GridTriangle t = to_grid(g, f.scene.positions[tri.v[0]], f.scene.positions[tri.v[1]],
+                                     f.scene.positions[tri.v[2]]);
+      if (!triangle_overlaps_box(t.v[0], t.v[1], t.v[2], lo, hi)) continue;
+      ++count;
+      for (int k = 0; k < 4; ++k)
+        for (const std::uint32_t v : tri.v)
+          sum[k] += double(f.scene.colors[v] >> (8 * k) & 0xFF) / 3.0;
+    }
+    ASSERT_GT(count, 0u);
+    for (int k = 0; k < 4; ++k)
+      ASSERT_NEAR(double(h.color >> (8 * k) & 0xFF), sum[k] / double(count), 0.5 + 1e-9) << k;
+  }
+  EXPECT_GT(hits, 300u);
+  // Without colours in the scene there is no colour attachment.
+  f.scene.colors.clear();
+  EXPECT_TRUE(build(f.scene, 64, true).colors.empty());
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 // The top levels form block 0; every group of children at the block level starts its own block,
 // built as an independent task, so the result never depends on the thread count.
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <optional>
@@ -35,8 +36,9 @@ struct Context {
   std::uint32_t levels = 0, block_level = 0, reach = 0;
   bool contours = true;
   std::span<const std::uint64_t> codes;
-  std::vector<GridTriangle> triangles;  // in grid units
-  std::vector<Vec3d> unit_normals;      // as the voxelizer sums them
+  std::vector<GridTriangle> triangles;        // in grid units
+  std::vector<Vec3d> unit_normals;            // as the voxelizer sums them
+  std::vector<std::array<double, 4>> colors;  // per triangle: its corners' mean RGBA, 0..255
 };
 
 // A voxel whose children are still to be decided.
@@ -50,6 +52,14 @@ struct Work {
 
 std::uint64_t cube_code(const Cube& c) {
   return format::morton_code(c.corner[0], c.corner[1], c.corner[2]);
+}
+
+// The mean of `count` summed RGBA colours, rounded, packed r | g << 8 | b << 16 | a << 24.
+std::uint32_t mean_rgba8(const std::array<double, 4>& sum, std::size_t count) {
+  std::uint32_t packed = 0;
+  for (int k = 0; k < 4; ++k)
+    packed |= std::uint32_t(count == 0 ? 0 : std::lround(sum[k] / double(count))) << (8 * k);
+  return packed;
 }
 
 bool touches(const GridTriangle& t, const Cube& c) {
@@ -84,13 +94,17 @@ std::vector<Work> expand(const Context& ctx, TempBlock& block, std::uint32_t ind
     node.valid |= std::uint8_t(1u << octant);
 
     double sum[3] = {0, 0, 0};
+    std::array<double, 4> color{0, 0, 0, 0};
     for (const std::uint32_t t : w.triangles)
       if (touches(ctx.triangles[t], child.cube)) {
         child.triangles.push_back(t);
         sum[0] += ctx.unit_normals[t].x, sum[1] += ctx.unit_normals[t].y;
         sum[2] += ctx.unit_normals[t].z;
+        if (!ctx.colors.empty())
+          for (int k = 0; k < 4; ++k) color[k] += ctx.colors[t][k];
       }
     block.normals.push_back(format::encode_octahedral(float(sum[0]), float(sum[1]), float(sum[2])));
+    if (!ctx.colors.empty()) block.colors.push_back(mean_rgba8(color, child.triangles.size()));
 
     bool leaf = child_level == ctx.levels;
     if (ctx.contours && half <= esvo::kMaxCoveredSide) {
@@ -208,6 +222,11 @@ FlatEsvo build_esvo(const Scene& scene, const EsvoBuildOptions& options) {
                 c = to_d(scene.positions[tri.v[2]]);
     const Vec3d n = cross(b - a, c - a);
     ctx.unit_normals.push_back(n * (1.0 / std::sqrt(dot(n, n))));
+    if (scene.colors.empty()) continue;
+    std::array<double, 4> mean{0, 0, 0, 0};
+    for (const std::uint32_t v : tri.v)
+      for (int k = 0; k < 4; ++k) mean[k] += double(scene.colors[v] >> (8 * k) & 0xFF) / 3.0;
+    ctx.colors.push_back(mean);
   }
 
   Work root;

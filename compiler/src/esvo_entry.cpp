@@ -20,10 +20,13 @@ AccelEntry make_esvo_entry(const Scene& scene, const AccelRequest& request, unsi
                     raw_section(format::kSectionEsvoPages, e.pages),
                     raw_section(format::kSectionEsvoBlocks, e.blocks),
                     raw_section(format::kSectionEsvoNormals, e.normals)};
+  const bool colors = !e.colors.empty();
+  if (colors) entry.sections.push_back(raw_section(format::kSectionEsvoColors, e.colors));
   const double per_leaf =
       double(e.hierarchy_bytes + e.contour_bytes + e.attachment_bytes) / double(e.leaf_count);
-  entry.describe = [storage, bound, per_leaf, kind = request.kind, contours = options.contours](
-                       flatbuffers::FlatBufferBuilder& fbb, std::span<const std::uint32_t> index) {
+  entry.describe = [storage, bound, per_leaf, colors, kind = request.kind,
+                    contours = options.contours](flatbuffers::FlatBufferBuilder& fbb,
+                                                 std::span<const std::uint32_t> index) {
     const FlatEsvo& f = *storage;
     std::vector<flatbuffers::Offset<schema::EsvoLevel>> levels;
     for (const EsvoLevelStats& l : f.level_stats)
@@ -33,7 +36,7 @@ AccelEntry make_esvo_entry(const Scene& scene, const AccelRequest& request, unsi
         f.grid.voxel_size, contours, bound, index[0], index[1], index[2], index[3], &levels,
         f.descriptor_count, f.voxel_count, f.leaf_count, f.contour_count, f.far_pointer_count,
         f.max_depth, f.hierarchy_bytes, f.contour_bytes, f.attachment_bytes, per_leaf,
-        f.words.size(), f.blocks.size());
+        f.words.size(), f.blocks.size(), colors ? index[4] : kNoSection);
     const std::vector<std::uint32_t> owned(index.begin(), index.end());
     return schema::CreateAccelerationDirect(fbb, kind.c_str(), &owned, 0, 0, 0, 0, desc);
   };

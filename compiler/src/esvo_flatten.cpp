@@ -159,6 +159,7 @@ void flatten_blocks(std::vector<TempBlock>& blocks, FlatEsvo& out) {
   for (std::size_t b = 0; b < blocks.size(); ++b) {
     TempBlock& block = blocks[b];
     out.normals.insert(out.normals.end(), block.normals.begin(), block.normals.end());
+    out.colors.insert(out.colors.end(), block.colors.begin(), block.colors.end());
     for (std::size_t l = 0; l < block.levels.size(); ++l) {
       EsvoLevelStats& s = out.level_stats[l];
       s.descriptors += block.levels[l].descriptors, s.voxels += block.levels[l].voxels;
@@ -180,7 +181,7 @@ void flatten_blocks(std::vector<TempBlock>& blocks, FlatEsvo& out) {
     if (s.leaves > 0) out.max_depth = std::uint32_t(l + 1);
   }
   out.contour_bytes = 4 * out.contour_count;
-  out.attachment_bytes = 4 * out.normals.size();
+  out.attachment_bytes = 4 * (out.normals.size() + out.colors.size());
   out.hierarchy_bytes = 4 * out.words.size() - out.contour_bytes + 4 * out.pages.size() +
                         sizeof(format::EsvoBlockInfo) * out.blocks.size();
 }

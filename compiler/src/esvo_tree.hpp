@@ -29,6 +29,7 @@ struct TempBlock {
   std::vector<TempNode> nodes;
   std::vector<std::uint32_t> contours;
   std::vector<std::uint32_t> normals;
+  std::vector<std::uint32_t> colors;        // parallel to normals, when the scene has colours
   std::vector<std::uint32_t> group_starts;  // node index of each group, in allocation order
   std::vector<EsvoLevelStats> levels;
   std::uint64_t far_pointers = 0;

@@ -144,6 +144,8 @@ void Blob::validate_geometry() {
               sizeof(format::EsvoBlockInfo), e->block_count(), false);
         check((where + "normals").c_str(), e->normals(), format::kSectionEsvoNormals,
               sizeof(std::uint32_t), e->voxel_count(), false);
+        check((where + "colours").c_str(), e->colors(), format::kSectionEsvoColors,
+              sizeof(std::uint32_t), e->voxel_count(), true);
         if (e->level_stats() == nullptr || e->level_stats()->size() != e->levels())
           fail_section(0,
                        where + "has no level table of " + std::to_string(e->levels()) + " levels");

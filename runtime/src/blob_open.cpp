@@ -40,7 +40,7 @@ bool is_known_kind(std::uint32_t kind) {
          kind == format::kSectionDagWords || kind == format::kSectionVoxelCodes ||
          kind == format::kSectionVoxelNormals || kind == format::kSectionEsvoWords ||
          kind == format::kSectionEsvoPages || kind == format::kSectionEsvoBlocks ||
-         kind == format::kSectionEsvoNormals;
+         kind == format::kSectionEsvoNormals || kind == format::kSectionEsvoColors;
 }
 
 }  // namespace

@@ -150,8 +150,11 @@ EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod) const {
             const float s = (dn > 0 ? -1.0f : 1.0f) / length;
             for (int a = 0; a < 3; ++a) hit.face_normal[a] = entry_contour[a] * s;
           }
-          if constexpr (!kAnyHit)
-            format::decode_octahedral(normals_[attachment_index(parent, octant)], hit.normal);
+          if constexpr (!kAnyHit) {
+            const std::uint64_t attachment = attachment_index(parent, octant);
+            format::decode_octahedral(normals_[attachment], hit.normal);
+            if (!colors_.empty()) out.color = colors_[attachment];
+          }
           return out;
         }
         // PUSH: descend into the child; its subtree is searched within [tv_min, tv_max].

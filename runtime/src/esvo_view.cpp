@@ -21,9 +21,14 @@ std::uint64_t attachment_end(std::span<const format::EsvoBlockInfo> blocks, std:
 
 EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::uint32_t> pages,
                    std::span<const format::EsvoBlockInfo> blocks,
-                   std::span<const std::uint32_t> normals, const VoxelGridFrame& frame,
-                   const std::string& name)
-    : words_(words), pages_(pages), blocks_(blocks), normals_(normals), frame_(frame) {
+                   std::span<const std::uint32_t> normals, std::span<const std::uint32_t> colors,
+                   const VoxelGridFrame& frame, const std::string& name)
+    : words_(words),
+      pages_(pages),
+      blocks_(blocks),
+      normals_(normals),
+      colors_(colors),
+      frame_(frame) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
   const std::uint32_t n = frame.resolution;
   if (!format::is_valid_dag_resolution(n))
@@ -31,6 +36,9 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
   if (!(frame.voxel_size > 0) || !std::isfinite(frame.voxel_size)) fail("bad voxel size");
   levels_ = std::uint32_t(std::bit_width(n) - 1);
   if (words.size() < 2) fail("has no root descriptor");
+  if (!colors.empty() && colors.size() != normals.size())
+    fail(std::to_string(colors.size()) + " colours for " + std::to_string(normals.size()) +
+         " normals");
   if (pages.size() != (words.size() + format::kEsvoPageWords - 1) / format::kEsvoPageWords)
     fail(std::to_string(pages.size()) + " page headers for " + std::to_string(words.size()) +
          " words");
@@ -108,7 +116,8 @@ EsvoView EsvoView::from_blob(const Blob& blob, const std::string& name) {
         return EsvoView(blob.section_view<std::uint32_t>(e->words()),
                         blob.section_view<std::uint32_t>(e->pages()),
                         blob.section_view<format::EsvoBlockInfo>(e->blocks()),
-                        blob.section_view<std::uint32_t>(e->normals()), frame,
+                        blob.section_view<std::uint32_t>(e->normals()),
+                        blob.section_view<std::uint32_t>(e->colors()), frame,
                         blob.name() + ": " + name);
       }
   throw BlobError(blob.name() + ": has no ESVO '" + name + "' (build with --accel esvo)");

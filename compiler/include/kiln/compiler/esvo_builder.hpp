@@ -39,6 +39,7 @@ struct FlatEsvo {
   std::vector<std::uint32_t> pages;
   std::vector<format::EsvoBlockInfo> blocks;
   std::vector<std::uint32_t> normals;  // octahedral, one per voxel
+  std::vector<std::uint32_t> colors;   // RGBA8, one per voxel; empty when the scene has none
   std::vector<EsvoLevelStats> level_stats;
   std::uint64_t descriptor_count = 0, voxel_count = 0, leaf_count = 0, contour_count = 0,
                 far_pointer_count = 0;

@@ -17,6 +17,9 @@ struct ImportedMesh {
   std::string name;
   std::vector<format::Float3> positions;
   std::vector<format::Float3> normals;  // empty, or one per position
+  // Empty, or one RGBA8 colour per position (r in the low byte): the vertex colour times the
+  // material's base colour, or the base colour alone when the mesh has no vertex colours.
+  std::vector<std::uint32_t> colors;
   std::vector<format::Triangle> triangles;
   Matrix4 transform = kIdentity;  // mesh space to world space
   // No surface, only points (a scan): every finite vertex is kept, not just those triangles use.
@@ -52,6 +55,7 @@ struct Bounds3 {
 struct Scene {
   std::vector<format::Float3> positions;
   std::vector<format::Float3> normals;  // empty unless every mesh had normals
+  std::vector<std::uint32_t> colors;    // empty unless some mesh had colours (others: white)
   std::vector<format::Triangle> triangles;
   std::vector<std::uint32_t> triangle_mesh;  // mesh index per triangle
   std::vector<SceneMesh> meshes;

@@ -18,6 +18,8 @@
 // subtree; its voxels' attachments start at attachment_base.
 // ESVN, uint32 octahedral normal per voxel: the attachment, indexed
 //   block.attachment_base + run word 0 + popcount(valid mask below the child's octant).
+// ESVC, RGBA8 colour per voxel (r in the low byte), indexed as ESVN: only when the input had
+// vertex or material colours.
 #pragma once
 
 #include <bit>
@@ -31,6 +33,7 @@ inline constexpr std::uint32_t kSectionEsvoWords = fourcc('E', 'S', 'V', 'W');
 inline constexpr std::uint32_t kSectionEsvoPages = fourcc('E', 'S', 'V', 'P');
 inline constexpr std::uint32_t kSectionEsvoBlocks = fourcc('E', 'S', 'V', 'B');
 inline constexpr std::uint32_t kSectionEsvoNormals = fourcc('E', 'S', 'V', 'N');
+inline constexpr std::uint32_t kSectionEsvoColors = fourcc('E', 'S', 'V', 'C');
 
 inline constexpr std::uint32_t kEsvoPageWords = 2048;  // 8 KiB, as in the paper
 inline constexpr std::uint32_t kEsvoNearPointerMax = (1u << 15) - 1;

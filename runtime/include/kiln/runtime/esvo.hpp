@@ -23,10 +23,11 @@ struct EsvoLod {
 
 // An ESVO hit: the voxel-hit record (t; the finest-grid voxel holding the hit point; the normal
 // of the surface entered, the contour's plane when its slab set t, else the cube's face; the
-// attached normal) plus the level of the leaf that was hit.
+// attached normal) plus the level of the leaf that was hit and its colour attachment.
 struct EsvoHit {
   VoxelHit hit;
   std::uint32_t level = 0;
+  std::uint32_t color = 0;  // RGBA8 (r in the low byte); 0 on a miss or without colours
 };
 
 // A validated view of one ESVO. Creating it walks every descriptor once (O(descriptors)): each
@@ -37,7 +38,8 @@ class EsvoView {
  public:
   EsvoView(std::span<const std::uint32_t> words, std::span<const std::uint32_t> pages,
            std::span<const format::EsvoBlockInfo> blocks, std::span<const std::uint32_t> normals,
-           const VoxelGridFrame& frame, const std::string& name = "esvo");
+           std::span<const std::uint32_t> colors, const VoxelGridFrame& frame,
+           const std::string& name = "esvo");
   static EsvoView from_blob(const Blob& blob, const std::string& name = "esvo");
 
   // The first leaf region (cube cut by its own and its ancestors' contours) along the ray.
@@ -62,7 +64,7 @@ class EsvoView {
 
   std::span<const std::uint32_t> words_, pages_;
   std::span<const format::EsvoBlockInfo> blocks_;
-  std::span<const std::uint32_t> normals_;
+  std::span<const std::uint32_t> normals_, colors_;
   VoxelGridFrame frame_;
   std::uint32_t levels_ = 0;
   std::uint64_t descriptor_count_ = 0;
