@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <string>
 #include <utility>
 
 #include "kiln/compiler/import.hpp"
@@ -101,6 +102,10 @@ Scene assemble_scene(std::vector<ImportedFile> files) {
       kept_meshes += 1;
     }
   every_mesh_has_normals &= kept_meshes > 0;
+  // Colours start at the first kept vertex of a coloured mesh (the vertices before it get white,
+  // as do those of later meshes without colours), so a coloured mesh that keeps nothing adds none.
+  constexpr std::uint32_t kWhite = 0xFFFFFFFF;
+  bool any_colors = false;
 
   std::vector<std::uint32_t> remap;
   for (std::uint32_t f = 0; f < files.size(); ++f) {
@@ -108,6 +113,10 @@ Scene assemble_scene(std::vector<ImportedFile> files) {
     scene.sources.push_back(file.source);
     for (ImportedMesh& mesh : file.meshes) {
       SceneMesh out{mesh.name, f, scene.triangles.size(), 0, scene.positions.size(), 0};
+      if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
+        throw ImportError(scene.sources.back().path + ": mesh '" + mesh.name + "' has " +
+                          std::to_string(mesh.colors.size()) + " colours for " +
+                          std::to_string(mesh.positions.size()) + " vertices");
       scene.input_triangle_count += mesh.triangles.size();
       // First pass: keep triangles, mark the vertices they use.
       constexpr auto kUnused = std::numeric_limits<std::uint32_t>::max();
@@ -136,6 +145,11 @@ Scene assemble_scene(std::vector<ImportedFile> files) {
         if (remap[v] == kUnused) continue;
         if (scene.positions.size() >= kUnused)
           throw ImportError(scene.sources.back().path + ": scene exceeds 2^32-1 vertices");
+        if (!mesh.colors.empty() && !any_colors) {
+          scene.colors.assign(scene.positions.size(), kWhite);
+          any_colors = true;
+        }
+        if (any_colors) scene.colors.push_back(mesh.colors.empty() ? kWhite : mesh.colors[v]);
         remap[v] = std::uint32_t(scene.positions.size());
         scene.positions.push_back(to_float(world[v]));
         if (every_mesh_has_normals)

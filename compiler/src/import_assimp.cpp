@@ -5,13 +5,16 @@
 #include <assimp/scene.h>
 #include <assimp/Importer.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <sstream>
 #include <utility>
 
 #include "kiln/compiler/import.hpp"
 #include "kiln/compiler/transform.hpp"
+#include "rgba8.hpp"
 
 namespace kiln {
 
@@ -59,7 +62,94 @@ Matrix4 to_matrix4(const aiMatrix4x4& m) {
           m.a3, m.b3, m.c3, m.d3, m.a4, m.b4, m.c4, m.d4};
 }
 
-ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const std::string& path) {
+bool is_finite(const aiColor4D& c) {
+  return std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b) && std::isfinite(c.a);
+}
+
+// Whether `material` is `reference` under another name, property for property. Assimp 5.2.5's
+// OBJ reader turns a `usemtl` naming a material no .mtl defines (box.obj's `usemtl Default`
+// without a library) into such a copy of its DefaultMaterial: a grey the file never asked for.
+bool is_renamed_copy(const aiMaterial& material, const aiMaterial& reference) {
+  if (material.mNumProperties != reference.mNumProperties) return false;
+  auto same = [](const aiMaterialProperty& a, const aiMaterialProperty& b) {
+    return a.mKey == b.mKey && a.mSemantic == b.mSemantic && a.mIndex == b.mIndex &&
+           a.mType == b.mType && a.mDataLength == b.mDataLength &&
+           (a.mDataLength == 0 || std::memcmp(a.mData, b.mData, a.mDataLength) == 0);
+  };
+  for (unsigned p = 0; p < material.mNumProperties; ++p) {
+    const aiMaterialProperty& mine = *material.mProperties[p];
+    if (std::strcmp(mine.mKey.C_Str(), "?mat.name") == 0) continue;
+    bool found = false;
+    for (unsigned q = 0; q < reference.mNumProperties && !found; ++q)
+      found = same(mine, *reference.mProperties[q]);
+    if (!found) return false;
+  }
+  return true;
+}
+
+std::string material_name(const aiMaterial& material) {
+  aiString name;
+  if (material.Get(AI_MATKEY_NAME, name) != AI_SUCCESS) return {};
+  return name.C_Str();
+}
+
+// The base colour of `material`, or none when the file gave none. Assimp invents a material
+// for every mesh: "DefaultMaterial" (OBJ faces before any usemtl, STL, 3MF; an OBJ without .mtl
+// uses only it), an unnamed one (PLY: white, OFF: grey) or, for OBJ, a renamed copy of
+// DefaultMaterial (is_renamed_copy); none of these is a colour from the file.
+std::optional<aiColor4D> material_color(const aiMaterial& material,
+                                        const aiMaterial* default_material) {
+  const std::string name = material_name(material);
+  if (name.empty() || name == AI_DEFAULT_MATERIAL_NAME) return std::nullopt;
+  if (default_material != nullptr && is_renamed_copy(material, *default_material))
+    return std::nullopt;
+  aiColor4D color;
+  if (material.Get(AI_MATKEY_BASE_COLOR, color) != AI_SUCCESS &&
+      material.Get(AI_MATKEY_COLOR_DIFFUSE, color) != AI_SUCCESS)
+    return std::nullopt;
+  return color;
+}
+
+// material_color for every material of the scene, by index (once per file, not per mesh).
+std::vector<std::optional<aiColor4D>> material_colors(const aiScene& scene) {
+  std::vector<std::optional<aiColor4D>> colors;
+  if (scene.mMaterials == nullptr) return colors;
+  const aiMaterial* default_material = nullptr;
+  for (unsigned m = 0; m < scene.mNumMaterials; ++m)
+    if (scene.mMaterials[m] != nullptr &&
+        material_name(*scene.mMaterials[m]) == AI_DEFAULT_MATERIAL_NAME)
+      default_material = scene.mMaterials[m];
+  colors.resize(scene.mNumMaterials);
+  for (unsigned m = 0; m < scene.mNumMaterials; ++m)
+    if (scene.mMaterials[m] != nullptr)
+      colors[m] = material_color(*scene.mMaterials[m], default_material);
+  return colors;
+}
+
+// One colour per vertex: vertex colour set 0 times the base colour, or the base colour alone;
+// empty when there is neither. A bad colour in a material no mesh uses is not an error.
+std::vector<std::uint32_t> mesh_colors(const aiMesh& mesh, const std::optional<aiColor4D>& base,
+                                       const std::string& path) {
+  if (base && !is_finite(*base))
+    throw ImportError(path + ": a material's base colour holds a non-finite value");
+  const aiColor4D tint = base.value_or(aiColor4D(1, 1, 1, 1));
+  std::vector<std::uint32_t> colors;
+  if (mesh.HasVertexColors(0)) {
+    colors.reserve(mesh.mNumVertices);
+    for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+      const aiColor4D& c = mesh.mColors[0][v];
+      if (!is_finite(c)) throw ImportError(path + ": vertex colour holds a non-finite value");
+      colors.push_back(pack_rgba8(double(c.r) * tint.r, double(c.g) * tint.g, double(c.b) * tint.b,
+                                  double(c.a) * tint.a));
+    }
+  } else if (base) {
+    colors.assign(mesh.mNumVertices, pack_rgba8(tint.r, tint.g, tint.b, tint.a));
+  }
+  return colors;
+}
+
+ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world,
+                          const std::optional<aiColor4D>& base, const std::string& path) {
   ImportedMesh out;
   if (mesh.mNumVertices == 0) return out;
   if (mesh.mVertices == nullptr || (mesh.mNumFaces > 0 && mesh.mFaces == nullptr))
@@ -74,6 +164,7 @@ ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world, const st
     for (unsigned v = 0; v < mesh.mNumVertices; ++v)
       out.normals.push_back({mesh.mNormals[v].x, mesh.mNormals[v].y, mesh.mNormals[v].z});
   }
+  out.colors = mesh_colors(mesh, base, path);
   out.triangles.reserve(mesh.mNumFaces);
   bool has_lines = false;
   for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
@@ -148,6 +239,7 @@ std::vector<ImportedMesh> import_with_assimp(const std::string& path,
   if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0 || scene->mRootNode == nullptr)
     throw ImportError(path + ": Assimp produced an incomplete scene");
 
+  const std::vector<std::optional<aiColor4D>> base_colors = material_colors(*scene);
   std::vector<ImportedMesh> meshes;
   // Explicit stack: a hostile file's deep hierarchy must not overflow the call stack.
   std::vector<std::pair<const aiNode*, aiMatrix4x4>> stack{{scene->mRootNode, aiMatrix4x4()}};
@@ -161,7 +253,10 @@ std::vector<ImportedMesh> import_with_assimp(const std::string& path,
       if (scene->mMeshes == nullptr || scene->mMeshes[node->mMeshes[i]] == nullptr)
         throw ImportError(path + ": node references a missing mesh");
       const aiMesh& mesh = *scene->mMeshes[node->mMeshes[i]];
-      meshes.push_back(convert_mesh(mesh, world, path));
+      const std::optional<aiColor4D> base = mesh.mMaterialIndex < base_colors.size()
+                                                ? base_colors[mesh.mMaterialIndex]
+                                                : std::nullopt;
+      meshes.push_back(convert_mesh(mesh, world, base, path));
       if (meshes.back().triangles.empty() && !meshes.back().point_cloud) {
         meshes.pop_back();
         continue;

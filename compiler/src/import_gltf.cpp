@@ -4,14 +4,18 @@
 // no scenes contributes every mesh once, untransformed, in mesh order.
 #include <tiny_gltf.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
+#include <optional>
 
 #include "draco_extension_check.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/compiler/transform.hpp"
+#include "rgba8.hpp"
 
 namespace kiln {
 
@@ -115,6 +119,74 @@ std::vector<format::Float3> read_vec3(const tinygltf::Model& model, int index,
   return values;
 }
 
+using Rgba = std::array<double, 4>;
+
+// The primitive's base colour: its material's baseColorFactor (tinygltf fills in the default
+// [1,1,1,1]), or none when the primitive names no material.
+std::optional<Rgba> base_color(const tinygltf::Model& model, const tinygltf::Primitive& primitive,
+                               const std::string& path) {
+  if (primitive.material < 0) return std::nullopt;
+  if (std::size_t(primitive.material) >= model.materials.size())
+    throw ImportError(path + ": primitive names material " + std::to_string(primitive.material) +
+                      ", out of range");
+  const auto& factor =
+      model.materials[std::size_t(primitive.material)].pbrMetallicRoughness.baseColorFactor;
+  if (factor.size() != 4)
+    throw ImportError(path + ": baseColorFactor has " + std::to_string(factor.size()) +
+                      " elements, not 4");
+  Rgba color;
+  for (int c = 0; c < 4; ++c) {
+    if (!std::isfinite(factor[c]))
+      throw ImportError(path + ": baseColorFactor holds a non-finite value");
+    color[c] = factor[c];
+  }
+  return color;
+}
+
+// One component of a COLOR_0 element in [0, 1]. Integer colours are read as normalized whatever
+// the accessor's flag says: the glTF spec allows them in no other form.
+double color_component(const unsigned char* p, int component_type) {
+  switch (component_type) {
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+      float v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return *p / 255.0;
+    default: {  // TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, checked by read_colors
+      std::uint16_t v;
+      std::memcpy(&v, p, 2);
+      return v / 65535.0;
+    }
+  }
+}
+
+// COLOR_0 times `tint`, packed: VEC3 (alpha 1) or VEC4, of float or normalized unsigned byte or
+// short.
+std::vector<std::uint32_t> read_colors(const tinygltf::Model& model, int index, const Rgba& tint,
+                                       const std::string& path) {
+  const AccessorView view = view_accessor(model, index, path, "COLOR_0");
+  if (view.components != 3 && view.components != 4)
+    throw ImportError(path + ": COLOR_0 must be VEC3 or VEC4");
+  if (view.component_type != TINYGLTF_COMPONENT_TYPE_FLOAT &&
+      view.component_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+      view.component_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT)
+    throw ImportError(path + ": COLOR_0 must be float, unsigned byte or unsigned short");
+  const std::size_t size = std::size_t(tinygltf::GetComponentSizeInBytes(view.component_type));
+  std::vector<std::uint32_t> colors(view.count);
+  for (std::size_t i = 0; i < view.count; ++i) {
+    Rgba c = {1, 1, 1, 1};
+    for (int k = 0; k < view.components; ++k) {
+      c[k] = color_component(view.data + i * view.stride + k * size, view.component_type);
+      if (!std::isfinite(c[k])) throw ImportError(path + ": COLOR_0 holds a non-finite value");
+    }
+    for (int k = 0; k < 4; ++k) c[k] *= tint[k];
+    colors[i] = pack_rgba8(c[0], c[1], c[2], c[3]);
+  }
+  return colors;
+}
+
 std::vector<std::uint32_t> read_indices(const tinygltf::Model& model, int index,
                                         const std::string& path) {
   const AccessorView view = view_accessor(model, index, path, "indices");
@@ -191,6 +263,17 @@ void append_mesh(const tinygltf::Model& model, int mesh_index, const Matrix4& wo
         if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z) ||
             (n.x == 0 && n.y == 0 && n.z == 0))
           throw ImportError(path + ": NORMAL holds a zero-length or non-finite normal");
+    }
+    const std::optional<Rgba> base = base_color(model, primitive, path);
+    if (const auto color = primitive.attributes.find("COLOR_0");
+        color != primitive.attributes.end()) {
+      part.colors = read_colors(model, color->second, base.value_or(Rgba{1, 1, 1, 1}), path);
+      if (part.colors.size() != part.positions.size())
+        throw ImportError(path + ": COLOR_0 has " + std::to_string(part.colors.size()) +
+                          " elements, POSITION " + std::to_string(part.positions.size()));
+    } else if (base) {
+      part.colors.assign(part.positions.size(),
+                         pack_rgba8((*base)[0], (*base)[1], (*base)[2], (*base)[3]));
     }
     std::vector<std::uint32_t> indices;
     if (primitive.indices >= 0) {

@@ -79,8 +79,9 @@ Bounds3 bounds_of(std::span<const format::Float3> positions);
 // Concatenates imported files in order, drops degenerate triangles (zero area on the world-space
 // corners evaluated in double, or a non-finite corner), drops vertices no kept triangle uses (order
 // preserved; a point cloud keeps every finite vertex instead), applies each instance's transform
-// (mirroring ones flip the winding), and computes the bounds. Throws ImportError when more than
-// 2^32 - 1 vertices result.
+// (mirroring ones flip the winding), and computes the bounds. Colours follow their vertices; when
+// some kept mesh has colours, the others' vertices are white. Throws ImportError when more than
+// 2^32 - 1 vertices result, or a mesh has colours but not one per position.
 Scene assemble_scene(std::vector<ImportedFile> files);
 
 }  // namespace kiln
