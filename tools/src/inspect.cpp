@@ -188,6 +188,34 @@ void write_json(const Blob& blob, std::ostream& out) {
         j.end_array();
         j.end_object();
       }
+      if (const auto* e = a->esvo()) {
+        const double leaves = double(std::max<std::uint64_t>(1, e->leaf_count()));
+        j.key("esvo").begin_object();
+        j.field("resolution", e->resolution()).field("levels", e->levels());
+        j.field("origin_x", e->origin_x()).field("origin_y", e->origin_y());
+        j.field("origin_z", e->origin_z()).field("voxel_size", e->voxel_size());
+        j.field("contours", e->contours()).field("error_bound_voxels", e->error_bound_voxels());
+        j.field("colors", e->colors() != kNoSection);
+        j.field("descriptor_count", e->descriptor_count()).field("voxel_count", e->voxel_count());
+        j.field("leaf_count", e->leaf_count()).field("contour_count", e->contour_count());
+        j.field("far_pointer_count", e->far_pointer_count()).field("max_depth", e->max_depth());
+        j.field("block_count", e->block_count()).field("word_count", e->word_count());
+        j.field("hierarchy_bytes", e->hierarchy_bytes());
+        j.field("contour_bytes", e->contour_bytes());
+        j.field("attachment_bytes", e->attachment_bytes());
+        j.field("bytes_per_leaf", e->bytes_per_leaf());
+        j.field("hierarchy_bytes_per_leaf", double(e->hierarchy_bytes()) / leaves);
+        j.field("contour_bytes_per_leaf", double(e->contour_bytes()) / leaves);
+        j.field("attachment_bytes_per_leaf", double(e->attachment_bytes()) / leaves);
+        j.key("levels_table").begin_array();
+        if (e->level_stats())
+          for (const auto* l : *e->level_stats()) {
+            j.begin_object().field("descriptors", l->descriptors()).field("voxels", l->voxels());
+            j.field("leaves", l->leaves()).field("contours", l->contours()).end_object();
+          }
+        j.end_array();
+        j.end_object();
+      }
       if (const auto* p = a->points()) {
         j.key("points").begin_object();
         j.field("split_rule", str(p->split_rule())).field("max_leaf_size", p->max_leaf_size());
@@ -318,6 +346,34 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
                 double(s->svo_nodes()) / double(std::max<std::uint64_t>(1, s->dag_nodes())),
                 (unsigned long long)s->bytes(),
                 l + 1 == d->level_stats()->size() ? "  (4x4x4 leaf masks)" : "");
+          }
+      }
+      if (const auto* e = a->esvo()) {
+        const double leaves = double(std::max<std::uint64_t>(1, e->leaf_count()));
+        out << printf_string(
+            "    %u^3 finest voxels of %g (origin %g, %g, %g), %s, every hit within %.3f voxels "
+            "of the surface\n"
+            "    %llu descriptors, %llu voxels, %llu leaves (deepest at level %u), %llu contours, "
+            "%llu far pointers, %llu blocks\n"
+            "    %.2f bytes/leaf: hierarchy %.2f, contours %.2f, attachments %.2f (normals%s)\n"
+            "    %5s %14s %14s %14s %14s\n",
+            e->resolution(), e->voxel_size(), e->origin_x(), e->origin_y(), e->origin_z(),
+            e->contours() ? "contours" : "no contours (cubes)", e->error_bound_voxels(),
+            (unsigned long long)e->descriptor_count(), (unsigned long long)e->voxel_count(),
+            (unsigned long long)e->leaf_count(), e->max_depth(),
+            (unsigned long long)e->contour_count(), (unsigned long long)e->far_pointer_count(),
+            (unsigned long long)e->block_count(), e->bytes_per_leaf(),
+            double(e->hierarchy_bytes()) / leaves, double(e->contour_bytes()) / leaves,
+            double(e->attachment_bytes()) / leaves, e->colors() != kNoSection ? ", colours" : "",
+            "level", "descriptors", "voxels", "leaves", "contours");
+        if (e->level_stats())
+          for (std::uint32_t l = 0; l < e->level_stats()->size(); ++l) {
+            const auto* s = e->level_stats()->Get(l);
+            if (s->descriptors() == 0) continue;
+            out << printf_string("    %5u %14llu %14llu %14llu %14llu\n", l,
+                                 (unsigned long long)s->descriptors(),
+                                 (unsigned long long)s->voxels(), (unsigned long long)s->leaves(),
+                                 (unsigned long long)s->contours());
           }
       }
       if (const auto* p = a->points()) {

@@ -4,6 +4,7 @@
 #include <sys/resource.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -35,6 +36,8 @@ struct BuildArgs {
   kiln::KdTreeBuildOptions kdtree;
   kiln::PointTreeBuildOptions points;
   kiln::VoxelizeOptions voxels;
+  double contour_error = kiln::EsvoBuildOptions{}.contour_error;
+  bool no_contours = false;
   std::string bvh_builder = "binned";
   std::string points_split = "sliding-midpoint";
 };
@@ -48,7 +51,14 @@ int run_build(const BuildArgs& args) {
       return 2;
     }
   for (const auto& kind : args.accels)
-    if (kind == "dag") {
+    if (kind == "esvo" &&
+        !(std::isfinite(args.contour_error) && args.contour_error >= std::sqrt(3.0))) {
+      std::cerr << "kiln build: --contour-error " << args.contour_error
+                << " must be at least sqrt(3) = 1.7321 voxels (what a finest voxel guarantees)\n";
+      return 1;
+    }
+  for (const auto& kind : args.accels)
+    if (kind == "dag" || kind == "esvo") {
       const std::uint32_t n = args.voxels.resolution;
       if (!kiln::format::is_valid_dag_resolution(n)) {
         std::cerr << "kiln build: --resolution " << n << " must be a power of two in "
@@ -66,6 +76,9 @@ int run_build(const BuildArgs& args) {
         return 2;
       }
     kiln::AccelRequest request{kind, args.bvh, args.kdtree, args.points, args.voxels};
+    request.esvo.resolution = args.voxels.resolution;
+    request.esvo.contours = !args.no_contours;
+    request.esvo.contour_error = args.contour_error;
     request.points.split = args.points_split == "median" ? kiln::PointSplitRule::kMedian
                                                          : kiln::PointSplitRule::kSlidingMidpoint;
     request.bvh.builder = kind == "sbvh"                ? kiln::BvhBuilder::kSpatial
@@ -148,7 +161,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   build_cmd->add_flag("--stats", build.stats, "Print build time and sizes to stderr");
   build_cmd->add_option("--accel", build.accels, "Acceleration structures to build (repeatable)")
-      ->check(CLI::IsMember({"bvh", "sbvh", "kdtree", "points", "dag"}))
+      ->check(CLI::IsMember({"bvh", "sbvh", "kdtree", "points", "dag", "esvo"}))
       ->allow_extra_args(false);
   build_cmd->add_option("--bvh-builder", build.bvh_builder, "Builder for --accel bvh")
       ->check(CLI::IsMember({"binned", "sweep"}))
@@ -207,8 +220,16 @@ int main(int argc, char** argv) {
 
   build_cmd
       ->add_option("--resolution", build.voxels.resolution,
-                   "Voxel grid side for --accel dag: a power of two, 8..16384")
+                   "Voxel grid side (finest level) for --accel dag and esvo: a power of two, "
+                   "8..16384")
       ->capture_default_str();
+  build_cmd
+      ->add_option("--contour-error", build.contour_error,
+                   "--accel esvo: bound, in finest voxels, on the distance from any hit to the "
+                   "surface; at least sqrt(3) (larger lets contoured voxels stop higher)")
+      ->capture_default_str();
+  build_cmd->add_flag("--no-contours", build.no_contours,
+                      "--accel esvo: plain cubes, subdivided to the finest level");
   build_cmd->add_flag("--voxel-normals", build.voxels.normals,
                       "--accel dag: attach each voxel's averaged triangle normal");
   build_cmd->add_flag("--solid", build.voxels.solid,

@@ -12,6 +12,7 @@
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/esvo.hpp"
 #include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
@@ -43,10 +44,19 @@ void trace_with(const Blob& blob, const std::string& accel, std::span<const Ray>
   throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
 }
 
+// The DAG or the ESVO named `accel`, on the 40-byte voxel-hit record.
+void trace_voxels(const Blob& blob, const std::string& accel, std::span<const Ray> rays,
+                  std::span<VoxelHit> hits, bool any_hit, unsigned threads) {
+  for (const auto* a : *blob.manifest().accelerations())
+    if (a->kind()->str() == accel && a->esvo() != nullptr)
+      return trace_rays(EsvoView::from_blob(blob, accel), rays, hits, any_hit, threads);
+  trace_rays(VoxelDagView::from_blob(blob, accel), rays, hits, any_hit, threads);
+}
+
 bool is_voxel_structure(const Blob& blob, const std::string& accel) {
   if (const auto* accels = blob.manifest().accelerations())
     for (const auto* a : *accels)
-      if (a->kind()->str() == accel) return a->dag() != nullptr;
+      if (a->kind()->str() == accel) return a->dag() != nullptr || a->esvo() != nullptr;
   return false;
 }
 
@@ -92,7 +102,7 @@ int run_trace(const TraceArgs& args) {
     if (is_voxel_structure(blob, accel)) {
       // A voxel has no triangle id: voxel structures write the 40-byte voxel-hit record.
       std::vector<VoxelHit> hits(rays.size());
-      trace_rays(VoxelDagView::from_blob(blob, accel), rays, hits, args.any_hit, args.threads);
+      trace_voxels(blob, accel, rays, hits, args.any_hit, args.threads);
       seconds = elapsed();
       write_file_atomically(args.out, std::as_bytes(std::span<const VoxelHit>(hits)));
       for (const auto& h : hits) hit_count += h.hit();
