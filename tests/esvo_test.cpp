@@ -389,5 +389,51 @@ TEST(Esvo, ColourAttachmentIsTheTouchingTrianglesMean) {
   EXPECT_TRUE(build(f.scene, 64, true).colors.empty());
 }
 
+TEST(Esvo, CommandLineBuildDumpTrace) {
+  KILN_REQUIRE_CORPUS();
+  TempDir dir;
+  const std::string mesh = mesh_path("classic/teapot.obj");
+  const std::string blob = dir.file("e.kiln"), rays = dir.file("r.bin"), hits = dir.file("h.bin");
+  ASSERT_EQ(run_kiln("build " + quoted(mesh) + " --accel esvo --resolution 128 -o " + quoted(blob))
+                .exit_code,
+            0);
+  const auto dump = run_kiln("dump " + quoted(blob));
+  EXPECT_NE(dump.out.find("bytes/leaf: hierarchy"), std::string::npos) << dump.out;
+  const auto json = run_kiln("dump --json " + quoted(blob));
+  EXPECT_NE(json.out.find("\"contour_bytes_per_leaf\""), std::string::npos) << json.out;
+  EXPECT_EQ(run_kiln("verify " + quoted(blob)).exit_code, 0);
+  ASSERT_EQ(run_kiln("rays " + quoted(mesh) + " --count 3000 -o " + quoted(rays)).exit_code, 0);
+  ASSERT_EQ(run_kiln("trace " + quoted(blob) + " --accel esvo --rays " + quoted(rays) + " --out " +
+                     quoted(hits))
+                .exit_code,
+            0);
+  // The file holds what the library answers on the same blob and rays.
+  const auto bytes = read_file(hits), ray_bytes = read_file(rays);
+  ASSERT_EQ(bytes.size(), 3000 * sizeof(VoxelHit));
+  const AlignedBuffer aligned = aligned_copy(read_file(blob));
+  const Blob opened = Blob::open_memory(aligned.bytes());
+  const EsvoView view = EsvoView::from_blob(opened);
+  std::size_t wrong = 0, hit_count = 0;
+  for (std::size_t i = 0; i < 3000; ++i) {
+    Ray ray;
+    VoxelHit from_file;
+    std::memcpy(&ray, ray_bytes.data() + i * sizeof ray, sizeof ray);
+    std::memcpy(&from_file, bytes.data() + i * sizeof from_file, sizeof from_file);
+    const VoxelHit expected = view.intersect(ray).hit;
+    wrong += std::memcmp(&from_file, &expected, sizeof expected) != 0;
+    hit_count += expected.hit();
+  }
+  EXPECT_EQ(wrong, 0u);
+  EXPECT_GT(hit_count, 300u);  // camera rays: about one in seven meets the teapot
+  for (const std::string bad : {"--resolution 100", "--resolution 4", "--contour-error 1",
+                                "--contour-error nan", "--contour-error -3"}) {
+    const auto result = run_kiln("build " + quoted(mesh) + " --accel esvo " + bad + " -o " +
+                                 quoted(dir.file("x.kiln")));
+    EXPECT_EQ(result.exit_code, 1) << bad;
+    EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("x.kiln"))) << bad;
+  }
+}
+
 }  // namespace
 }  // namespace kiln
