@@ -20,6 +20,7 @@
 #include "kiln/runtime/voxel_dag.hpp"
 #include "kiln/tools/ray_generator.hpp"
 #include "test_support.hpp"
+#include "voxel_fixtures.hpp"
 
 namespace kiln {
 namespace {
@@ -27,34 +28,8 @@ namespace {
 using format::Float3;
 using namespace kiln::test;
 
-VoxelGridFrame frame_of(const VoxelGrid& g) {
-  VoxelGridFrame frame;
-  for (int a = 0; a < 3; ++a) frame.origin[a] = g.origin[a];
-  frame.voxel_size = g.voxel_size;
-  frame.resolution = g.resolution;
-  return frame;
-}
-
 EsvoView view_of(const FlatEsvo& e) {
   return EsvoView(e.words, e.pages, e.blocks, e.normals, e.colors, frame_of(e.grid));
-}
-
-struct BuiltDag {
-  Voxels voxels;
-  FlatVoxelDag dag;
-  std::vector<std::uint64_t> firsts;
-  VoxelDagView view() const {
-    return VoxelDagView(dag.words, frame_of(voxels.grid), firsts, dag.leaf_first_word, voxels.codes,
-                        voxels.normals);
-  }
-};
-
-BuiltDag build_dag(const Scene& scene, std::uint32_t resolution) {
-  BuiltDag b;
-  b.voxels = voxelize_surface(scene, {resolution, true, 2});
-  b.dag = build_voxel_dag(b.voxels.codes, resolution);
-  for (const auto& l : b.dag.level_stats) b.firsts.push_back(l.first_word);
-  return b;
 }
 
 FlatEsvo build(const Scene& scene, std::uint32_t resolution, bool contours, unsigned threads = 2) {
@@ -187,16 +162,11 @@ TEST(Esvo, ContourHitsLieWithinTheBoundAndBeatCubes) {
 
 std::vector<std::byte> esvo_blob(const Scene& scene, std::uint32_t resolution, bool contours,
                                  unsigned threads, bool compress = false) {
-  BuildOptions options;
-  options.inputs = {"generated"};
-  options.threads = threads;
-  options.compression.enabled = compress;
   AccelRequest request;
   request.kind = "esvo";
   request.esvo.resolution = resolution;
   request.esvo.contours = contours;
-  options.accels.push_back(request);
-  return compile_blob(scene, options);
+  return blob_with(scene, request, threads, compress);
 }
 
 TEST(Esvo, BlobsAreByteIdenticalAndRoundTrip) {

@@ -14,34 +14,13 @@
 #include "kiln/tools/ray_generator.hpp"
 #include "proximity_fixtures.hpp"
 #include "test_support.hpp"
+#include "voxel_fixtures.hpp"
 
 namespace kiln {
 namespace {
 
 using format::Float3;
 using namespace kiln::test;
-
-struct BuiltDag {
-  Voxels voxels;
-  FlatVoxelDag dag;
-  std::vector<std::uint64_t> firsts;
-  VoxelDagView view() const {
-    VoxelGridFrame frame;
-    for (int a = 0; a < 3; ++a) frame.origin[a] = voxels.grid.origin[a];
-    frame.voxel_size = voxels.grid.voxel_size;
-    frame.resolution = voxels.grid.resolution;
-    return VoxelDagView(dag.words, frame, firsts, dag.leaf_first_word, voxels.codes,
-                        voxels.normals);
-  }
-};
-
-BuiltDag build_dag(const Scene& scene, std::uint32_t resolution) {
-  BuiltDag b;
-  b.voxels = voxelize_surface(scene, {resolution, true, 2});
-  b.dag = build_voxel_dag(b.voxels.codes, resolution);
-  for (const auto& l : b.dag.level_stats) b.firsts.push_back(l.first_word);
-  return b;
-}
 
 // The reference: walk voxel by voxel in double, return the first set one.
 VoxelHit dda(const BuiltDag& b, const Ray& ray) {
@@ -177,16 +156,11 @@ TEST(VoxelCast, OccupancyMatchesTheVoxelSet) {
 
 std::vector<std::byte> dag_blob(const Scene& scene, std::uint32_t resolution, bool normals,
                                 unsigned threads, bool compress = false) {
-  BuildOptions options;
-  options.inputs = {"generated"};
-  options.threads = threads;
-  options.compression.enabled = compress;
   AccelRequest request;
   request.kind = "dag";
   request.voxels.resolution = resolution;
   request.voxels.normals = normals;
-  options.accels.push_back(request);
-  return compile_blob(scene, options);
+  return blob_with(scene, request, threads, compress);
 }
 
 TEST(VoxelCast, BlobsAreByteIdenticalAndRoundTrip) {

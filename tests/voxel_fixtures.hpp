@@ -1,0 +1,52 @@
+// What the voxel tests share: a DAG built in memory with its view, and a one-structure blob.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "kiln/compiler/build.hpp"
+#include "kiln/compiler/voxel_dag_builder.hpp"
+#include "kiln/compiler/voxelizer.hpp"
+#include "kiln/runtime/voxel_dag.hpp"
+
+namespace kiln::test {
+
+inline VoxelGridFrame frame_of(const VoxelGrid& g) {
+  VoxelGridFrame frame;
+  for (int a = 0; a < 3; ++a) frame.origin[a] = g.origin[a];
+  frame.voxel_size = g.voxel_size;
+  frame.resolution = g.resolution;
+  return frame;
+}
+
+// The surface voxels (with normals) and their DAG.
+struct BuiltDag {
+  Voxels voxels;
+  FlatVoxelDag dag;
+  std::vector<std::uint64_t> firsts;
+  VoxelDagView view() const {
+    return VoxelDagView(dag.words, frame_of(voxels.grid), firsts, dag.leaf_first_word, voxels.codes,
+                        voxels.normals);
+  }
+};
+
+inline BuiltDag build_dag(const Scene& scene, std::uint32_t resolution) {
+  BuiltDag b;
+  b.voxels = voxelize_surface(scene, {resolution, true, 2});
+  b.dag = build_voxel_dag(b.voxels.codes, resolution);
+  for (const auto& l : b.dag.level_stats) b.firsts.push_back(l.first_word);
+  return b;
+}
+
+// compile_blob of `scene` with the one structure `request` asks for.
+inline std::vector<std::byte> blob_with(const Scene& scene, const AccelRequest& request,
+                                        unsigned threads, bool compress = false) {
+  BuildOptions options;
+  options.inputs = {"generated"};
+  options.threads = threads;
+  options.compression.enabled = compress;
+  options.accels.push_back(request);
+  return compile_blob(scene, options);
+}
+
+}  // namespace kiln::test
