@@ -395,6 +395,34 @@ TEST(Esvo, CommandLineBuildDumpTrace) {
   }
   EXPECT_EQ(wrong, 0u);
   EXPECT_GT(hit_count, 300u);  // camera rays: about one in seven meets the teapot
+
+  // kiln query --op occupied answers as EsvoView::occupied, on points near and away from hits.
+  std::vector<Float3> points;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> jitter(-0.02f, 0.02f);
+  for (std::size_t i = 0; i < 3000 && points.size() < 2000; ++i) {
+    Ray ray;
+    std::memcpy(&ray, ray_bytes.data() + i * sizeof ray, sizeof ray);
+    const VoxelHit h = view.intersect(ray).hit;
+    if (!h.hit()) continue;
+    const float t = h.t * (1.0f + jitter(rng));
+    points.push_back(
+        {ray.org.x + t * ray.dir.x, ray.org.y + t * ray.dir.y, ray.org.z + t * ray.dir.z});
+  }
+  write_file(dir.file("p.bin"), std::as_bytes(std::span<const Float3>(points)));
+  ASSERT_EQ(run_kiln("query " + quoted(blob) + " --op occupied --in " + quoted(dir.file("p.bin")) +
+                     " --out " + quoted(dir.file("o.bin")))
+                .exit_code,
+            0);
+  const auto occupied = read_file(dir.file("o.bin"));
+  ASSERT_EQ(occupied.size(), points.size());
+  std::size_t inside = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    ASSERT_EQ(std::uint8_t(occupied[i]), view.occupied(points[i]) ? 1 : 0) << i;
+    inside += std::uint8_t(occupied[i]);
+  }
+  EXPECT_GT(inside, points.size() / 10);
+  EXPECT_LT(inside, points.size());
   for (const std::string bad : {"--resolution 100", "--resolution 4", "--contour-error 1",
                                 "--contour-error nan", "--contour-error -3"}) {
     const auto result = run_kiln("build " + quoted(mesh) + " --accel esvo " + bad + " -o " +

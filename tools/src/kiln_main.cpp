@@ -283,13 +283,14 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0u, kMaxThreads));
 
   kiln::QueryArgs query;
-  auto* query_cmd =
-      app.add_subcommand("query", "Closest point, inside, box, knn and radius queries on a blob");
+  auto* query_cmd = app.add_subcommand(
+      "query", "Closest point, inside, box, knn, radius and occupied queries on a blob");
   query_cmd->add_option("blob", query.blob, "The .kiln file")->required();
   query_cmd
       ->add_option("--op", query.op,
-                   "closest, inside, box (BVH or k-d tree); knn, radius (point k-d tree)")
-      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius"}))
+                   "closest, inside, box (BVH or k-d tree); knn, radius (point k-d tree); "
+                   "occupied (ESVO or voxel DAG)")
+      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius", "occupied"}))
       ->required();
   query_cmd->add_option("--in", query.in, "Queries: float32 x 3 per point, x 6 per box (min, max)")
       ->required();

@@ -8,11 +8,13 @@
 #include "kiln/compiler/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/esvo.hpp"
 #include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/runtime/point_tree.hpp"
 #include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/voxel_dag.hpp"
 
 namespace kiln {
 
@@ -26,12 +28,20 @@ void append_pod(std::vector<std::byte>& out, const T& value) {
   out.insert(out.end(), p, p + sizeof(T));
 }
 
+// What a query runs on: triangles (closest, inside, box), points (knn, radius) or voxels
+// (occupied).
+enum class Need { kSurface, kPoints, kVoxels };
+
 // The structure a query runs on: the one --accel names, else the first BVH, else the first k-d
-// tree (surface queries), or the first point tree (knn, radius).
-const schema::Acceleration& pick_structure(const Blob& blob, const QueryArgs& args, bool points) {
+// tree (surface queries), the first point tree (knn, radius), or the first ESVO or DAG
+// (occupied).
+const schema::Acceleration& pick_structure(const Blob& blob, const QueryArgs& args, Need need) {
   const auto* accels = blob.manifest().accelerations();
+  const bool points = need == Need::kPoints;
   const char* wanted = points ? "a point k-d tree (build with --accel points)"
-                              : "a BVH or k-d tree (build with --accel bvh, sbvh or kdtree)";
+                       : need == Need::kVoxels
+                           ? "an ESVO or a voxel DAG (build with --accel esvo or dag)"
+                           : "a BVH or k-d tree (build with --accel bvh, sbvh or kdtree)";
   auto first = [&](auto accepts) -> const schema::Acceleration* {
     if (accels)
       for (const auto* a : *accels)
@@ -39,6 +49,7 @@ const schema::Acceleration& pick_structure(const Blob& blob, const QueryArgs& ar
     return nullptr;
   };
   auto fits = [&](const schema::Acceleration& a) {
+    if (need == Need::kVoxels) return a.esvo() != nullptr || a.dag() != nullptr;
     return points ? a.points() != nullptr : (a.bvh() != nullptr || a.kdtree() != nullptr);
   };
   if (!args.accel.empty()) {
@@ -49,9 +60,10 @@ const schema::Acceleration& pick_structure(const Blob& blob, const QueryArgs& ar
                       args.accel + "' is not one");
     return *named;
   }
-  const auto* found =
-      points ? first(fits) : first([](const auto& a) { return a.bvh() != nullptr; });
-  if (found == nullptr && !points) found = first(fits);
+  const auto* found = need == Need::kSurface
+                          ? first([](const auto& a) { return a.bvh() != nullptr; })
+                          : first(fits);
+  if (found == nullptr) found = first(fits);
   if (found == nullptr) throw BlobError(blob.name() + ": holds no " + wanted);
   return *found;
 }
@@ -122,15 +134,48 @@ std::vector<std::byte> point_queries(const PointTreeView& tree, const QueryArgs&
   });
 }
 
+// occupied: 1 when the point lies in a leaf's region of the ESVO (cube cut by its contours) or in
+// a set voxel of the DAG.
+std::vector<std::byte> voxel_queries(const Blob& blob, const schema::Acceleration& structure,
+                                     const QueryArgs& args, const float* floats,
+                                     std::size_t count) {
+  const std::string accel = structure.kind()->str();
+  if (structure.esvo() != nullptr) {
+    const EsvoView esvo = EsvoView::from_blob(blob, accel);
+    return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+      append_pod(bytes, std::uint8_t(esvo.occupied(point_at(floats, i, 3, 0)) ? 1 : 0));
+    });
+  }
+  const VoxelDagView dag = VoxelDagView::from_blob(blob, accel);
+  const VoxelGridFrame& f = dag.frame();
+  return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+    const format::Float3 p = point_at(floats, i, 3, 0);
+    const double g[3] = {(double(p.x) - f.origin[0]) / f.voxel_size,
+                         (double(p.y) - f.origin[1]) / f.voxel_size,
+                         (double(p.z) - f.origin[2]) / f.voxel_size};
+    bool set = true;
+    std::uint32_t cell[3];
+    for (int a = 0; a < 3; ++a) {
+      set = set && g[a] >= 0 && g[a] < double(f.resolution);
+      cell[a] = set ? std::uint32_t(g[a]) : 0;
+    }
+    set = set && dag.occupied(cell[0], cell[1], cell[2]);
+    append_pod(bytes, std::uint8_t(set ? 1 : 0));
+  });
+}
+
 }  // namespace
 
 int run_query(const QueryArgs& args) {
   try {
     const bool points = args.op == "knn" || args.op == "radius";
-    if (!points && args.op != "closest" && args.op != "inside" && args.op != "box")
+    const Need need = points                  ? Need::kPoints
+                      : args.op == "occupied" ? Need::kVoxels
+                                              : Need::kSurface;
+    if (need == Need::kSurface && args.op != "closest" && args.op != "inside" && args.op != "box")
       throw std::runtime_error("unknown --op " + args.op);
     const Blob blob = Blob::open_file(args.blob);
-    const schema::Acceleration& structure = pick_structure(blob, args, points);
+    const schema::Acceleration& structure = pick_structure(blob, args, need);
     const std::string accel = structure.kind()->str();
     const MappedFile input(args.in);
     const std::size_t stride = args.op == "box" ? 24 : 12;
@@ -143,7 +188,9 @@ int run_query(const QueryArgs& args) {
     // A mapping is page-aligned, so the floats are aligned too.
     const auto* floats = reinterpret_cast<const float*>(input.bytes().data());
     std::vector<std::byte> out;
-    if (points)
+    if (need == Need::kVoxels)
+      out = voxel_queries(blob, structure, args, floats, count);
+    else if (points)
       out = point_queries(PointTreeView::from_blob(blob, accel), args, floats, count);
     else if (structure.bvh() != nullptr)
       out = surface_queries(BvhView::from_blob(blob, accel), blob, args, floats, count);
