@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
@@ -41,8 +42,8 @@ struct Settings {
 
 struct EsvoRow {
   double build_s = NAN, cast_1t = NAN, cast_all = NAN;
-  kiln::FlatEsvo stats;  // arrays freed after the casts
-  double bound = 0, mean_error = 0, max_error = 0, disagreement = 0;
+  kiln::FlatEsvo stats;  // counts and byte totals only: the arrays stay in Case::built
+  double bound = NAN, mean_error = NAN, max_error = NAN, disagreement = NAN;
 };
 
 struct DagRow {
@@ -90,26 +91,42 @@ kiln::EsvoView view_of(const kiln::FlatEsvo& e) {
   return kiln::EsvoView(e.words, e.pages, e.blocks, e.normals, e.colors, frame_of(e.grid));
 }
 
-// Distance of every hit to the mesh, in finest voxels, and hit/miss disagreement with the mesh.
-void measure_error(const Case& c, const kiln::EsvoView& view, EsvoRow& row) {
+// The figures without the arrays: copying the whole FlatEsvo would briefly double the memory.
+kiln::FlatEsvo stats_of(const kiln::FlatEsvo& e) {
+  kiln::FlatEsvo s;
+  s.grid = e.grid;
+  s.levels = e.levels;
+  s.level_stats = e.level_stats;
+  s.descriptor_count = e.descriptor_count, s.voxel_count = e.voxel_count;
+  s.leaf_count = e.leaf_count, s.contour_count = e.contour_count;
+  s.far_pointer_count = e.far_pointer_count, s.max_depth = e.max_depth;
+  s.hierarchy_bytes = e.hierarchy_bytes, s.contour_bytes = e.contour_bytes;
+  s.attachment_bytes = e.attachment_bytes;
+  return s;
+}
+
+// Distance of every hit to the mesh, in finest voxels, and hit/miss disagreement with the mesh,
+// over the first error rays of a cast's own hits (closest_point costs far more than a cast).
+void measure_error(const Case& c, std::span<const kiln::VoxelHit> traced, double voxel_size,
+                   EsvoRow& row) {
   const kiln::BvhView bvh = c.bvh_view();
-  const std::size_t n = std::min(c.rays.size(), g_settings.error_rays);
+  const std::size_t n = c.mesh_hit.size();
   std::size_t hits = 0, disagree = 0;
   double total = 0, worst = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const kiln::Ray& ray = c.rays[i];
-    const kiln::VoxelHit h = view.intersect(ray).hit;
+    const kiln::VoxelHit& h = traced[i];
     disagree += h.hit() != c.mesh_hit[i];
     if (!h.hit()) continue;
     ++hits;
     const kiln::format::Float3 p{ray.org.x + h.t * ray.dir.x, ray.org.y + h.t * ray.dir.y,
                                  ray.org.z + h.t * ray.dir.z};
-    const double d = kiln::closest_point(bvh, p).distance / view.frame().voxel_size;
+    const double d = kiln::closest_point(bvh, p).distance / voxel_size;
     total += d, worst = std::max(worst, d);
   }
-  row.mean_error = hits ? total / double(hits) : 0;
-  row.max_error = worst;
-  row.disagreement = 100.0 * double(disagree) / double(n);
+  row.mean_error = hits ? total / double(hits) : NAN;
+  row.max_error = hits ? worst : NAN;
+  row.disagreement = n ? 100.0 * double(disagree) / double(n) : NAN;
 }
 
 void register_case(Case* c) {
@@ -123,6 +140,7 @@ void register_case(Case* c) {
           const kiln::FlatVoxelDag dag = kiln::build_voxel_dag(voxels.codes, n);
           row.voxels = voxels.codes.size();
           row.bytes = dag.dag_bytes;
+          std::vector<std::uint64_t>().swap(voxels.codes);  // the casts need only the DAG
           std::vector<std::uint64_t> firsts;
           for (const auto& l : dag.level_stats) firsts.push_back(l.first_word);
           const kiln::VoxelDagView view(dag.words, frame_of(voxels.grid), firsts,
@@ -145,9 +163,13 @@ void register_case(Case* c) {
             options.resolution = n;
             options.contours = contours;
             row.bound = kiln::esvo_error_bound(options);
+            // Whatever an earlier variant left (its casts filtered out) is no longer needed.
+            c->built.clear();
             timed(state, row.build_s, [&] {
+              c->built[key].reset();
               c->built[key] = std::make_shared<kiln::FlatEsvo>(kiln::build_esvo(c->scene, options));
             });
+            row.stats = stats_of(*c->built[key]);
           })
           ->UseManualTime()
           ->Iterations(1)
@@ -168,12 +190,8 @@ void register_case(Case* c) {
               timed(state, best, [&] { kiln::trace_rays(view, c->rays, hits, false, threads); });
               (threads == 1 ? row.cast_1t : row.cast_all) = double(c->rays.size()) / best * 1e-6;
               if (threads != 0) return;
-              measure_error(*c, view, row);
-              // Keep the statistics, free the arrays.
-              row.stats = flat;
-              row.stats.words = {}, row.stats.pages = {}, row.stats.normals = {};
-              row.stats.colors = {}, row.stats.blocks = {};
-              c->built[key].reset();
+              measure_error(*c, hits, flat.grid.voxel_size, row);
+              c->built.erase(key);  // the last cast of this variant
             })
             ->UseManualTime()
             ->Iterations(3)
@@ -184,11 +202,12 @@ void register_case(Case* c) {
 }
 
 void print_report() {
+  // The per-component columns are bytes per leaf too, so they add up to the total.
   std::printf(
-      "\n| mesh | resolution | contours | build s | leaves | max depth | bytes/leaf | hierarchy | "
-      "contours | attachments | far ptrs | total MB | cast 1T Mrays/s | cast %uT Mrays/s | mean "
-      "err vox | max err vox | bound vox | hit/miss vs mesh | DAG MB | DAG bits/voxel | DAG cast "
-      "1T Mrays/s |\n",
+      "\n| mesh | resolution | contours | build s | leaves | max depth | bytes/leaf total | "
+      "hierarchy | contours | attachments | far ptrs | total MB | cast 1T Mrays/s | "
+      "cast %uT Mrays/s | mean err vox | max err vox | bound vox | hit/miss disagreement %% | "
+      "DAG MB | DAG bits/voxel | DAG cast 1T Mrays/s |\n",
       std::max(1u, std::thread::hardware_concurrency()));
   std::printf(
       "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---"
@@ -201,7 +220,7 @@ void print_report() {
       const DagRow& dag = c->dag[key.first];
       std::printf(
           "| %s | %u^3 | %s | %.2f | %llu | %u | %.2f | %.2f | %.2f | %.2f | %llu | %.1f | %.2f | "
-          "%.2f | %.3f | %.2f | %.2f | %.2f %% | %.2f | %.3f | %.2f |\n",
+          "%.2f | %.3f | %.2f | %.2f | %.2f | %.2f | %.3f | %.2f |\n",
           c->label.c_str(), key.first, key.second ? "yes" : "no", r.build_s,
           (unsigned long long)s.leaf_count, s.max_depth, total / leaves,
           double(s.hierarchy_bytes) / leaves, double(s.contour_bytes) / leaves,

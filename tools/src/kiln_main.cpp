@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
 
 #include "kiln/compiler/atomic_file.hpp"
@@ -53,8 +54,10 @@ int run_build(const BuildArgs& args) {
   for (const auto& kind : args.accels)
     if (kind == "esvo" &&
         !(std::isfinite(args.contour_error) && args.contour_error >= std::sqrt(3.0))) {
-      std::cerr << "kiln build: --contour-error " << args.contour_error
-                << " must be at least sqrt(3) = 1.7321 voxels (what a finest voxel guarantees)\n";
+      // Ten digits, so a value just below sqrt(3) does not print as equal to it.
+      std::cerr << std::setprecision(10) << "kiln build: --contour-error " << args.contour_error
+                << " must be finite and at least sqrt(3) = " << std::sqrt(3.0)
+                << " voxels (what a finest voxel guarantees)\n";
       return 1;
     }
   for (const auto& kind : args.accels)
