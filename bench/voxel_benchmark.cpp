@@ -152,16 +152,8 @@ int main(int argc, char** argv) {
   std::vector<std::string> specs;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg.starts_with("--resolutions=")) {
-      g_settings.resolutions.clear();
-      std::string list = arg.substr(14);
-      for (std::size_t pos = 0; pos <= list.size();) {
-        const auto comma = std::min(list.find(',', pos), list.size());
-        g_settings.resolutions.push_back(std::uint32_t(std::stoul(list.substr(pos, comma - pos))));
-        pos = comma + 1;
-      }
-    } else if (arg.starts_with("--rays=")) {
-      g_settings.rays = std::stoull(arg.substr(7));
+    if (kiln::bench::parse_list_option(arg, "resolutions", g_settings.resolutions)) {
+    } else if (kiln::bench::parse_number_option(arg, "rays", g_settings.rays)) {
     } else if (arg.starts_with("--")) {
       std::fprintf(stderr, "unknown option '%s'\n", arg.c_str());
       return 2;
