@@ -15,6 +15,8 @@
 #include <utility>
 #include <vector>
 
+#include "file_descriptor.hpp"
+
 namespace kiln {
 
 namespace {
@@ -74,21 +76,6 @@ class TempFile {
   bool committed_ = false;
 };
 
-// A descriptor closed at scope exit.
-class Descriptor {
- public:
-  explicit Descriptor(int fd) : fd_(fd) {}
-  ~Descriptor() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  Descriptor(const Descriptor&) = delete;
-  Descriptor& operator=(const Descriptor&) = delete;
-  int get() const { return fd_; }
-
- private:
-  int fd_;
-};
-
 }  // namespace
 
 void write_file_atomically(const std::string& path, std::span<const std::byte> bytes,
@@ -109,7 +96,7 @@ void write_file_atomically(const std::string& path, std::span<const std::byte> b
 
 bool copy_file_atomically(const std::string& source, const std::string& path,
                           const std::function<bool(int fd)>& accept) {
-  const Descriptor source_fd(::open(source.c_str(), O_RDONLY | O_CLOEXEC));
+  const FileDescriptor source_fd(::open(source.c_str(), O_RDONLY | O_CLOEXEC));
   const int in = source_fd.get();
   if (in < 0) throw write_error(source, "cannot open");
   TempFile temp(path);

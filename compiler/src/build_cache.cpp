@@ -8,16 +8,15 @@
 #include <xxhash.h>
 #include <zstd.h>
 
-#include <algorithm>
 #include <bit>
 #include <cerrno>
 #include <charconv>
-#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <new>
 #include <stdexcept>
 
+#include "file_descriptor.hpp"
 #include "kiln/compiler/atomic_file.hpp"
 #include "kiln/compiler/file_accesses.hpp"
 #include "kiln/formats/container.hpp"
@@ -66,21 +65,6 @@ class Hasher {
 
  private:
   std::unique_ptr<XXH3_state_t, XXH_errorcode (*)(XXH3_state_t*)> state_;
-};
-
-// A descriptor closed at scope exit.
-class Descriptor {
- public:
-  explicit Descriptor(int fd) : fd_(fd) {}
-  ~Descriptor() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  Descriptor(const Descriptor&) = delete;
-  Descriptor& operator=(const Descriptor&) = delete;
-  int get() const { return fd_; }
-
- private:
-  int fd_;
 };
 
 // Streams `fd` from offset 0 into a hash; none on a read error. Counts the bytes into `size`.
@@ -195,7 +179,7 @@ Hash128 hash_bytes(std::span<const std::byte> bytes) {
 
 std::optional<Hash128> hash_file(const std::string& path) {
   // O_NONBLOCK: opening a FIFO must not wait for a writer (it is refused just below).
-  const Descriptor fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
+  const FileDescriptor fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK));
   if (fd.get() < 0) return std::nullopt;
   struct stat info {};
   // Not a FIFO or a device: reading one would consume or never end.
@@ -303,7 +287,7 @@ std::vector<CacheEntry> parse_manifest(std::string_view text) {
 }
 
 std::vector<CacheEntry> read_manifest(const std::string& cache_dir, const Hash128& key) {
-  const Descriptor fd(::open(manifest_path(cache_dir, key).c_str(), O_RDONLY | O_CLOEXEC));
+  const FileDescriptor fd(::open(manifest_path(cache_dir, key).c_str(), O_RDONLY | O_CLOEXEC));
   if (fd.get() < 0) return {};
   std::string text;
   std::vector<char> buffer(1u << 16);
