@@ -14,14 +14,15 @@ void sort_unique(std::vector<std::string>& paths) {
 
 }  // namespace
 
+std::string normalize_path(const std::string& path) {
+  std::error_code ec;
+  const auto absolute = std::filesystem::absolute(path, ec);
+  return ec ? path : absolute.lexically_normal().string();
+}
+
 void normalize_accesses(FileAccesses& accesses) {
   for (auto* list : {&accesses.read, &accesses.missing}) {
-    for (auto& path : *list) {
-      std::error_code ec;
-      // absolute() only fails when the current directory is gone; the path is kept as is then.
-      const auto absolute = std::filesystem::absolute(path, ec);
-      if (!ec) path = absolute.lexically_normal().string();
-    }
+    for (auto& path : *list) path = normalize_path(path);
     sort_unique(*list);
   }
   std::erase_if(accesses.missing, [&](const std::string& path) {

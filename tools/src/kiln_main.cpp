@@ -30,6 +30,7 @@ struct BuildArgs {
   std::vector<std::string> inputs;
   std::string output;
   std::string depfile;
+  std::string cache_dir;
   bool compress = false;
   int level = 9;
   unsigned threads = 0;
@@ -103,7 +104,7 @@ int run_build(const BuildArgs& args) {
   kiln::BuildJobReport job;
   try {
     kiln::TerminalProgress progress;
-    job = kiln::run_build_job({options, args.output, args.depfile},
+    job = kiln::run_build_job({options, args.output, args.depfile, args.cache_dir},
                               [&](std::string_view stage, std::uint64_t done, std::uint64_t total) {
                                 progress.update(stage, done, total);
                               });
@@ -118,6 +119,9 @@ int run_build(const BuildArgs& args) {
     return 1;
   }
   for (const auto& warning : job.warnings) std::cerr << "kiln build: warning: " << warning << "\n";
+  if (job.cache_hit) std::cerr << "kiln build: cache hit " << job.cache_key << "\n";
+  if (args.stats && !job.cache_key.empty() && !job.cache_hit)
+    std::cerr << "kiln build: cache miss " << job.cache_key << "\n";
   const auto& reports = job.accels;
   if (args.stats) {
     const double seconds =
@@ -174,6 +178,9 @@ int main(int argc, char** argv) {
   build_cmd->add_option("--depfile", build.depfile,
                         "Also write a Make-syntax depfile: the output as given to -o, then every "
                         "file the import read (absolute paths)");
+  build_cmd->add_option("--cache-dir", build.cache_dir,
+                        "Content-addressed build cache: reuse the blob of an identical earlier "
+                        "build (created if missing)");
   build_cmd->add_option("--accel", build.accels, "Acceleration structures to build (repeatable)")
       ->check(CLI::IsMember({"bvh", "sbvh", "kdtree", "points", "dag", "esvo"}))
       ->allow_extra_args(false);

@@ -18,6 +18,10 @@ struct FileAccesses {
   std::vector<std::string> missing;
 };
 
+// `path` absolute (against the current directory) and lexically normal: the form of every path
+// in FileAccesses. Unchanged when the current directory is gone.
+std::string normalize_path(const std::string& path);
+
 // Makes `accesses` absolute (against the current directory, as the importer's fopen saw them),
 // lexically normal, sorted and unique; a path both read and missing (probed before it was
 // created, or under two spellings) counts as read.
