@@ -3,6 +3,7 @@
 #include "kiln/tools/render_command.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -46,10 +47,26 @@ std::string fixed(double v, int digits) {
   return text;
 }
 
+// "a, b, c", or "none".
+std::string joined(const std::vector<std::string>& names) {
+  std::string list;
+  for (const auto& name : names) {
+    if (!list.empty()) list += ", ";
+    list += name;
+  }
+  return list.empty() ? "none" : list;
+}
+
+// In --camera syntax, each float in its shortest form that reads back the same.
 std::string camera_text(const render::Camera& c) {
-  char text[256];
-  std::snprintf(text, sizeof(text), "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g", c.eye.x, c.eye.y, c.eye.z,
-                c.target.x, c.target.y, c.target.z, c.fov_degrees);
+  std::string text;
+  for (const float v :
+       {c.eye.x, c.eye.y, c.eye.z, c.target.x, c.target.y, c.target.z, c.fov_degrees}) {
+    char number[32];
+    const auto end = std::to_chars(number, number + sizeof number, v).ptr;
+    if (!text.empty()) text += ',';
+    text.append(number, end);
+  }
   return text;
 }
 
@@ -97,11 +114,8 @@ int run_render(const RenderArgs& args) {
     const auto available = render::ray_structures(blob);
     for (const auto& name : names)
       if (std::find(available.begin(), available.end(), name) == available.end())
-        return fail(args.blob + ": has no ray structure '" + name + "' (it has: " + [&] {
-          std::string list;
-          for (const auto& a : available) list += (list.empty() ? "" : ", ") + a;
-          return list.empty() ? std::string("none") : list;
-        }() + ")");
+        return fail(args.blob + ": has no ray structure '" + name +
+                    "' (it has: " + joined(available) + ")");
     if (std::uint64_t(size->width) * size->height * names.size() > render::kMaxImagePixels)
       return fail("--size " + args.size + " x " + std::to_string(names.size()) +
                   " panels is more than " + std::to_string(render::kMaxImagePixels) + " pixels");
