@@ -29,8 +29,8 @@ float float_of(std::uint32_t u) {
 
 }  // namespace
 
-template <bool kAnyHit>
-EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod) const {
+template <bool kAnyHit, bool kCount>
+EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod, Cost* cost) const {
   EsvoHit out;
   const double to_octree = 1.0 / (double(frame_.resolution) * frame_.voxel_size);
   const float org[3] = {ray.org.x, ray.org.y, ray.org.z};
@@ -85,7 +85,11 @@ EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod) const {
   const bool use_lod = lod.coef > 0 || lod.bias > 0;
 
   for (std::uint32_t iteration = 0; scale < kMaxScale && iteration < kMaxIterations; ++iteration) {
-    if (!loaded) w0 = words_[parent], w1 = words_[parent + 1], loaded = true;
+    if (!loaded) {
+      w0 = words_[parent], w1 = words_[parent + 1], loaded = true;
+      if constexpr (kCount) cost->nodes += 1;
+    }
+    if constexpr (kCount) cost->voxels += 1;
     float tc[3];
     for (int a = 0; a < 3; ++a) tc[a] = pos[a] * coef[a] - bias[a];
     const float tc_max = std::fmin(tc[0], std::fmin(tc[1], tc[2]));
@@ -208,15 +212,19 @@ EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod) const {
 }
 
 EsvoHit EsvoView::intersect(const Ray& ray, const EsvoLod& lod) const {
-  return cast<false>(ray, lod);
+  return cast<false, false>(ray, lod, nullptr);
+}
+
+EsvoHit EsvoView::intersect_counting(const Ray& ray, Cost& cost, const EsvoLod& lod) const {
+  return cast<false, true>(ray, lod, &cost);
 }
 
 EsvoHit EsvoView::intersect_any(const Ray& ray, const EsvoLod& lod) const {
-  return cast<true>(ray, lod);
+  return cast<true, false>(ray, lod, nullptr);
 }
 
 bool EsvoView::occluded(const Ray& ray, const EsvoLod& lod) const {
-  return cast<true>(ray, lod).hit.hit();
+  return cast<true, false>(ray, lod, nullptr).hit.hit();
 }
 
 void trace_rays(const EsvoView& esvo, std::span<const Ray> rays, std::span<VoxelHit> hits,

@@ -68,8 +68,8 @@ int order_children(const GridRay& r, std::uint32_t mask, std::uint32_t x, std::u
 
 }  // namespace
 
-template <bool kAnyHit>
-VoxelHit VoxelDagView::cast(const Ray& ray) const {
+template <bool kAnyHit, bool kCount>
+VoxelHit VoxelDagView::cast(const Ray& ray, Cost* cost) const {
   GridRay r;
   const float org[3] = {ray.org.x, ray.org.y, ray.org.z};
   const float dir[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
@@ -93,6 +93,7 @@ VoxelHit VoxelDagView::cast(const Ray& ray) const {
   Candidate order[8], inner[8];
   while (top > 0) {
     const Cell c = stack[--top];
+    if constexpr (kCount) cost->nodes += 1;
     const std::uint32_t half = frame_.resolution >> (c.level + 1);
     if (c.level < leaf_level) {
       const std::uint32_t mask = words_[c.word];
@@ -112,6 +113,10 @@ VoxelHit VoxelDagView::cast(const Ray& ray) const {
     const int quarters = order_children(r, byte_mask, c.x, c.y, c.z, 2, order);
     for (int q = 0; q < quarters; ++q) {
       const std::uint32_t b = order[q].index;
+      if constexpr (kCount) {
+        cost->nodes += 1;
+        cost->voxels += std::uint32_t(std::popcount(std::uint32_t(leaf >> (8 * b) & 0xFF)));
+      }
       const std::uint32_t qx = c.x + (b & 1) * 2, qy = c.y + (b >> 1 & 1) * 2,
                           qz = c.z + (b >> 2 & 1) * 2;
       const int voxels =
@@ -129,15 +134,19 @@ VoxelHit VoxelDagView::cast(const Ray& ray) const {
 }
 
 VoxelHit VoxelDagView::intersect(const Ray& ray) const {
-  return cast<false>(ray);
+  return cast<false, false>(ray, nullptr);
+}
+
+VoxelHit VoxelDagView::intersect_counting(const Ray& ray, Cost& cost) const {
+  return cast<false, true>(ray, &cost);
 }
 
 bool VoxelDagView::occluded(const Ray& ray) const {
-  return cast<true>(ray).hit();
+  return cast<true, false>(ray, nullptr).hit();
 }
 
 VoxelHit VoxelDagView::intersect_any(const Ray& ray) const {
-  return cast<true>(ray);
+  return cast<true, false>(ray, nullptr);
 }
 
 void trace_rays(const VoxelDagView& dag, std::span<const Ray> rays, std::span<VoxelHit> hits,

@@ -19,6 +19,7 @@
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/inspect.hpp"
 #include "kiln/tools/query_command.hpp"
+#include "kiln/tools/render_command.hpp"
 #include "kiln/tools/trace_command.hpp"
 #include "progress.hpp"
 
@@ -328,6 +329,32 @@ int main(int argc, char** argv) {
   query_cmd->add_option("--threads", query.threads, "Worker threads (0 = all cores)")
       ->check(CLI::Range(0u, kMaxThreads));
 
+  kiln::RenderArgs render;
+  auto* render_cmd = app.add_subcommand(
+      "render", "Render a view of a blob with one of its ray structures (runtime only) to a PNG");
+  render_cmd->add_option("blob", render.blob, "The .kiln file")->required();
+  render_cmd->add_option("-o,--output", render.out, "The PNG to write (atomically)")->required();
+  render_cmd->add_option("--accel", render.accel,
+                         "bvh, sbvh, kdtree, dag or esvo (default: the first ray structure)");
+  render_cmd->add_option("--mode", render.mode,
+                         "shade (default), normal, depth or heatmap (node visits + primitive "
+                         "tests per ray on viridis, with a legend; --compare's default)");
+  render_cmd
+      ->add_option("--size", render.size, "Image size WIDTHxHEIGHT, each 1..16384 (per panel)")
+      ->capture_default_str();
+  render_cmd->add_option("--camera", render.camera,
+                         "eye_x,eye_y,eye_z,target_x,target_y,target_z,fov_degrees: seven numbers "
+                         "separated by commas, no spaces; fov is vertical, 0..180 exclusive, +y "
+                         "is up (default: frame the scene bounds from the front right, above)");
+  render_cmd->add_option("--compare", render.compare,
+                         "Structures to render side by side, e.g. bvh,sbvh,kdtree: one shared "
+                         "heatmap scale, mean cost per ray in each caption and on stdout");
+  render_cmd
+      ->add_option("--threads", render.threads,
+                   "Worker threads (0 = all cores); never changes the image")
+      ->check(CLI::Range(0u, kMaxThreads));
+  render_cmd->add_flag("--json", render.json, "Mean costs per structure as JSON on stdout");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -339,5 +366,6 @@ int main(int argc, char** argv) {
   if (*trace_cmd) return kiln::run_trace(trace);
   if (*rays_cmd) return kiln::run_rays(rays);
   if (*query_cmd) return kiln::run_query(query);
+  if (*render_cmd) return kiln::run_render(render);
   return 2;
 }

@@ -49,6 +49,13 @@ class EsvoView {
   // intersect() without the attachment lookup (the normal stays 0): the walk is front to back,
   // so the first leaf found is the closest either way.
   EsvoHit intersect_any(const Ray& ray, const EsvoLod& lod = {}) const;
+  // The work of one intersect() (for heatmaps and statistics): nodes = descriptors fetched
+  // (the root, each PUSH and each POP); voxels = child slots examined (one per iteration of the
+  // kernel: its valid bit, and its contour when it has one).
+  struct Cost {
+    std::uint32_t nodes = 0, voxels = 0;
+  };
+  EsvoHit intersect_counting(const Ray& ray, Cost& cost, const EsvoLod& lod = {}) const;
   // Whether the world-space point lies in a leaf's region.
   bool occupied(const format::Float3& point) const;
 
@@ -58,8 +65,9 @@ class EsvoView {
   std::uint64_t descriptor_count() const { return descriptor_count_; }
 
  private:
-  template <bool kAnyHit>
-  EsvoHit cast(const Ray& ray, const EsvoLod& lod) const;
+  // kCount: tally into *cost; a compile-time flag so the plain casts pay nothing for it.
+  template <bool kAnyHit, bool kCount>
+  EsvoHit cast(const Ray& ray, const EsvoLod& lod, Cost* cost) const;
   std::uint64_t attachment_index(std::uint64_t descriptor_word, std::uint32_t octant) const;
 
   std::span<const std::uint32_t> words_, pages_;

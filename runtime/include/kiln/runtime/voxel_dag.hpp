@@ -50,6 +50,14 @@ class VoxelDagView {
   bool occluded(const Ray& ray) const;
   // intersect() without the attached normal (stays 0).
   VoxelHit intersect_any(const Ray& ray) const;
+
+  // The work of one intersect() (for heatmaps and statistics): nodes = interior nodes and 4x4x4
+  // leaves taken off the stack plus leaf quarters (2x2x2) opened; voxels = voxel boxes
+  // slab-tested inside the opened quarters.
+  struct Cost {
+    std::uint32_t nodes = 0, voxels = 0;
+  };
+  VoxelHit intersect_counting(const Ray& ray, Cost& cost) const;
   bool occupied(std::uint32_t x, std::uint32_t y, std::uint32_t z) const;
   // The attached normal of a set voxel; false when the blob has no normals or the voxel is empty.
   bool attached_normal(std::uint32_t x, std::uint32_t y, std::uint32_t z, float n[3]) const;
@@ -59,8 +67,9 @@ class VoxelDagView {
   std::span<const std::uint32_t> words() const { return words_; }
 
  private:
-  template <bool kAnyHit>
-  VoxelHit cast(const Ray& ray) const;
+  // kCount: tally into *cost; a compile-time flag so the plain casts pay nothing for it.
+  template <bool kAnyHit, bool kCount>
+  VoxelHit cast(const Ray& ray, Cost* cost) const;
 
   std::span<const std::uint32_t> words_;
   VoxelGridFrame frame_;
