@@ -62,4 +62,20 @@ inline bool parse_number_option(std::string_view arg, std::string_view name, aut
   return true;
 }
 
+// Reads "--NAME=A,B,C" into `values` (replacing them); false when `arg` is not that option.
+// Throws on a bad number.
+template <typename T>
+bool parse_list_option(std::string_view arg, std::string_view name, std::vector<T>& values) {
+  const std::string prefix = "--" + std::string(name) + "=";
+  if (!arg.starts_with(prefix)) return false;
+  const std::string list(arg.substr(prefix.size()));
+  values.clear();
+  for (std::size_t pos = 0; pos <= list.size();) {
+    const std::size_t comma = std::min(list.find(',', pos), list.size());
+    values.push_back(T(std::stoull(list.substr(pos, comma - pos))));
+    pos = comma + 1;
+  }
+  return true;
+}
+
 }  // namespace kiln::bench

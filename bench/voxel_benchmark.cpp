@@ -152,22 +152,19 @@ int main(int argc, char** argv) {
   std::vector<std::string> specs;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg.starts_with("--resolutions=")) {
-      g_settings.resolutions.clear();
-      std::string list = arg.substr(14);
-      for (std::size_t pos = 0; pos <= list.size();) {
-        const auto comma = std::min(list.find(',', pos), list.size());
-        g_settings.resolutions.push_back(std::uint32_t(std::stoul(list.substr(pos, comma - pos))));
-        pos = comma + 1;
-      }
-    } else if (arg.starts_with("--rays=")) {
-      g_settings.rays = std::stoull(arg.substr(7));
-    } else if (arg.starts_with("--")) {
+    try {
+      if (kiln::bench::parse_list_option(arg, "resolutions", g_settings.resolutions) ||
+          kiln::bench::parse_number_option(arg, "rays", g_settings.rays))
+        continue;
+    } catch (const std::exception&) {
+      std::fprintf(stderr, "bad number in '%s'\n", arg.c_str());
+      return 2;
+    }
+    if (arg.starts_with("--")) {
       std::fprintf(stderr, "unknown option '%s'\n", arg.c_str());
       return 2;
-    } else {
-      specs.push_back(arg);
     }
+    specs.push_back(arg);
   }
   if (specs.empty()) {
     std::fprintf(stderr, "usage: kiln_bench_voxels [--resolutions=1024,2048] [--rays=N] MESH...\n");

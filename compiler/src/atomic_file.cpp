@@ -1,6 +1,8 @@
 #include "kiln/compiler/atomic_file.hpp"
 
 #include <fcntl.h>
+#include <linux/fs.h>
+#include <sys/ioctl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -11,6 +13,9 @@
 #include <filesystem>
 #include <stdexcept>
 #include <utility>
+#include <vector>
+
+#include "file_descriptor.hpp"
 
 namespace kiln {
 
@@ -87,6 +92,33 @@ void write_file_atomically(const std::string& path, std::span<const std::byte> b
     if (progress) progress(written, bytes.size());
   }
   temp.commit(path);
+}
+
+bool copy_file_atomically(const std::string& source, const std::string& path,
+                          const std::function<bool(int fd)>& accept) {
+  const FileDescriptor source_fd(::open(source.c_str(), O_RDONLY | O_CLOEXEC));
+  const int in = source_fd.get();
+  if (in < 0) throw write_error(source, "cannot open");
+  TempFile temp(path);
+  if (::ioctl(temp.fd(), FICLONE, in) != 0) {
+    // No reflink here (another file system, or one without shared extents): copy the bytes.
+    std::vector<char> buffer(1u << 20);
+    for (;;) {
+      const ssize_t got = ::read(in, buffer.data(), buffer.size());
+      if (got < 0 && errno == EINTR) continue;
+      if (got < 0) throw write_error(source, "read failed");
+      if (got == 0) break;
+      for (ssize_t done = 0; done < got;) {
+        const ssize_t put = ::write(temp.fd(), buffer.data() + done, std::size_t(got - done));
+        if (put < 0 && errno == EINTR) continue;
+        if (put <= 0) throw write_error(path, "write failed");
+        done += put;
+      }
+    }
+  }
+  if (accept && !accept(temp.fd())) return false;
+  temp.commit(path);
+  return true;
 }
 
 void install_temp_file_cleanup_on_signals() {

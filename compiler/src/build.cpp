@@ -42,7 +42,10 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
   if (progress) progress("import", 0, inputs.size());
   parallel_for(inputs.size(), threads, [&](std::size_t i) { files[i] = import_file(inputs[i]); });
   if (progress) progress("import", inputs.size(), inputs.size());
+  FileAccesses accessed;
+  for (const ImportedFile& file : files) merge_accesses(accessed, file.accessed);
   Scene scene = assemble_scene(std::move(files));
+  scene.accessed = std::move(accessed);
   // An empty scene is almost surely a broken input; an asset pipeline should hear about it.
   if (scene.triangles.empty() && scene.positions.empty())
     throw ImportError(inputs.front() + (inputs.size() > 1 ? " (and the other inputs)" : "") +

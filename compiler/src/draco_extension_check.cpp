@@ -32,12 +32,13 @@ std::size_t array_size(const json& root, const char* key) {
 }
 
 std::vector<std::byte> read_companion(const std::string& path, const std::string& base_dir,
-                                      const std::string& uri) {
+                                      const std::string& uri, FileAccesses* accessed) {
   if (uri.rfind("data:", 0) == 0)
     throw ImportError(path + ": Draco data in a data: URI is not supported");
   const auto file = std::filesystem::path(base_dir) / uri;
   std::ifstream in(file, std::ios::binary);
   if (!in) throw ImportError(path + ": cannot read buffer '" + uri + "'");
+  if (accessed != nullptr) accessed->read.push_back(file.string());
   const std::string text((std::istreambuf_iterator<char>(in)), {});
   std::vector<std::byte> bytes(text.size());
   std::memcpy(bytes.data(), text.data(), text.size());
@@ -69,7 +70,8 @@ GlbChunks split_glb(const std::string& path, std::span<const std::byte> bytes) {
 }
 
 void check_draco_extensions(const std::string& path, std::string_view text,
-                            std::span<const std::byte> glb_bin, const std::string& base_dir) {
+                            std::span<const std::byte> glb_bin, const std::string& base_dir,
+                            FileAccesses* accessed) {
   if (text.find("KHR_draco_mesh_compression") == std::string_view::npos) return;
   const json root = json::parse(text.begin(), text.end(), nullptr, false);
   if (root.is_discarded() || !root.is_object()) return;  // tinygltf reports JSON errors itself
@@ -111,7 +113,7 @@ void check_draco_extensions(const std::string& path, std::string_view text,
       if (buffer.is_object() && buffer.contains("uri") && buffer["uri"].is_string()) {
         if (companions[buffer_index].empty())
           companions[buffer_index] =
-              read_companion(path, base_dir, buffer["uri"].get<std::string>());
+              read_companion(path, base_dir, buffer["uri"].get<std::string>(), accessed);
         buffer_bytes = companions[buffer_index];
       }
       const auto offset = view.value("byteOffset", json(0));

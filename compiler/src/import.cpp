@@ -111,6 +111,7 @@ ImportedFile import_file(const std::string& path) {
   ImportedFile file;
   const std::vector<std::byte> stored = read_whole_file(path);
   file.source = {path, stored.size(), xxh3_64(stored)};
+  file.accessed.read.push_back(path);
   if (stored.empty()) throw ImportError(path + ": file is empty");
 
   std::string inner_name = path;
@@ -125,13 +126,13 @@ ImportedFile import_file(const std::string& path) {
   const std::string ext = lower_extension(inner_name);
   try {
     if (ext == ".gltf" || ext == ".glb")
-      file.meshes = import_gltf(inner_name, bytes, ext == ".glb");
+      file.meshes = import_gltf(inner_name, bytes, ext == ".glb", &file.accessed);
     else if (ext == ".drc")
-      file.meshes = import_draco(inner_name, bytes);
+      file.meshes = import_draco(inner_name, bytes);  // a single file, never a companion
     else if (auto utf8 = utf16_to_utf8(bytes); !utf8.empty())
-      file.meshes = import_with_assimp(inner_name, utf8, ext, false);
+      file.meshes = import_with_assimp(inner_name, utf8, ext, false, &file.accessed);
     else
-      file.meshes = import_with_assimp(inner_name, bytes, ext, inflated.empty());
+      file.meshes = import_with_assimp(inner_name, bytes, ext, inflated.empty(), &file.accessed);
   } catch (const ImportError& e) {
     // Importers name the inner file; report the path the user gave.
     if (inner_name == path) throw;
@@ -157,6 +158,7 @@ ImportedFile import_file(const std::string& path) {
   }
   if (triangles == 0 && cloud_points == 0)
     throw ImportError(path + ": contains no triangles (and is not a point cloud)");
+  normalize_accesses(file.accessed);
   return file;
 }
 

@@ -1,6 +1,7 @@
 // Assimp importer: node hierarchy walked in pre-order (children in file order), each node's
 // meshes in its list order, faces in mesh order. Line primitives are discarded; a mesh of points
 // alone is kept as a point cloud.
+#include <assimp/DefaultIOSystem.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <assimp/Importer.hpp>
@@ -55,6 +56,28 @@ void check_off_counts(const std::string& path, std::span<const std::byte> bytes)
                       std::to_string(faces) + " faces, more than its " +
                       std::to_string(bytes.size()) + " bytes can hold");
 }
+
+// Assimp's default file access, recording what it opens and what it looks for in vain: an OBJ's
+// .mtl and the parts of multi-file formats are only known to Assimp, and a depfile or the build
+// cache must name them. (The importer owns this object and deletes it.)
+class RecordingIOSystem final : public Assimp::DefaultIOSystem {
+ public:
+  explicit RecordingIOSystem(FileAccesses& accessed) : accessed_(accessed) {}
+  bool Exists(const char* file) const override {
+    const bool exists = DefaultIOSystem::Exists(file);
+    if (!exists && file != nullptr && *file != '\0') accessed_.missing.emplace_back(file);
+    return exists;
+  }
+  Assimp::IOStream* Open(const char* file, const char* mode) override {
+    Assimp::IOStream* stream = DefaultIOSystem::Open(file, mode);
+    if (file != nullptr && *file != '\0')
+      (stream != nullptr ? accessed_.read : accessed_.missing).emplace_back(file);
+    return stream;
+  }
+
+ private:
+  FileAccesses& accessed_;
+};
 
 Matrix4 to_matrix4(const aiMatrix4x4& m) {
   // Assimp is row-major (a1..a4 is the first row); Matrix4 is column-major.
@@ -208,13 +231,17 @@ void check_raw_scene(const aiScene& scene, const std::string& path) {
 
 std::vector<ImportedMesh> import_with_assimp(const std::string& path,
                                              std::span<const std::byte> bytes,
-                                             const std::string& extension, bool bytes_are_file) {
+                                             const std::string& extension, bool bytes_are_file,
+                                             FileAccesses* accessed) {
   if (extension == ".ply" && is_ply_with_tristrips(bytes))
     throw ImportError(path +
                       ": PLY triangle strips are not supported (Assimp 5.2.5 misreads them)");
   if (extension == ".off") check_off_counts(path, bytes);
 
   Assimp::Importer importer;
+  // Reading from memory, Assimp still opens companions through this handler (its memory
+  // handler wraps it).
+  if (accessed != nullptr) importer.SetIOHandler(new RecordingIOSystem(*accessed));
   // No aiProcess_PreTransformVertices: it merges meshes by material and reorders triangles.
   // Read without post-processing, check the raw arrays ourselves, then triangulate: Assimp's
   // post-processing steps assert (abort) on inconsistent faces, and its own validation step

@@ -299,23 +299,42 @@ bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, in
   return true;  // geometry only: pixels are never decoded
 }
 
+// tinygltf's own file access, recording each buffer it reads and each place it looked in vain
+// (it tries the file's folder, then the working directory). External images are never opened
+// (TINYGLTF_NO_EXTERNAL_IMAGE), so only buffers come through here.
+bool file_exists_recorded(const std::string& path, void* accessed) {
+  const bool exists = tinygltf::FileExists(path, nullptr);
+  if (!exists && !path.empty()) static_cast<FileAccesses*>(accessed)->missing.push_back(path);
+  return exists;
+}
+
+bool read_whole_file_recorded(std::vector<unsigned char>* out, std::string* error,
+                              const std::string& path, void* accessed) {
+  const bool ok = tinygltf::ReadWholeFile(out, error, path, nullptr);
+  if (ok) static_cast<FileAccesses*>(accessed)->read.push_back(path);
+  return ok;
+}
+
 }  // namespace
 
 std::vector<ImportedMesh> import_gltf(const std::string& path, std::span<const std::byte> bytes,
-                                      bool binary) {
+                                      bool binary, FileAccesses* accessed) {
   const std::string base_dir = std::filesystem::path(path).parent_path().string();
   if (bytes.size() > std::numeric_limits<unsigned int>::max())
     throw ImportError(path + ": glTF files over 4 GiB are not supported");
   if (binary) {
     const GlbChunks chunks = split_glb(path, bytes);
-    check_draco_extensions(path, chunks.json, chunks.bin, base_dir);
+    check_draco_extensions(path, chunks.json, chunks.bin, base_dir, accessed);
   } else {
     check_draco_extensions(path, {reinterpret_cast<const char*>(bytes.data()), bytes.size()}, {},
-                           base_dir);
+                           base_dir, accessed);
   }
 
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(skip_image, nullptr);
+  if (accessed != nullptr)
+    loader.SetFsCallbacks({file_exists_recorded, tinygltf::ExpandFilePath, read_whole_file_recorded,
+                           tinygltf::WriteWholeFile, accessed});
   tinygltf::Model model;
   std::string error, warning;
   const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());

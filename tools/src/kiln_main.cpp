@@ -12,6 +12,7 @@
 
 #include "kiln/compiler/atomic_file.hpp"
 #include "kiln/compiler/build.hpp"
+#include "kiln/compiler/build_job.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/formats/voxel_dag.hpp"
 #include "kiln/runtime/blob.hpp"
@@ -28,6 +29,8 @@ constexpr unsigned kMaxThreads = 1024;
 struct BuildArgs {
   std::vector<std::string> inputs;
   std::string output;
+  std::string depfile;
+  std::string cache_dir;
   bool compress = false;
   int level = 9;
   unsigned threads = 0;
@@ -47,10 +50,16 @@ int run_build(const BuildArgs& args) {
   namespace fs = std::filesystem;
   std::error_code ec;
   for (const auto& input : args.inputs)
-    if (fs::exists(args.output, ec) && fs::equivalent(input, args.output, ec)) {
-      std::cerr << "kiln build: output " << args.output << " is also an input\n";
-      return 2;
-    }
+    for (const auto& out : {args.output, args.depfile})
+      if (!out.empty() && fs::exists(out, ec) && fs::equivalent(input, out, ec)) {
+        std::cerr << "kiln build: output " << out << " is also an input\n";
+        return 2;
+      }
+  if (args.depfile == args.output ||
+      (fs::exists(args.output, ec) && fs::equivalent(args.depfile, args.output, ec))) {
+    std::cerr << "kiln build: --depfile names the output blob\n";
+    return 2;
+  }
   for (const auto& kind : args.accels)
     if (kind == "esvo" &&
         !(std::isfinite(args.contour_error) && args.contour_error >= std::sqrt(3.0))) {
@@ -89,18 +98,16 @@ int run_build(const BuildArgs& args) {
                                                         : kiln::BvhBuilder::kBinned;
     options.accels.push_back(request);
   }
-  std::vector<kiln::AccelReport> reports;
   options.compression = {args.compress, args.level};
   options.threads = args.threads;
   const auto start = std::chrono::steady_clock::now();
+  kiln::BuildJobReport job;
   try {
     kiln::TerminalProgress progress;
-    kiln::build_blob_file(
-        options, args.output,
-        [&](std::string_view stage, std::uint64_t done, std::uint64_t total) {
-          progress.update(stage, done, total);
-        },
-        &reports);
+    job = kiln::run_build_job({options, args.output, args.depfile, args.cache_dir},
+                              [&](std::string_view stage, std::uint64_t done, std::uint64_t total) {
+                                progress.update(stage, done, total);
+                              });
   } catch (const kiln::ImportError& e) {
     std::cerr << "kiln build: " << e.what() << "\n";
     return 1;
@@ -111,6 +118,11 @@ int run_build(const BuildArgs& args) {
     std::cerr << "kiln build: " << e.what() << "\n";
     return 1;
   }
+  for (const auto& warning : job.warnings) std::cerr << "kiln build: warning: " << warning << "\n";
+  if (job.cache_hit) std::cerr << "kiln build: cache hit " << job.cache_key << "\n";
+  if (args.stats && !job.cache_key.empty() && !job.cache_hit)
+    std::cerr << "kiln build: cache miss " << job.cache_key << "\n";
+  const auto& reports = job.accels;
   if (args.stats) {
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -163,6 +175,12 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0u, kMaxThreads))
       ->capture_default_str();
   build_cmd->add_flag("--stats", build.stats, "Print build time and sizes to stderr");
+  build_cmd->add_option("--depfile", build.depfile,
+                        "Also write a Make-syntax depfile: the output as given to -o, then every "
+                        "file the import read (absolute paths)");
+  build_cmd->add_option("--cache-dir", build.cache_dir,
+                        "Content-addressed build cache: reuse the blob of an identical earlier "
+                        "build (created if missing)");
   build_cmd->add_option("--accel", build.accels, "Acceleration structures to build (repeatable)")
       ->check(CLI::IsMember({"bvh", "sbvh", "kdtree", "points", "dag", "esvo"}))
       ->allow_extra_args(false);

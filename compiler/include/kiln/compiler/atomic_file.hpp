@@ -16,6 +16,15 @@ using WriteProgress = std::function<void(std::size_t, std::size_t)>;
 void write_file_atomically(const std::string& path, std::span<const std::byte> bytes,
                            const WriteProgress& progress = {});
 
+// Copies `source` to `path` as write_file_atomically writes: into a temporary beside `path`,
+// sharing the source's extents (FICLONE: instant and no extra space on btrfs or XFS) where the
+// file system allows, copying the bytes otherwise. `accept` then sees the finished temporary's
+// descriptor (readable, at any offset through pread) and may refuse it: the temporary is removed,
+// `path` is untouched and the result is false. Throws std::runtime_error naming the path that
+// failed.
+bool copy_file_atomically(const std::string& source, const std::string& path,
+                          const std::function<bool(int fd)>& accept);
+
 // Makes SIGINT, SIGTERM and SIGHUP remove an in-flight temporary before the process dies.
 // (SIGKILL cannot be caught; the output path is untouched then, a stray temporary may remain.)
 void install_temp_file_cleanup_on_signals();

@@ -52,9 +52,9 @@ struct BuildOptions {
 // (stage, done, total): called from the calling thread only.
 using BuildProgress = std::function<void(std::string_view, std::uint64_t, std::uint64_t)>;
 
-// Imports every input (in parallel, one task per file) and flattens them in input order.
-// Throws ImportError naming the first failing input in command-line order, or when nothing is
-// left: no triangle and no point.
+// Imports every input (in parallel, one task per file) and flattens them in input order; the
+// scene's `accessed` lists every file the import read. Throws ImportError naming the first
+// failing input in command-line order, or when nothing is left: no triangle and no point.
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
                    const BuildProgress& progress = {});
 

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "kiln/compiler/file_accesses.hpp"
 #include "kiln/compiler/transform.hpp"
 #include "kiln/formats/geometry.hpp"
 
@@ -35,6 +36,7 @@ struct SourceFile {
 struct ImportedFile {
   SourceFile source;
   std::vector<ImportedMesh> meshes;  // in the file's documented traversal order
+  FileAccesses accessed;             // the file and every companion the importer opened
 };
 
 struct SceneMesh {
@@ -63,6 +65,7 @@ struct Scene {
   std::uint64_t input_triangle_count = 0;
   std::uint64_t degenerate_triangles_dropped = 0;
   Bounds3 bounds;
+  FileAccesses accessed;  // every input's, merged (import_scene fills it)
 };
 
 // Edge manifoldness over welded positions: what "closed" means for point-inside queries.

@@ -1,0 +1,172 @@
+#include "kiln/compiler/build_job.hpp"
+
+#include <sys/stat.h>
+
+#include <ctime>
+#include <map>
+#include <optional>
+
+#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/compiler/build_cache.hpp"
+#include "kiln/compiler/depfile.hpp"
+#include "kiln/compiler/file_accesses.hpp"
+
+namespace kiln {
+
+namespace {
+
+// The depfile's text, formatted before anything is written: a path no depfile can hold fails
+// the build before the blob exists.
+std::string depfile_text(const BuildJob& job, const std::vector<std::string>& read_files) {
+  return job.depfile.empty() ? std::string() : format_depfile(job.output, read_files);
+}
+
+void write_depfile_text(const BuildJob& job, const std::string& text) {
+  if (!job.depfile.empty())
+    write_file_atomically(job.depfile, std::as_bytes(std::span<const char>(text)));
+}
+
+// Imports, compiles and writes the blob; returns it (the cache stores it) with what was read.
+std::vector<std::byte> build_and_write(const BuildJob& job, const BuildProgress& progress,
+                                       BuildJobReport& report, FileAccesses& accessed) {
+  const Scene scene = import_scene(job.options.inputs, job.options.threads, progress);
+  accessed = scene.accessed;
+  report.read_files = scene.accessed.read;
+  const std::string depfile = depfile_text(job, report.read_files);
+  if (progress) progress("compile", 0, 1);
+  std::vector<std::byte> blob = compile_blob(scene, job.options, &report.accels);
+  if (progress) progress("compile", 1, 1);
+  write_file_atomically(job.output, blob, [&](std::size_t done, std::size_t total) {
+    if (progress) progress("write", done, total);
+  });
+  write_depfile_text(job, depfile);
+  return blob;
+}
+
+// File timestamps come from the kernel's coarse clock, which lags this one: a file written
+// before the build began never looks newer than its start (no false alarm for a file saved just
+// before), while a write in the first tick after the start can go unseen (a residual race, as in
+// ccache's own check).
+timespec precise_now() {
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  return now;
+}
+
+bool not_before(const timespec& t, const timespec& start) {
+  return t.tv_sec > start.tv_sec || (t.tv_sec == start.tv_sec && t.tv_nsec >= start.tv_nsec);
+}
+
+// The first of `paths` modified (or replaced) at or after `start`, if any: its bytes may not be
+// the ones the import read, so the result must not be cached under its current hash.
+std::optional<std::string> changed_since(const std::vector<std::string>& paths,
+                                         const timespec& start) {
+  for (const std::string& path : paths) {
+    struct stat info {};
+    if (::stat(path.c_str(), &info) != 0 || not_before(info.st_mtim, start) ||
+        not_before(info.st_ctim, start))
+      return path;
+  }
+  return std::nullopt;
+}
+
+// Hashes each file once per build: the inputs were hashed for the key already.
+class HashMemo {
+ public:
+  void remember(const std::string& path, const Hash128& hash) { known_[path] = hash; }
+  std::optional<Hash128> operator()(const std::string& path) {
+    const auto it = known_.find(path);
+    if (it != known_.end()) return it->second;
+    const auto hash = hash_file(path);
+    known_.emplace(path, hash);
+    return hash;
+  }
+
+ private:
+  std::map<std::string, std::optional<Hash128>> known_;
+};
+
+BuildJobReport run_cached(const BuildJob& job, const BuildProgress& progress) {
+  BuildJobReport report;
+  const timespec start = precise_now();
+  auto without_cache = [&](std::string warning) {
+    if (!warning.empty()) report.warnings.push_back(std::move(warning));
+    FileAccesses accessed;
+    build_and_write(job, progress, report, accessed);
+    return report;
+  };
+  try {
+    prepare_cache_dir(job.cache_dir);
+  } catch (const std::exception& e) {
+    return without_cache("cache " + job.cache_dir + " is unusable (" + e.what() +
+                         "); building without it");
+  }
+  HashMemo memo;
+  std::vector<Hash128> input_hashes;
+  for (const std::string& input : job.options.inputs) {
+    const auto hash = memo(normalize_path(input));
+    if (!hash) return without_cache("");  // the import reports the unreadable input
+    input_hashes.push_back(*hash);
+  }
+  const Hash128 key = direct_key(job.options, input_hashes, toolchain_fingerprint());
+  report.cache_key = to_hex(key);
+
+  const std::vector<CacheEntry> previous = read_manifest(job.cache_dir, key);
+  for (const CacheEntry& entry : previous) {
+    if (!entry_matches(entry, [&](const std::string& path) { return memo(path); })) continue;
+    std::vector<std::string> read_files;
+    for (const CachedFile& file : entry.read) read_files.push_back(file.path);
+    const std::string depfile = depfile_text(job, read_files);
+    bool restored = false;
+    try {
+      restored = restore_blob(job.cache_dir, entry, job.output);
+    } catch (const std::exception& e) {
+      report.warnings.push_back("cache entry " + report.cache_key + " unreadable (" + e.what() +
+                                "); rebuilding");
+    }
+    if (restored) {
+      write_depfile_text(job, depfile);
+      report.cache_hit = true;
+      report.read_files = std::move(read_files);
+      return report;
+    }
+    if (report.warnings.empty())
+      report.warnings.push_back("cache entry " + report.cache_key +
+                                " is missing its blob or it is damaged; rebuilding");
+    break;  // the rebuild stores a fresh entry for these files
+  }
+
+  FileAccesses accessed;
+  const std::vector<std::byte> blob = build_and_write(job, progress, report, accessed);
+  if (const auto changed = changed_since(accessed.read, start)) {
+    report.warnings.push_back(*changed + " changed during the build; the result is not cached");
+    return report;
+  }
+  CacheEntry entry{hash_bytes(blob), blob.size(), {}, accessed.missing};
+  for (const std::string& path : accessed.read) {
+    const auto hash = memo(path);
+    if (!hash) {
+      report.warnings.push_back(path + " cannot be read back; the result is not cached");
+      return report;
+    }
+    entry.read.push_back({path, *hash});
+  }
+  try {
+    store_entry(job.cache_dir, key, blob, entry, previous);
+  } catch (const std::exception& e) {
+    report.warnings.push_back(std::string("result not cached: ") + e.what());
+  }
+  return report;
+}
+
+}  // namespace
+
+BuildJobReport run_build_job(const BuildJob& job, const BuildProgress& progress) {
+  if (!job.cache_dir.empty()) return run_cached(job, progress);
+  BuildJobReport report;
+  FileAccesses accessed;
+  build_and_write(job, progress, report, accessed);
+  return report;
+}
+
+}  // namespace kiln
