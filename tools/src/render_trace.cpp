@@ -69,12 +69,13 @@ Samples trace_rows(const Camera& camera, Size size, unsigned threads, const Cast
   return samples;
 }
 
-// A voxel hit's normal: the entered face (or the contour's plane), else the attached normal
-// when the ray started inside the voxel.
+// A voxel hit's normal: the attached normal when the blob stores one (the mesh's own normal, what
+// Laine & Karras shade with: a cube face or a contour plane alone makes blocky, speckled
+// shading), else the entered face or the contour's plane.
 format::Float3 voxel_normal(const VoxelHit& h) {
-  if (h.face_normal[0] != 0 || h.face_normal[1] != 0 || h.face_normal[2] != 0)
-    return {h.face_normal[0], h.face_normal[1], h.face_normal[2]};
-  return {h.normal[0], h.normal[1], h.normal[2]};
+  if (h.normal[0] != 0 || h.normal[1] != 0 || h.normal[2] != 0)
+    return {h.normal[0], h.normal[1], h.normal[2]};
+  return {h.face_normal[0], h.face_normal[1], h.face_normal[2]};
 }
 
 }  // namespace
