@@ -5,7 +5,7 @@
 #include <csignal>
 #include <filesystem>
 
-#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "test_support.hpp"
 
 namespace kiln {

@@ -4,7 +4,7 @@
 #include <stdexcept>
 
 #include "accel_entry.hpp"
-#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"

@@ -16,10 +16,10 @@
 #include <new>
 #include <stdexcept>
 
-#include "file_descriptor.hpp"
-#include "kiln/compiler/atomic_file.hpp"
 #include "kiln/compiler/file_accesses.hpp"
 #include "kiln/formats/container.hpp"
+#include "kiln/runtime/atomic_file.hpp"
+#include "kiln/runtime/file_descriptor.hpp"
 
 namespace kiln {
 

@@ -6,7 +6,7 @@
 #include <map>
 #include <optional>
 
-#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/compiler/build_cache.hpp"
 #include "kiln/compiler/depfile.hpp"
 #include "kiln/compiler/file_accesses.hpp"

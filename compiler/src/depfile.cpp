@@ -1,6 +1,6 @@
 #include "kiln/compiler/depfile.hpp"
 
-#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 
 namespace kiln {
 

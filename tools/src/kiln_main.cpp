@@ -10,7 +10,7 @@
 #include <iomanip>
 #include <iostream>
 
-#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/build_job.hpp"
 #include "kiln/compiler/import.hpp"

@@ -5,7 +5,7 @@
 #include <iostream>
 #include <vector>
 
-#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/esvo.hpp"

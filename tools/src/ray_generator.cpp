@@ -4,37 +4,13 @@
 #include <limits>
 #include <stdexcept>
 
+#include "vec3d.hpp"
+
 namespace kiln {
 
 namespace {
 
-struct Vec {
-  double x, y, z;
-};
-Vec operator+(Vec a, Vec b) {
-  return {a.x + b.x, a.y + b.y, a.z + b.z};
-}
-Vec operator-(Vec a, Vec b) {
-  return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-Vec operator*(Vec a, double s) {
-  return {a.x * s, a.y * s, a.z * s};
-}
-double dot(Vec a, Vec b) {
-  return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-Vec cross(Vec a, Vec b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-Vec normalize(Vec a) {
-  return a * (1.0 / std::sqrt(dot(a, a)));
-}
-Vec vec(const format::Float3& p) {
-  return {p.x, p.y, p.z};
-}
-format::Float3 f3(Vec a) {
-  return {float(a.x), float(a.y), float(a.z)};
-}
+using namespace vec3d;
 
 class SplitMix64 {
  public:

@@ -8,35 +8,13 @@
 
 #include "kiln/runtime/blob.hpp"
 #include "kiln/tools/render.hpp"
+#include "vec3d.hpp"
 
 namespace kiln::render {
 
 namespace {
 
-struct Vec {
-  double x = 0, y = 0, z = 0;
-};
-Vec operator+(Vec a, Vec b) {
-  return {a.x + b.x, a.y + b.y, a.z + b.z};
-}
-Vec operator-(Vec a, Vec b) {
-  return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-Vec operator*(Vec a, double s) {
-  return {a.x * s, a.y * s, a.z * s};
-}
-double dot(Vec a, Vec b) {
-  return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-Vec cross(Vec a, Vec b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-Vec normalize(Vec a) {
-  return a * (1.0 / std::sqrt(dot(a, a)));
-}
-Vec vec(const format::Float3& f) {
-  return {f.x, f.y, f.z};
-}
+using namespace vec3d;
 
 // A number of the whole `text` (from_chars: no locale, no leading '+' or spaces).
 bool parse_number(std::string_view text, double& out) {

@@ -9,6 +9,7 @@
 #include <iostream>
 #include <vector>
 
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/tools/json_writer.hpp"
 #include "kiln/tools/render.hpp"
@@ -151,7 +152,7 @@ int run_render(const RenderArgs& args) {
                                               : "cost per ray: node visits + triangle tests";
       render::draw_legend(image, heat_scale, clamped, title);
     }
-    render::write_file_atomically(args.out, render::encode_png(image));
+    write_file_atomically(args.out, render::encode_png(image));
 
     if (args.json) {
       JsonWriter json(std::cout);

@@ -1,18 +1,12 @@
-// PNG output, encoded in memory then written atomically. stb_image_write (Debian's libstb-dev)
-// writes RGB images and supplies the deflate and CRC of the palette images written here. It is
-// compiled in this file only, static, so it can never clash with another copy in the program.
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
+// PNG encoding in memory (kiln render writes the bytes with write_file_atomically). stb_image_write
+// (Debian's libstb-dev) writes RGB images and supplies the deflate and CRC of the palette images
+// written here. It is compiled in this file only, static, so it can never clash with another copy
+// in the program.
 
 #include <algorithm>
-#include <cerrno>
 #include <cstdlib>
-#include <cstring>
-#include <filesystem>
 #include <memory>
 #include <stdexcept>
-#include <utility>
 
 #include "kiln/tools/render.hpp"
 
@@ -35,48 +29,6 @@ void append(void* context, void* data, int size) {
   const auto* bytes = static_cast<const std::byte*>(data);
   out->insert(out->end(), bytes, bytes + size);
 }
-
-std::runtime_error write_error(const std::string& path, const char* what) {
-  return std::runtime_error(path + ": " + what + ": " + std::strerror(errno));
-}
-
-// The temporary beside the target; removed unless renamed over it.
-class TempFile {
- public:
-  explicit TempFile(const std::string& target) {
-    const std::filesystem::path target_path(target);
-    auto dir = target_path.parent_path();
-    if (dir.empty()) dir = ".";
-    std::string name = ".";
-    name += target_path.filename().string();
-    name += ".tmp.XXXXXX";
-    temp_ = (dir / name).string();
-    fd_ = ::mkstemp(temp_.data());
-    if (fd_ < 0) throw write_error(target, "cannot create a temporary file beside it");
-  }
-  TempFile(const TempFile&) = delete;
-  TempFile& operator=(const TempFile&) = delete;
-  ~TempFile() {
-    if (fd_ >= 0) ::close(fd_);
-    if (!committed_) ::unlink(temp_.c_str());
-  }
-  int fd() const { return fd_; }
-  void commit(const std::string& target) {
-    // mkstemp makes 0600; an image is an ordinary output file.
-    const mode_t mask = ::umask(0);
-    ::umask(mask);
-    if (::fchmod(fd_, 0666 & ~mask) != 0) throw write_error(target, "chmod failed");
-    if (::fsync(fd_) != 0) throw write_error(target, "fsync failed");
-    if (::close(std::exchange(fd_, -1)) != 0) throw write_error(target, "close failed");
-    if (::rename(temp_.c_str(), target.c_str()) != 0) throw write_error(target, "rename failed");
-    committed_ = true;
-  }
-
- private:
-  std::string temp_;
-  int fd_ = -1;
-  bool committed_ = false;
-};
 
 std::uint32_t packed(const Rgb& c) {
   return std::uint32_t(c.r) << 16 | std::uint32_t(c.g) << 8 | c.b;
@@ -159,18 +111,6 @@ std::vector<std::byte> encode_png(const Image& image) {
                              image.pixels.data(), int(image.width * 3)) == 0)
     throw std::runtime_error("PNG encoding failed (out of memory?)");
   return png;
-}
-
-void write_file_atomically(const std::string& path, std::span<const std::byte> bytes) {
-  TempFile temp(path);
-  std::size_t written = 0;
-  while (written < bytes.size()) {
-    const ssize_t got = ::write(temp.fd(), bytes.data() + written, bytes.size() - written);
-    if (got < 0 && errno == EINTR) continue;
-    if (got <= 0) throw write_error(path, "write failed");
-    written += std::size_t(got);
-  }
-  temp.commit(path);
 }
 
 }  // namespace kiln::render

@@ -6,7 +6,7 @@
 #include <iostream>
 #include <optional>
 
-#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/runtime/blob.hpp"

@@ -150,8 +150,5 @@ Image side_by_side(std::span<const Image> panels);
 // The PNG file bytes of an image: 8-bit palette when it has at most 256 colours (heatmaps),
 // else RGB; compressed by stb_image_write's deflate. The same pixels give the same bytes.
 std::vector<std::byte> encode_png(const Image& image);
-// Writes `bytes` to a temporary beside `path`, fsyncs and renames it over `path`: readers see the
-// old file or the whole new one. Throws std::runtime_error naming the path (temporary removed).
-void write_file_atomically(const std::string& path, std::span<const std::byte> bytes);
 
 }  // namespace kiln::render

@@ -1,4 +1,4 @@
-#include "kiln/compiler/atomic_file.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 
 #include <fcntl.h>
 #include <linux/fs.h>
@@ -15,7 +15,7 @@
 #include <utility>
 #include <vector>
 
-#include "file_descriptor.hpp"
+#include "kiln/runtime/file_descriptor.hpp"
 
 namespace kiln {
 
