@@ -16,10 +16,8 @@ namespace {
 namespace fs = std::filesystem;
 
 using test::quoted;
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-}
+using test::read_text;
+using test::write_text;
 
 // One triangle coloured by `mesh.mtl`, and a second file naming it as a glTF buffer does.
 struct Fixture {

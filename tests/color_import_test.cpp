@@ -19,14 +19,12 @@
 namespace kiln {
 namespace {
 
+using test::write_text;
+
 constexpr std::uint32_t kWhite = 0xFFFFFFFF;
 
 std::uint32_t rgba(std::uint32_t r, std::uint32_t g, std::uint32_t b, std::uint32_t a) {
   return r | g << 8 | b << 16 | a << 24;
-}
-
-void write_text(const std::string& path, const std::string& text) {
-  test::write_file(path, std::as_bytes(std::span<const char>(text.data(), text.size())));
 }
 
 // The colours of scene mesh `m`'s vertices.

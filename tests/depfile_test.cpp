@@ -14,15 +14,8 @@ namespace {
 namespace fs = std::filesystem;
 
 using test::quoted;
-
-void write_text(const fs::path& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-}
-
-std::string read_text(const fs::path& path) {
-  const auto bytes = test::read_file(path.string());
-  return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
-}
+using test::read_text;
+using test::write_text;
 
 // The target and dependencies of a depfile as format_depfile lays it out, unescaped the way
 // Make and Ninja read it ("\ " is a space in a name, "\#" a '#', "$$" a '$').

@@ -48,6 +48,15 @@ void write_file(const std::string& path, std::span<const std::byte> bytes) {
   out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
+std::string read_text(const std::string& path) {
+  const auto bytes = read_file(path);
+  return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  write_file(path, std::as_bytes(std::span<const char>(text.data(), text.size())));
+}
+
 namespace {
 
 std::string open_impl(std::span<const std::byte> bytes, bool verify) {

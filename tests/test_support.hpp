@@ -36,6 +36,9 @@ class TempDir {
 
 std::vector<std::byte> read_file(const std::string& path);
 void write_file(const std::string& path, std::span<const std::byte> bytes);
+// The same for text (no newline translation).
+std::string read_text(const std::string& path);
+void write_text(const std::string& path, const std::string& text);
 
 // Opens a copy of `bytes` (aligned) and runs verify(); returns "" when both succeed, else the
 // error message.
