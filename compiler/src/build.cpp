@@ -4,9 +4,9 @@
 #include <stdexcept>
 
 #include "accel_entry.hpp"
-#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/formats/section_kinds.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "manifest_builder.hpp"

@@ -6,10 +6,10 @@
 #include <map>
 #include <optional>
 
-#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/compiler/build_cache.hpp"
 #include "kiln/compiler/depfile.hpp"
 #include "kiln/compiler/file_accesses.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 
 namespace kiln {
 

@@ -10,11 +10,11 @@
 #include <iomanip>
 #include <iostream>
 
-#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/build_job.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/formats/voxel_dag.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/inspect.hpp"

@@ -6,9 +6,9 @@
 #include <iostream>
 #include <optional>
 
-#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/import.hpp"
+#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/error.hpp"
