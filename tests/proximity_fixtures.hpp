@@ -57,10 +57,6 @@ inline std::vector<std::uint32_t> brute_box(const Scene& s, const format::Float3
   return ids;
 }
 
-inline format::Float3 to_f(const Vec3d& p) {
-  return {float(p.x), float(p.y), float(p.z)};
-}
-
 // Seeded points: uniform in the bounds grown by 25 % (near and far), plus points just off the
 // surface on both sides (1e-3 of the diagonal along the face normal).
 inline std::vector<format::Float3> sample_points(const Scene& s, std::size_t count,

@@ -7,14 +7,12 @@
 #include <numbers>
 
 #include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/triangle_geometry.hpp"
 #include "kiln/tools/render.hpp"
-#include "vec3d.hpp"
 
 namespace kiln::render {
 
 namespace {
-
-using namespace vec3d;
 
 // A number of the whole `text` (from_chars: no locale, no leading '+' or spaces).
 bool parse_number(std::string_view text, double& out) {
@@ -33,14 +31,14 @@ bool parse_side(std::string_view text, std::uint32_t& out) {
 
 // The camera's orthonormal basis: forward, right, up (+y is up unless the view is vertical).
 struct Basis {
-  Vec forward, right, up;
+  Vec3d forward, right, up;
   double tan_half = 1, aspect = 1;
 };
 
 Basis basis_of(const Camera& camera, Size size) {
   Basis b;
-  b.forward = normalize(vec(camera.target) - vec(camera.eye));
-  Vec world_up{0, 1, 0};
+  b.forward = normalize(to_d(camera.target) - to_d(camera.eye));
+  Vec3d world_up{0, 1, 0};
   if (std::fabs(b.forward.y) > 0.999) world_up = {0, 0, b.forward.y > 0 ? -1.0 : 1.0};
   b.right = normalize(cross(b.forward, world_up));
   b.up = cross(b.right, b.forward);
@@ -83,7 +81,7 @@ std::optional<Camera> parse_camera(std::string_view text, std::string& error) {
   camera.eye = {float(v[0]), float(v[1]), float(v[2])};
   camera.target = {float(v[3]), float(v[4]), float(v[5])};
   camera.fov_degrees = float(v[6]);
-  const Vec d = vec(camera.target) - vec(camera.eye);
+  const Vec3d d = to_d(camera.target) - to_d(camera.eye);
   if (!(dot(d, d) > 0) || !std::isfinite(dot(d, d))) {
     error = "--camera: the eye and the target must be distinct points";
     return std::nullopt;
@@ -113,20 +111,20 @@ std::optional<Size> parse_size(std::string_view text, std::string& error) {
 }
 
 Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size size) {
-  Vec min = vec(lo), max = vec(hi);
+  Vec3d min = to_d(lo), max = to_d(hi);
   // A forged blob may carry non-finite bounds: frame the unit box rather than aim at NaN.
   if (!std::isfinite(dot(min, min)) || !std::isfinite(dot(max, max)))
     min = {-1, -1, -1}, max = {1, 1, 1};
-  const Vec centre = (min + max) * 0.5;
+  const Vec3d centre = (min + max) * 0.5;
   double radius = std::sqrt(dot(max - min, max - min)) * 0.5;
   if (!(radius > 0) || !std::isfinite(radius)) radius = 1;
   Camera camera;
   camera.fov_degrees = 40;
   // Front (+z), right and above: shows three sides of a box, the usual "hero" view of a
   // y-up model.
-  const Vec direction = normalize(Vec{0.55, 0.4, 1.0});
+  const Vec3d direction = normalize(Vec3d{0.55, 0.4, 1.0});
   camera.target = {float(centre.x), float(centre.y), float(centre.z)};
-  const Vec probe = centre + direction * radius;
+  const Vec3d probe = centre + direction * radius;
   camera.eye = {float(probe.x), float(probe.y), float(probe.z)};
   const Basis b = basis_of(camera, size);
   // Back off until all eight corners of the box project inside the frame (with a 5 % margin):
@@ -134,14 +132,14 @@ Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size siz
   const double tan_v = b.tan_half * 0.95, tan_h = b.tan_half * b.aspect * 0.95;
   double distance = 0;
   for (int corner = 0; corner < 8; ++corner) {
-    const Vec p =
-        Vec{corner & 1 ? max.x : min.x, corner & 2 ? max.y : min.y, corner & 4 ? max.z : min.z} -
+    const Vec3d p =
+        Vec3d{corner & 1 ? max.x : min.x, corner & 2 ? max.y : min.y, corner & 4 ? max.z : min.z} -
         centre;
     const double depth = dot(p, b.forward);  // along the view, from the centre
     distance = std::max({distance, std::fabs(dot(p, b.right)) / tan_h - depth,
                          std::fabs(dot(p, b.up)) / tan_v - depth, -depth + 1e-3 * radius});
   }
-  const Vec eye = centre + direction * distance;
+  const Vec3d eye = centre + direction * distance;
   camera.eye = {float(eye.x), float(eye.y), float(eye.z)};
   return camera;
 }
@@ -157,7 +155,7 @@ Ray primary_ray(const Camera& camera, Size size, std::uint32_t x, std::uint32_t 
   const Basis b = basis_of(camera, size);
   const double px = (2.0 * (double(x) + 0.5) / double(size.width) - 1.0) * b.tan_half * b.aspect;
   const double py = (1.0 - 2.0 * (double(y) + 0.5) / double(size.height)) * b.tan_half;
-  const Vec d = normalize(b.forward + b.right * px + b.up * py);
+  const Vec3d d = normalize(b.forward + b.right * px + b.up * py);
   Ray ray;
   ray.org = camera.eye;
   ray.tmin = 0;

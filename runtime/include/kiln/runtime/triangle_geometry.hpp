@@ -14,6 +14,9 @@ struct Vec3d {
 inline Vec3d to_d(const format::Float3& p) {
   return {p.x, p.y, p.z};
 }
+inline format::Float3 to_f(const Vec3d& p) {
+  return {float(p.x), float(p.y), float(p.z)};
+}
 inline Vec3d operator-(Vec3d a, Vec3d b) {
   return {a.x - b.x, a.y - b.y, a.z - b.z};
 }
@@ -28,6 +31,9 @@ inline double dot(Vec3d a, Vec3d b) {
 }
 inline Vec3d cross(Vec3d a, Vec3d b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline Vec3d normalize(Vec3d a) {
+  return a * (1.0 / std::sqrt(dot(a, a)));
 }
 
 // Closest point on triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5), in double.
