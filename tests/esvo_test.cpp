@@ -184,7 +184,7 @@ TEST(Esvo, BlobsAreByteIdenticalAndRoundTrip) {
     const AlignedBuffer aligned = aligned_copy(one);
     const Blob blob = Blob::open_memory(aligned.bytes());
     const EsvoView mapped = EsvoView::from_blob(blob), direct = view_of(flat);
-    EXPECT_EQ(mapped.descriptor_count(), flat.descriptor_count);
+    EXPECT_EQ(mapped.counts().descriptors, flat.descriptor_count);
     for (const Ray& ray : test_rays(f.bvh(), f.scene, 2000, 3)) {
       const VoxelHit a = mapped.intersect(ray).hit, b = direct.intersect(ray).hit;
       ASSERT_EQ(std::memcmp(&a, &b, sizeof a), 0);

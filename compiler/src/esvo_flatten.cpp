@@ -125,6 +125,8 @@ void write_block(const TempBlock& block, const BlockLayout& layout,
           d.child_pointer = std::uint32_t(distance / 2);
         }
       }
+      if (run - at > format::kEsvoContourPointerMax)
+        throw std::length_error("ESVO: a voxel run lies more than 2^24 words from its descriptor");
       d.contour_pointer = std::uint32_t(run - at);
       words[run++] = n.first_normal;
       for (int k = 0; k < std::popcount(n.contour_mask); ++k)

@@ -1,4 +1,5 @@
 // Semantic checks of the manifest's geometry references, and the typed views they guard.
+#include <bit>
 #include <string>
 
 #include "kiln/formats/bvh.hpp"
@@ -146,6 +147,10 @@ void Blob::validate_geometry() {
               sizeof(std::uint32_t), e->voxel_count(), false);
         check((where + "colours").c_str(), e->colors(), format::kSectionEsvoColors,
               sizeof(std::uint32_t), e->voxel_count(), true);
+        // levels is log2(resolution): kiln dump sizes its table by it, so the two must agree.
+        if (e->levels() != std::uint32_t(std::bit_width(e->resolution())) - 1)
+          fail_section(0, where + "has " + std::to_string(e->levels()) + " levels at resolution " +
+                              std::to_string(e->resolution()));
         if (e->level_stats() == nullptr || e->level_stats()->size() != e->levels())
           fail_section(0,
                        where + "has no level table of " + std::to_string(e->levels()) + " levels");

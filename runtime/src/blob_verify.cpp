@@ -246,48 +246,19 @@ void Blob::verify_voxel_dag(const schema::Acceleration& accel) const {
   }
 }
 
-// Beyond the view's walk: the manifest's counts are the tree's, every contour is a real slab
-// (non-zero normal), every attachment a unit normal.
+// Beyond the view's walk (which bounds every pointer and refuses contours without a normal):
+// the manifest's counts are the tree's.
 void Blob::verify_esvo(const schema::Acceleration& accel) const {
   const std::string name = accel.kind()->str();
   const auto* desc = accel.esvo();
-  const EsvoView esvo = EsvoView::from_blob(*this, name);
-  const auto words = esvo.words();
-  std::uint64_t descriptors = 0, voxels = 0, leaves = 0, contours = 0;
-  // Every reachable descriptor, level by level (the view has already bounded the walk).
-  std::vector<std::uint64_t> level{0}, next;
-  while (!level.empty()) {
-    next.clear();
-    for (const std::uint64_t w : level) {
-      const format::EsvoDescriptor d = format::decode_descriptor(words[w], words[w + 1]);
-      ++descriptors;
-      voxels += std::popcount(d.valid);
-      leaves += std::popcount(std::uint8_t(d.valid & ~d.non_leaf));
-      contours += std::popcount(d.contour_mask);
-      const std::uint64_t run = w + d.contour_pointer;
-      for (int k = 0; k < std::popcount(d.contour_mask); ++k) {
-        const format::Contour c = format::decode_contour(words[run + 1 + k]);
-        if (format::contour_extent(c) == 0 || c.thickness > 127)
-          fail_section(desc->words(),
-                       name + " contour at word " + std::to_string(run + 1 + k) + " has no normal");
-      }
-      if (d.non_leaf == 0) continue;
-      const std::uint64_t child =
-          w + (d.far ? words[w + d.child_pointer] : 2 * std::uint64_t(d.child_pointer));
-      for (int i = 0; i < std::popcount(d.non_leaf); ++i) next.push_back(child + 2 * i);
-    }
-    std::swap(level, next);
-  }
-  if (descriptors != desc->descriptor_count() || voxels != desc->voxel_count() ||
-      leaves != desc->leaf_count() || contours != desc->contour_count())
-    fail_section(desc->words(), name + " holds " + std::to_string(descriptors) + " descriptors, " +
-                                    std::to_string(voxels) + " voxels, " + std::to_string(leaves) +
-                                    " leaves, " + std::to_string(contours) +
+  const EsvoView::Counts counts = EsvoView::from_blob(*this, name).counts();
+  if (counts.descriptors != desc->descriptor_count() || counts.voxels != desc->voxel_count() ||
+      counts.leaves != desc->leaf_count() || counts.contours != desc->contour_count())
+    fail_section(desc->words(), name + " holds " + std::to_string(counts.descriptors) +
+                                    " descriptors, " + std::to_string(counts.voxels) + " voxels, " +
+                                    std::to_string(counts.leaves) + " leaves, " +
+                                    std::to_string(counts.contours) +
                                     " contours; the manifest says otherwise");
-  const auto normals = section_view<std::uint32_t>(desc->normals());
-  if (normals.size() != voxels)
-    fail_section(desc->normals(), name + " has " + std::to_string(normals.size()) +
-                                      " attachments for " + std::to_string(voxels) + " voxels");
 }
 
 }  // namespace kiln

@@ -123,12 +123,13 @@ EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod, Cost* cost) const {
         }
       }
       if (tv_min <= tv_max) {
+        // The slab's plane is the surface entered, at a leaf hit or for the subtree below.
+        if (contour_entry) {
+          entry_axis = 3;
+          for (int a = 0; a < 3; ++a) entry_contour[a] = float(contour.normal[a]);
+        }
         const bool leaf = (w0 >> octant & 1) == 0;
         if (leaf || (use_lod && tc_max * lod_coef + lod_bias >= scale_exp2)) {
-          if (contour_entry) {
-            entry_axis = 3;
-            for (int a = 0; a < 3; ++a) entry_contour[a] = float(contour.normal[a]);
-          }
           out.level = std::uint32_t(kMaxScale - scale);
           VoxelHit& hit = out.hit;
           hit.t = tv_min;
@@ -155,7 +156,7 @@ EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod, Cost* cost) const {
             for (int a = 0; a < 3; ++a) hit.face_normal[a] = entry_contour[a] * s;
           }
           if constexpr (!kAnyHit) {
-            const std::uint64_t attachment = attachment_index(parent, octant);
+            const std::uint64_t attachment = attachment_index(parent, w0, w1, octant);
             format::decode_octahedral(normals_[attachment], hit.normal);
             if (!colors_.empty()) out.color = colors_[attachment];
           }
@@ -163,18 +164,13 @@ EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod, Cost* cost) const {
         }
         // PUSH: descend into the child; its subtree is searched within [tv_min, tv_max].
         stack[scale] = {parent, t_max};
-        const std::uint64_t offset =
-            (w0 >> 16 & 1) ? words_[parent + (w0 >> 17)] : 2 * std::uint64_t(w0 >> 17);
-        parent += offset + 2 * format::rank_below(w0 & 0xFF, octant);
+        parent = format::first_child_word(words_.data(), parent, w0) +
+                 2 * format::rank_below(w0 & 0xFF, octant);
         idx = 0;
         --scale;
         scale_exp2 = half;
         for (int a = 0; a < 3; ++a)
           if (half * coef[a] + tc[a] > tv_min) idx ^= 1u << a, pos[a] += half;
-        if (contour_entry) {
-          entry_axis = 3;
-          for (int a = 0; a < 3; ++a) entry_contour[a] = float(contour.normal[a]);
-        }
         t_min = tv_min;
         t_max = tv_max;
         loaded = false;

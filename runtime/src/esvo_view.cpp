@@ -67,8 +67,11 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
   while (!stack.empty()) {
     const auto [w, level] = stack.back();
     stack.pop_back();
-    ++descriptor_count_;
     const format::EsvoDescriptor d = format::decode_descriptor(words[w], words[w + 1]);
+    counts_.descriptors += 1;
+    counts_.voxels += std::popcount(d.valid);
+    counts_.leaves += std::popcount(std::uint8_t(d.valid & ~d.non_leaf));
+    counts_.contours += std::popcount(d.contour_mask);
     const std::string where = "descriptor at word " + std::to_string(w);
     if ((d.non_leaf & ~d.valid) != 0 || (d.contour_mask & ~d.valid) != 0)
       fail(where + " has non-leaf or contour bits on absent children");
@@ -77,11 +80,12 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
     const std::uint64_t run = w + d.contour_pointer;
     if (d.contour_pointer < 2 || run + 1 + std::popcount(d.contour_mask) > words.size())
       fail(where + " has its voxel run out of range");
-    std::size_t b = pages[w / format::kEsvoPageWords];
-    while (b + 1 < blocks.size() && blocks[b + 1].first_word <= w) ++b;
-    const std::uint64_t first = blocks[b].attachment_base + words[run];
-    if (first < blocks[b].attachment_base ||
-        first + std::popcount(d.valid) > attachment_end(blocks, b, normals.size()))
+    for (int k = 0; k < std::popcount(d.contour_mask); ++k)
+      if (format::contour_extent(format::decode_contour(words[run + 1 + k])) == 0)
+        fail(where + " has a contour without a normal");
+    const std::size_t b = block_of(w);
+    if (blocks[b].attachment_base + words[run] + std::popcount(d.valid) >
+        attachment_end(blocks, b, normals.size()))
       fail(where + " has attachments outside its block");
     if (d.non_leaf == 0) continue;
     std::uint64_t offset = 2 * std::uint64_t(d.child_pointer);
@@ -123,12 +127,15 @@ EsvoView EsvoView::from_blob(const Blob& blob, const std::string& name) {
   throw BlobError(blob.name() + ": has no ESVO '" + name + "' (build with --accel esvo)");
 }
 
-std::uint64_t EsvoView::attachment_index(std::uint64_t descriptor_word,
-                                         std::uint32_t octant) const {
-  std::size_t b = pages_[descriptor_word / format::kEsvoPageWords];
-  while (b + 1 < blocks_.size() && blocks_[b + 1].first_word <= descriptor_word) ++b;
-  const std::uint32_t w0 = words_[descriptor_word], w1 = words_[descriptor_word + 1];
-  return blocks_[b].attachment_base + words_[descriptor_word + (w1 >> 8)] +
+std::size_t EsvoView::block_of(std::uint64_t w) const {
+  std::size_t b = pages_[w / format::kEsvoPageWords];
+  while (b + 1 < blocks_.size() && blocks_[b + 1].first_word <= w) ++b;
+  return b;
+}
+
+std::uint64_t EsvoView::attachment_index(std::uint64_t descriptor_word, std::uint32_t w0,
+                                         std::uint32_t w1, std::uint32_t octant) const {
+  return blocks_[block_of(descriptor_word)].attachment_base + words_[descriptor_word + (w1 >> 8)] +
          format::rank_below(w0 >> 8 & 0xFF, octant);
 }
 
@@ -158,9 +165,7 @@ bool EsvoView::occupied(const format::Float3& point) const {
       if (d < c.position * unit || d > (c.position + c.thickness) * unit) return false;
     }
     if ((w0 >> octant & 1) == 0) return true;  // a leaf
-    const std::uint64_t offset =
-        (w0 >> 16 & 1) ? words_[w + (w0 >> 17)] : 2 * std::uint64_t(w0 >> 17);
-    w += offset + 2 * format::rank_below(w0 & 0xFF, octant);
+    w = format::first_child_word(words_.data(), w, w0) + 2 * format::rank_below(w0 & 0xFF, octant);
   }
 }
 

@@ -10,30 +10,20 @@
 #include <utility>
 
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/file_descriptor.hpp"
 
 namespace kiln {
 
-namespace {
-
-struct FileDescriptor {
-  int fd;
-  ~FileDescriptor() {
-    if (fd >= 0) ::close(fd);
-  }
-};
-
-}  // namespace
-
 MappedFile::MappedFile(const std::string& path) {
-  FileDescriptor file{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
-  if (file.fd < 0) throw BlobError(path + ": cannot open: " + std::strerror(errno));
+  FileDescriptor file(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  if (file.get() < 0) throw BlobError(path + ": cannot open: " + std::strerror(errno));
   struct stat info {};
-  if (::fstat(file.fd, &info) != 0)
+  if (::fstat(file.get(), &info) != 0)
     throw BlobError(path + ": cannot stat: " + std::strerror(errno));
   if (!S_ISREG(info.st_mode)) throw BlobError(path + ": not a regular file");
   size_ = std::size_t(info.st_size);
   if (size_ == 0) return;  // mmap of zero bytes fails; an empty span is the honest answer
-  void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, file.fd, 0);
+  void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, file.get(), 0);
   if (p == MAP_FAILED) throw BlobError(path + ": cannot map: " + std::strerror(errno));
   data_ = static_cast<const std::byte*>(p);
 }

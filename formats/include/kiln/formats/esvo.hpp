@@ -24,6 +24,7 @@
 
 #include <bit>
 #include <cstdint>
+#include <cstdlib>
 
 #include "kiln/formats/container.hpp"
 
@@ -63,6 +64,13 @@ inline void encode_descriptor(const EsvoDescriptor& d, std::uint32_t& w0, std::u
   w1 = d.contour_pointer << 8 | d.contour_mask;
 }
 
+// The word of the first child of the descriptor at word `w` (its first word `w0`), through the
+// far pointer when the far bit is set. Children are consecutive descriptors in octant order.
+inline std::uint64_t first_child_word(const std::uint32_t* words, std::uint64_t w,
+                                      std::uint32_t w0) {
+  return w + ((w0 >> 16 & 1) ? words[w + (w0 >> 17)] : 2 * std::uint64_t(w0 >> 17));
+}
+
 // Entries of `mask` below octant c: the rank of child c among its siblings.
 inline std::uint32_t rank_below(std::uint32_t mask, std::uint32_t c) {
   return std::uint32_t(std::popcount(mask & ((1u << c) - 1)));
@@ -92,8 +100,7 @@ inline Contour decode_contour(std::uint32_t w) {
   return {{field(17, 6), field(11, 6), field(5, 6)}, field(24, 7), int(w >> 25)};
 }
 inline int contour_extent(const Contour& c) {
-  const auto abs = [](int v) { return v < 0 ? -v : v; };
-  return abs(c.normal[0]) + abs(c.normal[1]) + abs(c.normal[2]);
+  return std::abs(c.normal[0]) + std::abs(c.normal[1]) + std::abs(c.normal[2]);
 }
 
 }  // namespace kiln::format

@@ -62,20 +62,28 @@ class EsvoView {
   const VoxelGridFrame& frame() const { return frame_; }
   std::uint32_t levels() const { return levels_; }
   std::span<const std::uint32_t> words() const { return words_; }
-  std::uint64_t descriptor_count() const { return descriptor_count_; }
+  // What the validation walk found: reachable descriptors, their children (voxels), leaves
+  // among them, and contours.
+  struct Counts {
+    std::uint64_t descriptors = 0, voxels = 0, leaves = 0, contours = 0;
+  };
+  const Counts& counts() const { return counts_; }
 
  private:
   // kCount: tally into *cost; a compile-time flag so the plain casts pay nothing for it.
   template <bool kAnyHit, bool kCount>
   EsvoHit cast(const Ray& ray, const EsvoLod& lod, Cost* cost) const;
-  std::uint64_t attachment_index(std::uint64_t descriptor_word, std::uint32_t octant) const;
+  // The block holding word `w` (its page header names the block the page starts in).
+  std::size_t block_of(std::uint64_t w) const;
+  std::uint64_t attachment_index(std::uint64_t descriptor_word, std::uint32_t w0, std::uint32_t w1,
+                                 std::uint32_t octant) const;
 
   std::span<const std::uint32_t> words_, pages_;
   std::span<const format::EsvoBlockInfo> blocks_;
   std::span<const std::uint32_t> normals_, colors_;
   VoxelGridFrame frame_;
   std::uint32_t levels_ = 0;
-  std::uint64_t descriptor_count_ = 0;
+  Counts counts_;
 };
 
 // Casts many rays on up to `threads` threads (0 = all cores).
