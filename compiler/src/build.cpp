@@ -6,7 +6,6 @@
 #include "accel_entry.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/formats/section_kinds.hpp"
-#include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "manifest_builder.hpp"
@@ -43,7 +42,12 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
   parallel_for(inputs.size(), threads, [&](std::size_t i) { files[i] = import_file(inputs[i]); });
   if (progress) progress("import", inputs.size(), inputs.size());
   FileAccesses accessed;
-  for (const ImportedFile& file : files) merge_accesses(accessed, file.accessed);
+  for (const ImportedFile& file : files) {
+    accessed.read.insert(accessed.read.end(), file.accessed.read.begin(), file.accessed.read.end());
+    accessed.missing.insert(accessed.missing.end(), file.accessed.missing.begin(),
+                            file.accessed.missing.end());
+  }
+  normalize_accesses(accessed);  // once: sorting per input would be quadratic in the inputs
   Scene scene = assemble_scene(std::move(files));
   scene.accessed = std::move(accessed);
   // An empty scene is almost surely a broken input; an asset pipeline should hear about it.
@@ -103,17 +107,6 @@ std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& opti
       build_manifest(scene, options, indices, entries, entry_sections);
   sections[0] = {format::kSectionManifest, kRequired, 1, manifest.size(), manifest, false};
   return serialize_blob(sections, options.compression, options.threads);
-}
-
-void build_blob_file(const BuildOptions& options, const std::string& output,
-                     const BuildProgress& progress, std::vector<AccelReport>* reports) {
-  const Scene scene = import_scene(options.inputs, options.threads, progress);
-  if (progress) progress("compile", 0, 1);
-  const std::vector<std::byte> blob = compile_blob(scene, options, reports);
-  if (progress) progress("compile", 1, 1);
-  write_file_atomically(output, blob, [&](std::size_t done, std::size_t total) {
-    if (progress) progress("write", done, total);
-  });
 }
 
 }  // namespace kiln

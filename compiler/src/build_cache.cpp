@@ -117,7 +117,7 @@ void hash_request(Hasher& h, const AccelRequest& request) {
     const auto& [resolution, contours, contour_error, threads] = request.esvo;
     h.u64(resolution);
     h.u64(contours);
-    h.f64(contour_error);
+    if (contours) h.f64(contour_error);  // without contours it cannot change the output
   } else {
     // An unknown kind fails the build anyway; nothing is stored under this key.
     h.text("unknown");
@@ -142,9 +142,11 @@ std::span<const std::byte> as_bytes(std::string_view text) {
   return std::as_bytes(std::span<const char>(text.data(), text.size()));
 }
 
+// Without it every kiln binary of one version would share a key space: no cache then.
 std::string executable_hash() {
   const auto hash = hash_file("/proc/self/exe");
-  return hash ? to_hex(*hash) : "unreadable";
+  if (!hash) throw std::runtime_error("cannot read the running executable to key the cache");
+  return to_hex(*hash);
 }
 
 }  // namespace

@@ -26,11 +26,15 @@ void write_depfile_text(const BuildJob& job, const std::string& text) {
     write_file_atomically(job.depfile, std::as_bytes(std::span<const char>(text)));
 }
 
+struct BuiltBlob {
+  std::vector<std::byte> bytes;
+  FileAccesses accessed;
+};
+
 // Imports, compiles and writes the blob; returns it (the cache stores it) with what was read.
-std::vector<std::byte> build_and_write(const BuildJob& job, const BuildProgress& progress,
-                                       BuildJobReport& report, FileAccesses& accessed) {
-  const Scene scene = import_scene(job.options.inputs, job.options.threads, progress);
-  accessed = scene.accessed;
+BuiltBlob build_and_write(const BuildJob& job, const BuildProgress& progress,
+                          BuildJobReport& report) {
+  Scene scene = import_scene(job.options.inputs, job.options.threads, progress);
   report.read_files = scene.accessed.read;
   const std::string depfile = depfile_text(job, report.read_files);
   if (progress) progress("compile", 0, 1);
@@ -40,7 +44,7 @@ std::vector<std::byte> build_and_write(const BuildJob& job, const BuildProgress&
     if (progress) progress("write", done, total);
   });
   write_depfile_text(job, depfile);
-  return blob;
+  return {std::move(blob), std::move(scene.accessed)};
 }
 
 // File timestamps come from the kernel's coarse clock, which lags this one: a file written
@@ -91,12 +95,13 @@ BuildJobReport run_cached(const BuildJob& job, const BuildProgress& progress) {
   const timespec start = precise_now();
   auto without_cache = [&](std::string warning) {
     if (!warning.empty()) report.warnings.push_back(std::move(warning));
-    FileAccesses accessed;
-    build_and_write(job, progress, report, accessed);
+    build_and_write(job, progress, report);
     return report;
   };
+  std::string fingerprint;
   try {
     prepare_cache_dir(job.cache_dir);
+    fingerprint = toolchain_fingerprint();
   } catch (const std::exception& e) {
     return without_cache("cache " + job.cache_dir + " is unusable (" + e.what() +
                          "); building without it");
@@ -108,7 +113,7 @@ BuildJobReport run_cached(const BuildJob& job, const BuildProgress& progress) {
     if (!hash) return without_cache("");  // the import reports the unreadable input
     input_hashes.push_back(*hash);
   }
-  const Hash128 key = direct_key(job.options, input_hashes, toolchain_fingerprint());
+  const Hash128 key = direct_key(job.options, input_hashes, fingerprint);
   report.cache_key = to_hex(key);
 
   const std::vector<CacheEntry> previous = read_manifest(job.cache_dir, key);
@@ -117,27 +122,24 @@ BuildJobReport run_cached(const BuildJob& job, const BuildProgress& progress) {
     std::vector<std::string> read_files;
     for (const CachedFile& file : entry.read) read_files.push_back(file.path);
     const std::string depfile = depfile_text(job, read_files);
-    bool restored = false;
+    std::string trouble = "is missing its blob or it is damaged";
     try {
-      restored = restore_blob(job.cache_dir, entry, job.output);
+      if (restore_blob(job.cache_dir, entry, job.output)) {
+        write_depfile_text(job, depfile);
+        report.cache_hit = true;
+        report.read_files = std::move(read_files);
+        return report;
+      }
     } catch (const std::exception& e) {
-      report.warnings.push_back("cache entry " + report.cache_key + " unreadable (" + e.what() +
-                                "); rebuilding");
+      trouble = std::string("is unreadable (") + e.what() + ")";
     }
-    if (restored) {
-      write_depfile_text(job, depfile);
-      report.cache_hit = true;
-      report.read_files = std::move(read_files);
-      return report;
-    }
-    if (report.warnings.empty())
-      report.warnings.push_back("cache entry " + report.cache_key +
-                                " is missing its blob or it is damaged; rebuilding");
+    report.warnings.push_back("cache entry " + report.cache_key + " " + trouble + "; rebuilding");
     break;  // the rebuild stores a fresh entry for these files
   }
 
-  FileAccesses accessed;
-  const std::vector<std::byte> blob = build_and_write(job, progress, report, accessed);
+  const BuiltBlob built = build_and_write(job, progress, report);
+  const std::vector<std::byte>& blob = built.bytes;
+  const FileAccesses& accessed = built.accessed;
   if (const auto changed = changed_since(accessed.read, start)) {
     report.warnings.push_back(*changed + " changed during the build; the result is not cached");
     return report;
@@ -164,8 +166,7 @@ BuildJobReport run_cached(const BuildJob& job, const BuildProgress& progress) {
 BuildJobReport run_build_job(const BuildJob& job, const BuildProgress& progress) {
   if (!job.cache_dir.empty()) return run_cached(job, progress);
   BuildJobReport report;
-  FileAccesses accessed;
-  build_and_write(job, progress, report, accessed);
+  build_and_write(job, progress, report);
   return report;
 }
 

@@ -1,7 +1,5 @@
 #include "kiln/compiler/depfile.hpp"
 
-#include "kiln/runtime/atomic_file.hpp"
-
 namespace kiln {
 
 std::string escape_depfile_path(std::string_view path) {
@@ -44,12 +42,6 @@ std::string format_depfile(std::string_view target, std::span<const std::string>
   }
   text += '\n';
   return text;
-}
-
-void write_depfile(const std::string& path, std::string_view target,
-                   std::span<const std::string> dependencies) {
-  const std::string text = format_depfile(target, dependencies);
-  write_file_atomically(path, std::as_bytes(std::span<const char>(text)));
 }
 
 }  // namespace kiln

@@ -10,7 +10,9 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <iomanip>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -190,9 +192,14 @@ std::uint32_t reach_for(double contour_error) {
 }  // namespace
 
 double esvo_error_bound(const EsvoBuildOptions& options) {
-  if (!std::isfinite(options.contour_error) || options.contour_error < std::sqrt(3.0) - 1e-9)
-    throw std::invalid_argument("--contour-error " + std::to_string(options.contour_error) +
-                                " must be a finite number of voxels >= sqrt(3) (1.7321)");
+  if (!(std::isfinite(options.contour_error) && options.contour_error >= std::sqrt(3.0))) {
+    // Ten digits, so a value just below sqrt(3) does not print as equal to it.
+    std::ostringstream message;
+    message << std::setprecision(10) << "--contour-error " << options.contour_error
+            << " must be finite and at least sqrt(3) = " << std::sqrt(3.0)
+            << " voxels (what a finest voxel guarantees)";
+    throw std::invalid_argument(message.str());
+  }
   if (!options.contours) return std::sqrt(3.0);
   const double r = reach_for(options.contour_error);
   return std::sqrt(2.0 + (r + 1) * (r + 1));

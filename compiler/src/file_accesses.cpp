@@ -30,10 +30,4 @@ void normalize_accesses(FileAccesses& accesses) {
   });
 }
 
-void merge_accesses(FileAccesses& into, const FileAccesses& from) {
-  into.read.insert(into.read.end(), from.read.begin(), from.read.end());
-  into.missing.insert(into.missing.end(), from.missing.begin(), from.missing.end());
-  normalize_accesses(into);
-}
-
 }  // namespace kiln

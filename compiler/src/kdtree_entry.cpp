@@ -21,10 +21,9 @@ AccelEntry make_kdtree_entry(const Scene& scene, const AccelRequest& request, un
     const schema::Bounds bounds(schema::Vec3(b.lo[0], b.lo[1], b.lo[2]),
                                 schema::Vec3(b.hi[0], b.hi[1], b.hi[2]));
     const auto desc = schema::CreateKdTreeDesc(
-        fbb, o.traversal_cost, o.intersection_cost, o.empty_bonus, s.depth_limit, &bounds,
-        index[0], index[1], index[2], s.node_count, s.leaf_count, s.empty_leaf_count,
-        s.reference_count, s.max_depth, s.largest_leaf, s.references_per_triangle, s.sah_cost,
-        s.bytes_per_triangle);
+        fbb, o.traversal_cost, o.intersection_cost, o.empty_bonus, s.depth_limit, &bounds, index[0],
+        index[1], index[2], s.node_count, s.leaf_count, s.empty_leaf_count, s.reference_count,
+        s.max_depth, s.largest_leaf, s.references_per_triangle, s.sah_cost, s.bytes_per_triangle);
     const std::vector<std::uint32_t> owned(index.begin(), index.end());
     return schema::CreateAccelerationDirect(fbb, kind.c_str(), &owned, 0, desc);
   };

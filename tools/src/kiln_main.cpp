@@ -4,10 +4,8 @@
 #include <sys/resource.h>
 
 #include <chrono>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <iomanip>
 #include <iostream>
 
 #include "kiln/compiler/build.hpp"
@@ -56,20 +54,21 @@ int run_build(const BuildArgs& args) {
         std::cerr << "kiln build: output " << out << " is also an input\n";
         return 2;
       }
-  if (args.depfile == args.output ||
-      (fs::exists(args.output, ec) && fs::equivalent(args.depfile, args.output, ec))) {
+  if (!args.depfile.empty() &&
+      (args.depfile == args.output ||
+       (fs::exists(args.output, ec) && fs::equivalent(args.depfile, args.output, ec)))) {
     std::cerr << "kiln build: --depfile names the output blob\n";
     return 2;
   }
   for (const auto& kind : args.accels)
-    if (kind == "esvo" &&
-        !(std::isfinite(args.contour_error) && args.contour_error >= std::sqrt(3.0))) {
-      // Ten digits, so a value just below sqrt(3) does not print as equal to it.
-      std::cerr << std::setprecision(10) << "kiln build: --contour-error " << args.contour_error
-                << " must be finite and at least sqrt(3) = " << std::sqrt(3.0)
-                << " voxels (what a finest voxel guarantees)\n";
-      return 1;
-    }
+    if (kind == "esvo") try {
+        kiln::EsvoBuildOptions esvo;
+        esvo.contour_error = args.contour_error;
+        kiln::esvo_error_bound(esvo);
+      } catch (const std::invalid_argument& e) {
+        std::cerr << "kiln build: " << e.what() << "\n";
+        return 1;
+      }
   for (const auto& kind : args.accels)
     if (kind == "dag" || kind == "esvo") {
       const std::uint32_t n = args.voxels.resolution;

@@ -64,9 +64,4 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
 std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
                                     std::vector<AccelReport>* reports = nullptr);
 
-// import_scene + compile_blob + an atomic write to `output`.
-void build_blob_file(const BuildOptions& options, const std::string& output,
-                     const BuildProgress& progress = {},
-                     std::vector<AccelReport>* reports = nullptr);
-
 }  // namespace kiln

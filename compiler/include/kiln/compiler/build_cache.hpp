@@ -40,6 +40,7 @@ std::optional<Hash128> hash_file(const std::string& path);
 // format's version, the cache layout's revision, Assimp's, Draco's and zstd's versions, and the
 // XXH3-128 of the running executable (so a rebuilt kiln, say a builder fix that changes the
 // output without a version bump, never reuses another build's entries). One line of text.
+// Throws std::runtime_error when the executable cannot be read.
 std::string toolchain_fingerprint();
 
 // The direct key: `fingerprint`, the options that shape the output (each structure's own

@@ -29,8 +29,4 @@ std::string escape_depfile_path(std::string_view path);
 // Throws DepfileError (escape_depfile_path).
 std::string format_depfile(std::string_view target, std::span<const std::string> dependencies);
 
-// format_depfile, written atomically (write_file_atomically) to `path`.
-void write_depfile(const std::string& path, std::string_view target,
-                   std::span<const std::string> dependencies);
-
 }  // namespace kiln

@@ -27,7 +27,4 @@ std::string normalize_path(const std::string& path);
 // created, or under two spellings) counts as read.
 void normalize_accesses(FileAccesses& accesses);
 
-// Adds `from` to `into`, both normalized; the result is normalized.
-void merge_accesses(FileAccesses& into, const FileAccesses& from);
-
 }  // namespace kiln
