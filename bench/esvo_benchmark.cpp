@@ -9,7 +9,6 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -20,6 +19,7 @@
 #include <vector>
 
 #include "bench_args.hpp"
+#include "bench_timing.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/esvo_builder.hpp"
@@ -32,7 +32,6 @@
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 
 struct Settings {
   std::vector<std::uint32_t> resolutions{1024, 2048};
@@ -64,31 +63,8 @@ struct Case {
 };
 std::vector<std::unique_ptr<Case>> g_cases;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-template <class Body>
-void timed(benchmark::State& state, double& best, Body body) {
-  for (auto _ : state) {
-    const auto start = Clock::now();
-    body();
-    const double s = seconds_since(start);
-    state.SetIterationTime(s);
-    best = std::isnan(best) ? s : std::min(best, s);
-  }
-}
-
-kiln::VoxelGridFrame frame_of(const kiln::VoxelGrid& g) {
-  kiln::VoxelGridFrame frame;
-  for (int a = 0; a < 3; ++a) frame.origin[a] = g.origin[a];
-  frame.voxel_size = g.voxel_size;
-  frame.resolution = g.resolution;
-  return frame;
-}
-
 kiln::EsvoView view_of(const kiln::FlatEsvo& e) {
-  return kiln::EsvoView(e.words, e.pages, e.blocks, e.normals, e.colors, frame_of(e.grid));
+  return kiln::EsvoView(e.words, e.pages, e.blocks, e.normals, e.colors, kiln::frame_of(e.grid));
 }
 
 // The figures without the arrays: copying the whole FlatEsvo would briefly double the memory.
@@ -141,13 +117,13 @@ void register_case(Case* c) {
           row.voxels = voxels.codes.size();
           row.bytes = dag.dag_bytes;
           std::vector<std::uint64_t>().swap(voxels.codes);  // the casts need only the DAG
-          std::vector<std::uint64_t> firsts;
-          for (const auto& l : dag.level_stats) firsts.push_back(l.first_word);
-          const kiln::VoxelDagView view(dag.words, frame_of(voxels.grid), firsts,
+          const auto firsts = kiln::level_first_words(dag);
+          const kiln::VoxelDagView view(dag.words, kiln::frame_of(voxels.grid), firsts,
                                         dag.leaf_first_word, {}, {});
           std::vector<kiln::VoxelHit> hits(c->rays.size());
-          timed(state, row.cast_1t, [&] { kiln::trace_rays(view, c->rays, hits, false, 1); });
-          row.cast_1t = double(c->rays.size()) / row.cast_1t * 1e-6;
+          double best = NAN;
+          kiln::bench::timed(state, best, [&] { kiln::trace_rays(view, c->rays, hits, false, 1); });
+          row.cast_1t = double(c->rays.size()) / best * 1e-6;
         })
         ->UseManualTime()
         ->Iterations(3)
@@ -165,7 +141,7 @@ void register_case(Case* c) {
             row.bound = kiln::esvo_error_bound(options);
             // Whatever an earlier variant left (its casts filtered out) is no longer needed.
             c->built.clear();
-            timed(state, row.build_s, [&] {
+            kiln::bench::timed(state, row.build_s, [&] {
               c->built[key].reset();
               c->built[key] = std::make_shared<kiln::FlatEsvo>(kiln::build_esvo(c->scene, options));
             });
@@ -187,7 +163,8 @@ void register_case(Case* c) {
               const kiln::EsvoView view = view_of(flat);
               std::vector<kiln::VoxelHit> hits(c->rays.size());
               double best = NAN;
-              timed(state, best, [&] { kiln::trace_rays(view, c->rays, hits, false, threads); });
+              kiln::bench::timed(state, best,
+                                 [&] { kiln::trace_rays(view, c->rays, hits, false, threads); });
               (threads == 1 ? row.cast_1t : row.cast_all) = double(c->rays.size()) / best * 1e-6;
               if (threads != 0) return;
               measure_error(*c, hits, flat.grid.voxel_size, row);

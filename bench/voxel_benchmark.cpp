@@ -7,7 +7,6 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -17,6 +16,7 @@
 #include <vector>
 
 #include "bench_args.hpp"
+#include "bench_timing.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/voxel_dag_builder.hpp"
@@ -26,7 +26,6 @@
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 
 struct Settings {
   std::vector<std::uint32_t> resolutions{1024, 2048, 4096};
@@ -48,26 +47,10 @@ struct Case {
 };
 std::vector<std::unique_ptr<Case>> g_cases;
 
-template <class Body>
-void timed(benchmark::State& state, double& best, Body body) {
-  for (auto _ : state) {
-    const auto start = Clock::now();
-    body();
-    const double s = std::chrono::duration<double>(Clock::now() - start).count();
-    state.SetIterationTime(s);
-    best = std::isnan(best) ? s : std::min(best, s);
-  }
-}
-
 kiln::VoxelDagView view_of(const kiln::Voxels& v, const kiln::FlatVoxelDag& dag,
                            std::vector<std::uint64_t>& firsts) {
-  kiln::VoxelGridFrame frame;
-  for (int a = 0; a < 3; ++a) frame.origin[a] = v.grid.origin[a];
-  frame.voxel_size = v.grid.voxel_size;
-  frame.resolution = v.grid.resolution;
-  firsts.clear();
-  for (const auto& l : dag.level_stats) firsts.push_back(l.first_word);
-  return kiln::VoxelDagView(dag.words, frame, firsts, dag.leaf_first_word, {}, {});
+  firsts = kiln::level_first_words(dag);
+  return kiln::VoxelDagView(dag.words, kiln::frame_of(v.grid), firsts, dag.leaf_first_word, {}, {});
 }
 
 void register_case(Case* c) {
@@ -76,7 +59,7 @@ void register_case(Case* c) {
     benchmark::RegisterBenchmark((prefix + "voxelize").c_str(),
                                  [=](benchmark::State& state) {
                                    Row& row = c->rows[n];
-                                   timed(state, row.voxelize_s, [&] {
+                                   kiln::bench::timed(state, row.voxelize_s, [&] {
                                      c->voxels[n] = std::make_shared<kiln::Voxels>(
                                          kiln::voxelize_surface(c->scene, {n, false, 0}));
                                    });
@@ -92,7 +75,7 @@ void register_case(Case* c) {
           if (!c->voxels[n])
             c->voxels[n] =
                 std::make_shared<kiln::Voxels>(kiln::voxelize_surface(c->scene, {n, false, 0}));
-          timed(state, row.dag_s, [&] {
+          kiln::bench::timed(state, row.dag_s, [&] {
             c->dags[n] =
                 std::make_shared<kiln::FlatVoxelDag>(kiln::build_voxel_dag(c->voxels[n]->codes, n));
           });
@@ -117,7 +100,8 @@ void register_case(Case* c) {
             const kiln::VoxelDagView view = view_of(*c->voxels[n], *c->dags[n], firsts);
             std::vector<kiln::VoxelHit> hits(c->rays.size());
             double best = NAN;
-            timed(state, best, [&] { kiln::trace_rays(view, c->rays, hits, false, threads); });
+            kiln::bench::timed(state, best,
+                               [&] { kiln::trace_rays(view, c->rays, hits, false, threads); });
             (threads == 1 ? row.cast_1t : row.cast_all) = double(c->rays.size()) / best * 1e-6;
             row.hits = std::count_if(hits.begin(), hits.end(), [](auto& h) { return h.hit(); });
           })

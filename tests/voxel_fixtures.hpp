@@ -11,14 +11,6 @@
 
 namespace kiln::test {
 
-inline VoxelGridFrame frame_of(const VoxelGrid& g) {
-  VoxelGridFrame frame;
-  for (int a = 0; a < 3; ++a) frame.origin[a] = g.origin[a];
-  frame.voxel_size = g.voxel_size;
-  frame.resolution = g.resolution;
-  return frame;
-}
-
 // The surface voxels (with normals) and their DAG.
 struct BuiltDag {
   Voxels voxels;
@@ -34,7 +26,7 @@ inline BuiltDag build_dag(const Scene& scene, std::uint32_t resolution) {
   BuiltDag b;
   b.voxels = voxelize_surface(scene, {resolution, true, 2});
   b.dag = build_voxel_dag(b.voxels.codes, resolution);
-  for (const auto& l : b.dag.level_stats) b.firsts.push_back(l.first_word);
+  b.firsts = level_first_words(b.dag);
   return b;
 }
 

@@ -75,6 +75,13 @@ std::optional<Blob> Blob::try_open_file(const std::string& path, std::string& er
   return std::nullopt;
 }
 
+const schema::Acceleration* Blob::acceleration(std::string_view name) const {
+  if (const auto* accels = manifest().accelerations())
+    for (const auto* accel : *accels)
+      if (accel->kind()->string_view() == name) return accel;
+  return nullptr;
+}
+
 void Blob::fail(const std::string& what) const {
   throw BlobError(name_ + ": " + what);
 }

@@ -58,16 +58,13 @@ BvhView::BvhView(std::span<const format::BvhNode> nodes,
 namespace kiln {
 
 BvhView BvhView::from_blob(const Blob& blob, const std::string& name) {
-  const auto* accels = blob.manifest().accelerations();
-  if (accels != nullptr)
-    for (const auto* accel : *accels)
-      if (accel->kind()->str() == name && accel->bvh() != nullptr) {
-        // open() checked kinds, sizes and counts of these sections.
-        const auto* d = accel->bvh();
-        return BvhView(blob.section_view<format::BvhNode>(d->nodes()),
-                       blob.section_view<format::BvhTriangle>(d->triangles()),
-                       blob.section_view<std::uint32_t>(d->prim_ids()), blob.name() + ": " + name);
-      }
+  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->bvh() != nullptr) {
+    // open() checked kinds, sizes and counts of these sections.
+    const auto* d = accel->bvh();
+    return BvhView(blob.section_view<format::BvhNode>(d->nodes()),
+                   blob.section_view<format::BvhTriangle>(d->triangles()),
+                   blob.section_view<std::uint32_t>(d->prim_ids()), blob.name() + ": " + name);
+  }
   throw BlobError(blob.name() + ": has no acceleration structure '" + name + "'");
 }
 

@@ -3,6 +3,7 @@
 #include <string>
 #include <vector>
 
+#include "grid_frame.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/esvo.hpp"
@@ -30,10 +31,8 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
       colors_(colors),
       frame_(frame) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
+  if (const std::string problem = grid_frame_problem(frame); !problem.empty()) fail(problem);
   const std::uint32_t n = frame.resolution;
-  if (!format::is_valid_dag_resolution(n))
-    fail("resolution " + std::to_string(n) + " is not a power of two in range");
-  if (!(frame.voxel_size > 0) || !std::isfinite(frame.voxel_size)) fail("bad voxel size");
   levels_ = std::uint32_t(std::bit_width(n) - 1);
   if (words.size() < 2) fail("has no root descriptor");
   if (!colors.empty() && colors.size() != normals.size())
@@ -108,22 +107,15 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
 }
 
 EsvoView EsvoView::from_blob(const Blob& blob, const std::string& name) {
-  if (const auto* accels = blob.manifest().accelerations())
-    for (const auto* accel : *accels)
-      if (accel->kind()->str() == name && accel->esvo() != nullptr) {
-        const auto* e = accel->esvo();
-        VoxelGridFrame frame;
-        frame.origin[0] = e->origin_x(), frame.origin[1] = e->origin_y();
-        frame.origin[2] = e->origin_z();
-        frame.voxel_size = e->voxel_size();
-        frame.resolution = e->resolution();
-        return EsvoView(blob.section_view<std::uint32_t>(e->words()),
-                        blob.section_view<std::uint32_t>(e->pages()),
-                        blob.section_view<format::EsvoBlockInfo>(e->blocks()),
-                        blob.section_view<std::uint32_t>(e->normals()),
-                        blob.section_view<std::uint32_t>(e->colors()), frame,
-                        blob.name() + ": " + name);
-      }
+  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->esvo() != nullptr) {
+    const auto* e = accel->esvo();
+    const VoxelGridFrame frame = grid_frame_of(*e);
+    return EsvoView(
+        blob.section_view<std::uint32_t>(e->words()), blob.section_view<std::uint32_t>(e->pages()),
+        blob.section_view<format::EsvoBlockInfo>(e->blocks()),
+        blob.section_view<std::uint32_t>(e->normals()),
+        blob.section_view<std::uint32_t>(e->colors()), frame, blob.name() + ": " + name);
+  }
   throw BlobError(blob.name() + ": has no ESVO '" + name + "' (build with --accel esvo)");
 }
 

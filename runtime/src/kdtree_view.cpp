@@ -28,19 +28,17 @@ KdTreeView::KdTreeView(std::span<const format::KdNode> nodes,
 }
 
 KdTreeView KdTreeView::from_blob(const Blob& blob, const std::string& name) {
-  if (const auto* accels = blob.manifest().accelerations())
-    for (const auto* accel : *accels)
-      if (accel->kind()->str() == name && accel->kdtree() != nullptr) {
-        // open() checked kinds, sizes and counts of these sections.
-        const auto* d = accel->kdtree();
-        const auto* b = d->bounds();
-        const float lo[3] = {b ? b->min().x() : 0, b ? b->min().y() : 0, b ? b->min().z() : 0};
-        const float hi[3] = {b ? b->max().x() : 0, b ? b->max().y() : 0, b ? b->max().z() : 0};
-        return KdTreeView(blob.section_view<format::KdNode>(d->nodes()),
-                          blob.section_view<std::uint32_t>(d->prim_ids()),
-                          blob.section_view<format::BvhTriangle>(d->triangles()), lo, hi,
-                          blob.name() + ": " + name);
-      }
+  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->kdtree() != nullptr) {
+    // open() checked kinds, sizes and counts of these sections.
+    const auto* d = accel->kdtree();
+    const auto* b = d->bounds();
+    const float lo[3] = {b ? b->min().x() : 0, b ? b->min().y() : 0, b ? b->min().z() : 0};
+    const float hi[3] = {b ? b->max().x() : 0, b ? b->max().y() : 0, b ? b->max().z() : 0};
+    return KdTreeView(blob.section_view<format::KdNode>(d->nodes()),
+                      blob.section_view<std::uint32_t>(d->prim_ids()),
+                      blob.section_view<format::BvhTriangle>(d->triangles()), lo, hi,
+                      blob.name() + ": " + name);
+  }
   throw BlobError(blob.name() + ": has no k-d tree '" + name + "'");
 }
 

@@ -3,6 +3,7 @@
 #include <string>
 #include <vector>
 
+#include "grid_frame.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
@@ -15,10 +16,8 @@ VoxelDagView::VoxelDagView(std::span<const std::uint32_t> words, const VoxelGrid
                            std::span<const std::uint32_t> normals, const std::string& name)
     : words_(words), frame_(frame), codes_(codes), normals_(normals) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
+  if (const std::string problem = grid_frame_problem(frame); !problem.empty()) fail(problem);
   const std::uint32_t n = frame.resolution;
-  if (!format::is_valid_dag_resolution(n))
-    fail("resolution " + std::to_string(n) + " is not a power of two in range");
-  if (!(frame.voxel_size > 0)) fail("voxel size is not positive");
   levels_ = std::uint32_t(std::bit_width(n) - 1);
   const std::uint32_t leaf_level = levels_ - 2;
   if (level_first_words.size() != leaf_level + 1)
@@ -63,23 +62,17 @@ VoxelDagView::VoxelDagView(std::span<const std::uint32_t> words, const VoxelGrid
 }
 
 VoxelDagView VoxelDagView::from_blob(const Blob& blob, const std::string& name) {
-  if (const auto* accels = blob.manifest().accelerations())
-    for (const auto* accel : *accels)
-      if (accel->kind()->str() == name && accel->dag() != nullptr) {
-        const auto* d = accel->dag();
-        VoxelGridFrame frame;
-        frame.origin[0] = d->origin_x(), frame.origin[1] = d->origin_y();
-        frame.origin[2] = d->origin_z();
-        frame.voxel_size = d->voxel_size();
-        frame.resolution = d->resolution();
-        std::vector<std::uint64_t> firsts;
-        if (d->level_stats())
-          for (const auto* level : *d->level_stats()) firsts.push_back(level->first_word());
-        return VoxelDagView(
-            blob.section_view<std::uint32_t>(d->words()), frame, firsts, d->leaf_first_word(),
-            blob.section_view<std::uint64_t>(d->voxel_codes()),
-            blob.section_view<std::uint32_t>(d->voxel_normals()), blob.name() + ": " + name);
-      }
+  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->dag() != nullptr) {
+    const auto* d = accel->dag();
+    const VoxelGridFrame frame = grid_frame_of(*d);
+    std::vector<std::uint64_t> firsts;
+    if (d->level_stats())
+      for (const auto* level : *d->level_stats()) firsts.push_back(level->first_word());
+    return VoxelDagView(blob.section_view<std::uint32_t>(d->words()), frame, firsts,
+                        d->leaf_first_word(), blob.section_view<std::uint64_t>(d->voxel_codes()),
+                        blob.section_view<std::uint32_t>(d->voxel_normals()),
+                        blob.name() + ": " + name);
+  }
   throw BlobError(blob.name() + ": has no voxel DAG '" + name + "' (build with --accel dag)");
 }
 

@@ -53,16 +53,16 @@ const schema::Acceleration& pick_structure(const Blob& blob, const QueryArgs& ar
     return points ? a.points() != nullptr : (a.bvh() != nullptr || a.kdtree() != nullptr);
   };
   if (!args.accel.empty()) {
-    const auto* named = first([&](const auto& a) { return a.kind()->str() == args.accel; });
+    const auto* named = blob.acceleration(args.accel);
     if (named == nullptr) throw BlobError(blob.name() + ": has no structure '" + args.accel + "'");
     if (!fits(*named))
       throw BlobError(blob.name() + ": --op " + args.op + " needs " + wanted + ", and '" +
                       args.accel + "' is not one");
     return *named;
   }
-  const auto* found = need == Need::kSurface
-                          ? first([](const auto& a) { return a.bvh() != nullptr; })
-                          : first(fits);
+  // A surface query prefers a BVH (the faster closest-point walk), else any structure that fits.
+  const auto* found =
+      need == Need::kSurface ? first([](const auto& a) { return a.bvh() != nullptr; }) : nullptr;
   if (found == nullptr) found = first(fits);
   if (found == nullptr) throw BlobError(blob.name() + ": holds no " + wanted);
   return *found;

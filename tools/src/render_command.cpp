@@ -36,12 +36,6 @@ std::vector<std::string> split_names(const std::string& list) {
   }
 }
 
-bool is_voxel_structure(const Blob& blob, const std::string& name) {
-  for (const auto* a : *blob.manifest().accelerations())
-    if (a->kind()->str() == name) return a->dag() != nullptr || a->esvo() != nullptr;
-  return false;
-}
-
 std::string fixed(double v, int digits) {
   char text[64];
   std::snprintf(text, sizeof(text), "%.*f", digits, v);
@@ -126,7 +120,8 @@ int run_render(const RenderArgs& args) {
     for (const auto& name : names) {
       Panel p{name, render::trace_view(blob, name, *camera, *size, args.threads), {}, false};
       p.summary = render::summarize(p.samples);
-      p.voxels = is_voxel_structure(blob, name);
+      const auto* structure = blob.acceleration(name);  // trace_view found it
+      p.voxels = structure->dag() != nullptr || structure->esvo() != nullptr;
       panels.push_back(std::move(p));
     }
     std::vector<const render::Samples*> all;

@@ -106,7 +106,8 @@ void draw_legend(Image& image, std::uint32_t heat_scale, bool clamped, std::stri
   const int anchors[3] = {bar_x, bar_x + bar_w / 2, bar_x + bar_w};
   for (int i = 0; i < 3; ++i) {
     const int w = text_width(labels[i], scale);
-    const int x = std::clamp(anchors[i] - w / 2, bar_x, bar_x + bar_w - w);
+    // Kept inside the bar; a label wider than the bar starts at its left end.
+    const int x = std::max(bar_x, std::min(anchors[i] - w / 2, bar_x + bar_w - w));
     fill(image, anchors[i] - scale / 2 - (i == 2 ? 1 : 0), bar_y + bar_h,
          anchors[i] + (scale + 1) / 2 - (i == 2 ? 1 : 0), bar_y + bar_h + kPad / 2, kText);
     draw_text(image, x, label_y, labels[i], kText, scale);

@@ -98,17 +98,10 @@ std::string default_structure(const Blob& blob) {
 
 Samples trace_view(const Blob& blob, const std::string& accel, const Camera& camera, Size size,
                    unsigned threads) {
-  Kind kind = Kind::kNone;
-  bool found = false;
-  if (const auto* accels = blob.manifest().accelerations())
-    for (const auto* a : *accels)
-      if (a->kind()->str() == accel) {
-        kind = kind_of(*a);
-        found = true;
-        break;
-      }
-  if (!found) throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
-  switch (kind) {
+  const auto* structure = blob.acceleration(accel);
+  if (structure == nullptr)
+    throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
+  switch (kind_of(*structure)) {
     case Kind::kBvh: {
       const BvhView view = BvhView::from_blob(blob, accel);
       return trace_rows(camera, size, threads, [&](const Ray& ray, Sample& s) {

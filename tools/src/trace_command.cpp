@@ -32,32 +32,27 @@ std::string default_accel(const Blob& blob) {
 // Traces with whichever structure `accel` names.
 void trace_with(const Blob& blob, const std::string& accel, std::span<const Ray> rays,
                 std::span<Hit> hits, bool any_hit, unsigned threads) {
-  if (const auto* accels = blob.manifest().accelerations())
-    for (const auto* a : *accels) {
-      if (a->kind()->str() != accel) continue;
-      if (a->kdtree() != nullptr)
-        return trace_rays(KdTreeView::from_blob(blob, accel), rays, hits, any_hit, threads);
-      if (a->bvh() != nullptr)
-        return trace_rays(BvhView::from_blob(blob, accel), rays, hits, any_hit, threads);
-      throw BlobError(blob.name() + ": '" + accel + "' does not trace rays");
-    }
-  throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
+  const auto* a = blob.acceleration(accel);
+  if (a == nullptr)
+    throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
+  if (a->kdtree() != nullptr)
+    return trace_rays(KdTreeView::from_blob(blob, accel), rays, hits, any_hit, threads);
+  if (a->bvh() != nullptr)
+    return trace_rays(BvhView::from_blob(blob, accel), rays, hits, any_hit, threads);
+  throw BlobError(blob.name() + ": '" + accel + "' does not trace rays");
 }
 
 // The DAG or the ESVO named `accel`, on the 40-byte voxel-hit record.
 void trace_voxels(const Blob& blob, const std::string& accel, std::span<const Ray> rays,
                   std::span<VoxelHit> hits, bool any_hit, unsigned threads) {
-  for (const auto* a : *blob.manifest().accelerations())
-    if (a->kind()->str() == accel && a->esvo() != nullptr)
-      return trace_rays(EsvoView::from_blob(blob, accel), rays, hits, any_hit, threads);
+  if (const auto* a = blob.acceleration(accel); a != nullptr && a->esvo() != nullptr)
+    return trace_rays(EsvoView::from_blob(blob, accel), rays, hits, any_hit, threads);
   trace_rays(VoxelDagView::from_blob(blob, accel), rays, hits, any_hit, threads);
 }
 
 bool is_voxel_structure(const Blob& blob, const std::string& accel) {
-  if (const auto* accels = blob.manifest().accelerations())
-    for (const auto* a : *accels)
-      if (a->kind()->str() == accel) return a->dag() != nullptr || a->esvo() != nullptr;
-  return false;
+  const auto* a = blob.acceleration(accel);
+  return a != nullptr && (a->dag() != nullptr || a->esvo() != nullptr);
 }
 
 // The first BVH in the blob, if any.

@@ -30,6 +30,13 @@ FlatVoxelDag build_voxel_dag(std::span<const std::uint64_t> codes, std::uint32_t
 // The same from 4x4x4 blocks (keys ascending, masks non-zero), as solid_leaves makes them.
 FlatVoxelDag build_voxel_dag(const VoxelLeaves& leaves, std::uint32_t resolution);
 
+// Each level's first word, as VoxelDagView takes them.
+inline std::vector<std::uint64_t> level_first_words(const FlatVoxelDag& dag) {
+  std::vector<std::uint64_t> firsts;
+  for (const auto& level : dag.level_stats) firsts.push_back(level.first_word);
+  return firsts;
+}
+
 // Every voxel of the DAG as sorted Morton codes (the inverse, for tests and tools).
 std::vector<std::uint64_t> expand_voxel_dag(std::span<const std::uint32_t> words,
                                             std::uint32_t levels);

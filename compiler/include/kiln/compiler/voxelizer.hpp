@@ -10,6 +10,7 @@
 
 #include "kiln/compiler/scene.hpp"
 #include "kiln/runtime/triangle_geometry.hpp"
+#include "kiln/runtime/voxel_dag.hpp"
 
 namespace kiln {
 
@@ -19,6 +20,15 @@ struct VoxelGrid {
   double voxel_size = 1;
   std::uint32_t resolution = 0;
 };
+
+// The grid as the runtime's voxel views take it.
+inline VoxelGridFrame frame_of(const VoxelGrid& g) {
+  VoxelGridFrame frame;
+  for (int a = 0; a < 3; ++a) frame.origin[a] = g.origin[a];
+  frame.voxel_size = g.voxel_size;
+  frame.resolution = g.resolution;
+  return frame;
+}
 
 // The cube of side = the bounds' largest extent, centred on the bounds (no padding: a triangle
 // on the bounds' faces sets the boundary voxels, whose closed boxes reach the faces). Rounding is

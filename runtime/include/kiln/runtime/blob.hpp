@@ -7,6 +7,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "kiln/formats/container.hpp"
@@ -38,6 +39,8 @@ class Blob {
   const format::FileHeader& header() const { return header_; }
   std::span<const format::SectionEntry> sections() const { return sections_; }
   const schema::Manifest& manifest() const { return *manifest_; }
+  // The acceleration structure named `name` (its kind string), or nullptr.
+  const schema::Acceleration* acceleration(std::string_view name) const;
   // The decoded bytes of a section (inflated when it was compressed).
   std::span<const std::byte> section_bytes(std::uint32_t index) const;
   std::span<const std::byte> file_bytes() const { return bytes_; }
