@@ -183,8 +183,7 @@ TEST(Render, BoxSilhouetteIsTheProjectedRectangle) {
           // edges exactly (the box's faces lie on the grid), so only its side is checked.
           const float t =
               4.0f /
-              std::fabs(
-                  render::primary_ray(*camera, size, std::uint32_t(x), std::uint32_t(y)).dir.z);
+              std::fabs(render::PixelRays(*camera, size)(std::uint32_t(x), std::uint32_t(y)).dir.z);
           if (triangles) {
             EXPECT_NEAR(s.normal.z, 1.0f, 1e-3f) << accel << " pixel " << x << "," << y;
             EXPECT_NEAR(s.t, t, 1e-4f * t) << accel << " pixel " << x << "," << y;
@@ -231,11 +230,11 @@ TEST(Render, VoxelCountingCastsAgreeWithPlainCasts) {
   const VoxelDagView dag = VoxelDagView::from_blob(blob, "dag");
   const EsvoView esvo = EsvoView::from_blob(blob, "esvo");
   const render::Size size{40, 30};
-  const render::Camera camera = render::default_camera(blob, size);
+  const render::PixelRays rays(render::default_camera(blob, size), size);
   int hits = 0;
   for (std::uint32_t y = 0; y < size.height; ++y)
     for (std::uint32_t x = 0; x < size.width; ++x) {
-      const Ray ray = render::primary_ray(camera, size, x, y);
+      const Ray ray = rays(x, y);
       VoxelDagView::Cost dc;
       const VoxelHit a = dag.intersect(ray), b = dag.intersect_counting(ray, dc);
       EXPECT_EQ(std::memcmp(&a, &b, sizeof a), 0);

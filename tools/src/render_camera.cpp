@@ -29,24 +29,6 @@ bool parse_side(std::string_view text, std::uint32_t& out) {
   return true;
 }
 
-// The camera's orthonormal basis: forward, right, up (+y is up unless the view is vertical).
-struct Basis {
-  Vec3d forward, right, up;
-  double tan_half = 1, aspect = 1;
-};
-
-Basis basis_of(const Camera& camera, Size size) {
-  Basis b;
-  b.forward = normalize(to_d(camera.target) - to_d(camera.eye));
-  Vec3d world_up{0, 1, 0};
-  if (std::fabs(b.forward.y) > 0.999) world_up = {0, 0, b.forward.y > 0 ? -1.0 : 1.0};
-  b.right = normalize(cross(b.forward, world_up));
-  b.up = cross(b.right, b.forward);
-  b.tan_half = std::tan(double(camera.fov_degrees) * std::numbers::pi / 360.0);
-  b.aspect = double(size.width) / double(size.height);
-  return b;
-}
-
 }  // namespace
 
 std::optional<Camera> parse_camera(std::string_view text, std::string& error) {
@@ -126,7 +108,7 @@ Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size siz
   camera.target = {float(centre.x), float(centre.y), float(centre.z)};
   const Vec3d probe = centre + direction * radius;
   camera.eye = {float(probe.x), float(probe.y), float(probe.z)};
-  const Basis b = basis_of(camera, size);
+  const PixelRays::Basis b = PixelRays(camera, size).basis();
   // Back off until all eight corners of the box project inside the frame (with a 5 % margin):
   // tighter than fitting the bounding sphere, which leaves long boxes small in the frame.
   const double tan_v = b.tan_half * 0.95, tan_h = b.tan_half * b.aspect * 0.95;
@@ -151,13 +133,24 @@ Camera default_camera(const Blob& blob, Size size) {
                       {bounds->max().x(), bounds->max().y(), bounds->max().z()}, size);
 }
 
-Ray primary_ray(const Camera& camera, Size size, std::uint32_t x, std::uint32_t y) {
-  const Basis b = basis_of(camera, size);
-  const double px = (2.0 * (double(x) + 0.5) / double(size.width) - 1.0) * b.tan_half * b.aspect;
-  const double py = (1.0 - 2.0 * (double(y) + 0.5) / double(size.height)) * b.tan_half;
+PixelRays::PixelRays(const Camera& camera, Size size) : eye_(camera.eye), size_(size) {
+  Basis& b = basis_;
+  b.forward = normalize(to_d(camera.target) - to_d(camera.eye));
+  Vec3d world_up{0, 1, 0};
+  if (std::fabs(b.forward.y) > 0.999) world_up = {0, 0, b.forward.y > 0 ? -1.0 : 1.0};
+  b.right = normalize(cross(b.forward, world_up));
+  b.up = cross(b.right, b.forward);
+  b.tan_half = std::tan(double(camera.fov_degrees) * std::numbers::pi / 360.0);
+  b.aspect = double(size.width) / double(size.height);
+}
+
+Ray PixelRays::operator()(std::uint32_t x, std::uint32_t y) const {
+  const Basis& b = basis_;
+  const double px = (2.0 * (double(x) + 0.5) / double(size_.width) - 1.0) * b.tan_half * b.aspect;
+  const double py = (1.0 - 2.0 * (double(y) + 0.5) / double(size_.height)) * b.tan_half;
   const Vec3d d = normalize(b.forward + b.right * px + b.up * py);
   Ray ray;
-  ray.org = camera.eye;
+  ray.org = eye_;
   ray.tmin = 0;
   ray.dir = {float(d.x), float(d.y), float(d.z)};
   ray.tmax = std::numeric_limits<float>::infinity();

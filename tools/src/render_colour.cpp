@@ -46,9 +46,9 @@ format::Float3 normalize(format::Float3 v) {
 
 // The key light, in world space: above, left of and behind the camera (a fixed direction
 // relative to the view, so every camera gets the same look).
-format::Float3 key_light(const Camera& camera, Size size) {
-  const Ray centre = primary_ray(camera, size, size.width / 2, size.height / 2);
-  const Ray top = primary_ray(camera, size, size.width / 2, 0);
+format::Float3 key_light(const PixelRays& rays, Size size) {
+  const Ray centre = rays(size.width / 2, size.height / 2);
+  const Ray top = rays(size.width / 2, 0);
   const format::Float3 f = centre.dir;
   // Up on screen: the part of the top-row ray across the view direction.
   const float along = dot(top.dir, f);
@@ -115,7 +115,8 @@ Image colour(const Samples& samples, Mode mode, std::uint32_t heat_scale, DepthR
              const Camera& camera) {
   const Size size = samples.size;
   Image image(size.width, size.height, mode == Mode::kDepth ? Rgb{} : kBackground);
-  const format::Float3 key = key_light(camera, size);
+  const PixelRays rays(camera, size);
+  const format::Float3 key = key_light(rays, size);
   const float span = depth.far > depth.near ? depth.far - depth.near : 1.0f;
   for (std::uint32_t y = 0; y < size.height; ++y)
     for (std::uint32_t x = 0; x < size.width; ++x) {
@@ -130,7 +131,7 @@ Image colour(const Samples& samples, Mode mode, std::uint32_t heat_scale, DepthR
       switch (mode) {
         case Mode::kShade: {
           // A headlight (no surface the camera sees is black) plus the key light for shape.
-          const format::Float3 d = primary_ray(camera, size, x, y).dir;
+          const format::Float3 d = rays(x, y).dir;
           const float head = std::max(0.0f, -dot(n, d));
           const float lit = 0.08f + 0.55f * head + 0.5f * std::max(0.0f, dot(n, key));
           out = {encode(lit * 0.92f), encode(lit * 0.88f), encode(lit * 0.80f)};

@@ -58,9 +58,10 @@ Samples trace_rows(const Camera& camera, Size size, unsigned threads, const Cast
   Samples samples;
   samples.size = size;
   samples.pixels.resize(std::size_t(size.width) * size.height);
+  const PixelRays rays(camera, size);
   parallel_for(size.height, threads, [&](std::size_t y) {
     for (std::uint32_t x = 0; x < size.width; ++x) {
-      const Ray ray = primary_ray(camera, size, x, std::uint32_t(y));
+      const Ray ray = rays(x, std::uint32_t(y));
       Sample& s = samples.pixels[y * size.width + x];
       cast(ray, s);
       if (s.hit) s.normal = facing(s.normal, ray.dir);

@@ -14,6 +14,7 @@
 
 #include "kiln/formats/geometry.hpp"
 #include "kiln/runtime/ray.hpp"
+#include "kiln/runtime/triangle_geometry.hpp"
 
 namespace kiln {
 class Blob;
@@ -47,8 +48,26 @@ Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size siz
 // frame_bounds on the blob's scene bounds (the manifest's, over every kept vertex).
 Camera default_camera(const Blob& blob, Size size);
 
-// The primary ray through the centre of pixel (x, y); y = 0 is the top row.
-Ray primary_ray(const Camera& camera, Size size, std::uint32_t x, std::uint32_t y);
+// Primary rays through pixel centres (y = 0 is the top row). The camera's basis is worked out
+// once, on construction, not per pixel. Camera maths runs in double and rounds once to float.
+class PixelRays {
+ public:
+  // The view's unit axes in world space (+y is up unless the view is vertical), the tangent of
+  // half the vertical field of view and the image's width / height.
+  struct Basis {
+    Vec3d forward, right, up;
+    double tan_half = 1, aspect = 1;
+  };
+
+  PixelRays(const Camera& camera, Size size);
+  Ray operator()(std::uint32_t x, std::uint32_t y) const;
+  const Basis& basis() const { return basis_; }
+
+ private:
+  format::Float3 eye_;
+  Size size_;
+  Basis basis_;
+};
 
 // What one primary ray found.
 struct Sample {
