@@ -1,12 +1,12 @@
 // `kiln build --cache-dir`: a hit gives the very bytes a fresh build gives, and anything that
 // could change those bytes (an option, a companion file, a damaged entry) is a miss.
 #include <filesystem>
-#include <fstream>
 #include <regex>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "import_fixtures.hpp"
 #include "kiln/compiler/build_cache.hpp"
 #include "test_support.hpp"
 
@@ -19,27 +19,12 @@ using test::quoted;
 using test::read_text;
 using test::write_text;
 
-// One triangle coloured by `mesh.mtl`, and a second file naming it as a glTF buffer does.
+// A cache folder beside one triangle coloured by `mesh.mtl` and a glTF reading `tri.bin`.
 struct Fixture {
   test::TempDir dir;
   std::string cache() const { return dir.file("cache"); }
-  void write_obj(const char* kd) const {
-    write_text(dir.path() / "mesh.obj",
-               "mtllib mesh.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n");
-    write_text(dir.path() / "mesh.mtl", std::string("newmtl red\nKd ") + kd + "\n");
-  }
-  void write_gltf(float x) const {
-    const float positions[9] = {0, 0, 0, x, 0, 0, 0, 1, 0};
-    std::ofstream(dir.path() / "tri.bin", std::ios::binary)
-        .write(reinterpret_cast<const char*>(positions), sizeof positions);
-    write_text(dir.path() / "tri.gltf", R"({
-  "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
-  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
-  "bufferViews": [{"buffer": 0, "byteLength": 36}],
-  "buffers": [{"uri": "tri.bin", "byteLength": 36}]
-})");
-  }
+  void write_obj(const char* kd) const { test::write_obj_with_mtl(dir.path(), "mesh.mtl", kd); }
+  void write_gltf(float x) const { test::write_gltf_with_bin(dir.path(), "tri.bin", x); }
   // `kiln build INPUT -o OUT ARGS`, through the cache unless `cached` is false.
   test::CommandResult build(const std::string& input, const std::string& out,
                             const std::string& args = "--accel bvh", bool cached = true) const {
@@ -95,8 +80,7 @@ TEST(BuildCache, DepfileOnAHitListsWhatTheImportRead) {
   ASSERT_TRUE(is_hit(hit)) << hit.err;
   // The same target (-o as given), the same files.
   EXPECT_TRUE(f.bytes("a.d") == f.bytes("b.d"));
-  const auto text = f.bytes("b.d");
-  const std::string depfile(reinterpret_cast<const char*>(text.data()), text.size());
+  const std::string depfile = read_text(f.dir.file("b.d"));
   EXPECT_NE(depfile.find("mesh.mtl"), std::string::npos) << depfile;
 }
 
@@ -153,13 +137,13 @@ TEST(BuildCache, MtlAppearingLaterIsAMiss) {
 TEST(BuildCache, ChangedBinIsAMiss) {
   Fixture f;
   f.write_gltf(1.0f);
-  ASSERT_EQ(f.build("tri.gltf", "a.kiln").exit_code, 0);
-  EXPECT_TRUE(is_hit(f.build("tri.gltf", "b.kiln")));
+  ASSERT_EQ(f.build("mesh.gltf", "a.kiln").exit_code, 0);
+  EXPECT_TRUE(is_hit(f.build("mesh.gltf", "b.kiln")));
   f.write_gltf(2.0f);
-  const auto changed = f.build("tri.gltf", "c.kiln");
+  const auto changed = f.build("mesh.gltf", "c.kiln");
   ASSERT_EQ(changed.exit_code, 0) << changed.err;
   EXPECT_FALSE(is_hit(changed)) << changed.err;
-  ASSERT_EQ(f.build("tri.gltf", "d.kiln", "--accel bvh", false).exit_code, 0);
+  ASSERT_EQ(f.build("mesh.gltf", "d.kiln", "--accel bvh", false).exit_code, 0);
   EXPECT_TRUE(f.bytes("c.kiln") == f.bytes("d.kiln"));
   EXPECT_TRUE(f.bytes("a.kiln") != f.bytes("c.kiln"));
 }
@@ -200,9 +184,8 @@ TEST(BuildCache, DamagedManifestIsAMiss) {
   for (const auto& entry : fs::recursive_directory_iterator(fs::path(f.cache()) / "manifests"))
     if (entry.is_regular_file()) manifests.push_back(entry);
   ASSERT_EQ(manifests.size(), 1u);
-  auto text = test::read_file(manifests[0].string());
   // Drop the line naming the .mtl: the checksum must make the whole manifest untrusted.
-  std::string s(reinterpret_cast<const char*>(text.data()), text.size());
+  std::string s = read_text(manifests[0].string());
   const auto mtl = s.find("read ");
   ASSERT_NE(mtl, std::string::npos);
   s.erase(mtl, s.find('\n', mtl) + 1 - mtl);
@@ -263,7 +246,7 @@ TEST(BuildCache, FailedBuildStoresNothingAndWritesNothing) {
   f.write_gltf(1.0f);
   fs::remove(f.dir.path() / "tri.bin");
   const auto result =
-      f.build("tri.gltf", "a.kiln", "--accel bvh --depfile " + quoted(f.dir.file("a.d")));
+      f.build("mesh.gltf", "a.kiln", "--accel bvh --depfile " + quoted(f.dir.file("a.d")));
   EXPECT_EQ(result.exit_code, 1) << result.err;
   EXPECT_FALSE(fs::exists(f.dir.file("a.kiln")));
   EXPECT_FALSE(fs::exists(f.dir.file("a.d")));

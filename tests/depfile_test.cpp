@@ -1,9 +1,9 @@
 // `kiln build --depfile`: every file the import read, in the syntax Make, Ninja and CMake read.
 #include <filesystem>
-#include <fstream>
 #include <string>
 #include <vector>
 
+#include "import_fixtures.hpp"
 #include "kiln/compiler/depfile.hpp"
 #include "kiln/compiler/import.hpp"
 #include "test_support.hpp"
@@ -15,6 +15,8 @@ namespace fs = std::filesystem;
 
 using test::quoted;
 using test::read_text;
+using test::write_gltf_with_bin;
+using test::write_obj_with_mtl;
 using test::write_text;
 
 // The target and dependencies of a depfile as format_depfile lays it out, unescaped the way
@@ -77,35 +79,6 @@ class CurrentDirectory {
  private:
   fs::path previous_;
 };
-
-// One red triangle in an OBJ whose colour lives in `mtl_name`.
-void write_obj_with_mtl(const fs::path& dir, const std::string& mtl_name, const char* kd) {
-  write_text(dir / "mesh.obj",
-             "mtllib " + mtl_name + "\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n");
-  write_text(dir / mtl_name, std::string("newmtl red\nKd ") + kd + "\n");
-}
-
-// A one-triangle glTF whose positions live in the external buffer `bin_name` (36 bytes), and
-// which names an external image (that a geometry importer has no reason to open).
-void write_gltf_with_bin(const fs::path& dir, const std::string& bin_name, float x) {
-  const float positions[9] = {0, 0, 0, x, 0, 0, 0, 1, 0};
-  std::ofstream(dir / bin_name, std::ios::binary)
-      .write(reinterpret_cast<const char*>(positions), sizeof positions);
-  write_text(dir / "texture.png", "not really a PNG");
-  write_text(dir / "mesh.gltf", R"({
-  "asset": {"version": "2.0"},
-  "scene": 0,
-  "scenes": [{"nodes": [0]}],
-  "nodes": [{"mesh": 0}],
-  "meshes": [{"name": "tri", "primitives": [{"attributes": {"POSITION": 0}}]}],
-  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                 "min": [0, 0, 0], "max": [1, 1, 0]}],
-  "bufferViews": [{"buffer": 0, "byteLength": 36}],
-  "buffers": [{"uri": ")" + bin_name +
-                                    R"(", "byteLength": 36}],
-  "images": [{"uri": "texture.png"}]
-})");
-}
 
 TEST(Depfile, EscapesWhatMakeAndNinjaWouldSplitOrExpand) {
   EXPECT_EQ(escape_depfile_path("/a b/c#d$e:f"), "/a\\ b/c\\#d$$e:f");
