@@ -249,7 +249,9 @@ TEST(Esvo, OccupancyWithoutContoursIsTheVoxelSet) {
         const Float3 centre{float(g.origin[0] + (x + 0.5) * g.voxel_size),
                             float(g.origin[1] + (y + 0.5) * g.voxel_size),
                             float(g.origin[2] + (z + 0.5) * g.voxel_size)};
-        ASSERT_EQ(view.occupied(centre), dag.view().occupied(x, y, z)) << x << " " << y << " " << z;
+        const bool set = dag.view().occupied(x, y, z);
+        ASSERT_EQ(view.occupied(centre), set) << x << " " << y << " " << z;
+        ASSERT_EQ(dag.view().occupied(centre), set) << x << " " << y << " " << z;  // same grid
       }
 }
 

@@ -140,28 +140,13 @@ std::vector<std::byte> voxel_queries(const Blob& blob, const schema::Acceleratio
                                      const QueryArgs& args, const float* floats,
                                      std::size_t count) {
   const std::string accel = structure.kind()->str();
-  if (structure.esvo() != nullptr) {
-    const EsvoView esvo = EsvoView::from_blob(blob, accel);
+  auto answer = [&](const auto& view) {
     return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-      append_pod(bytes, std::uint8_t(esvo.occupied(point_at(floats, i, 3, 0)) ? 1 : 0));
+      append_pod(bytes, std::uint8_t(view.occupied(point_at(floats, i, 3, 0)) ? 1 : 0));
     });
-  }
-  const VoxelDagView dag = VoxelDagView::from_blob(blob, accel);
-  const VoxelGridFrame& f = dag.frame();
-  return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-    const format::Float3 p = point_at(floats, i, 3, 0);
-    const double g[3] = {(double(p.x) - f.origin[0]) / f.voxel_size,
-                         (double(p.y) - f.origin[1]) / f.voxel_size,
-                         (double(p.z) - f.origin[2]) / f.voxel_size};
-    bool set = true;
-    std::uint32_t cell[3];
-    for (int a = 0; a < 3; ++a) {
-      set = set && g[a] >= 0 && g[a] < double(f.resolution);
-      cell[a] = set ? std::uint32_t(g[a]) : 0;
-    }
-    set = set && dag.occupied(cell[0], cell[1], cell[2]);
-    append_pod(bytes, std::uint8_t(set ? 1 : 0));
-  });
+  };
+  if (structure.esvo() != nullptr) return answer(EsvoView::from_blob(blob, accel));
+  return answer(VoxelDagView::from_blob(blob, accel));
 }
 
 }  // namespace

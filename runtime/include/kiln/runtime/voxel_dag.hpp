@@ -59,6 +59,8 @@ class VoxelDagView {
   };
   VoxelHit intersect_counting(const Ray& ray, Cost& cost) const;
   bool occupied(std::uint32_t x, std::uint32_t y, std::uint32_t z) const;
+  // Whether the world-space point lies in a set voxel (voxels are half-open boxes).
+  bool occupied(const format::Float3& point) const;
   // The attached normal of a set voxel; false when the blob has no normals or the voxel is empty.
   bool attached_normal(std::uint32_t x, std::uint32_t y, std::uint32_t z, float n[3]) const;
 
