@@ -35,9 +35,8 @@ format::Float3 facing(format::Float3 n, const format::Float3& dir) {
 
 // The geometric normal of stored triangle `prim`. Indices are checked here: a blob that was
 // opened but never verified may hold any value.
-format::Float3 triangle_normal(const Blob& blob, std::uint32_t prim) {
-  const auto triangles = blob.triangles();
-  const auto positions = blob.positions();
+format::Float3 triangle_normal(std::span<const format::Triangle> triangles,
+                               std::span<const format::Float3> positions, std::uint32_t prim) {
   if (prim >= triangles.size()) return {0, 0, 0};
   const auto& tri = triangles[prim];
   for (const auto v : tri.v)
@@ -79,6 +78,40 @@ format::Float3 voxel_normal(const VoxelHit& h) {
   return {h.face_normal[0], h.face_normal[1], h.face_normal[2]};
 }
 
+// A triangle structure (BVH, SBVH, k-d tree): the hit triangle's geometric normal.
+template <class View>
+Samples trace_triangles(const Blob& blob, const View& view, const Camera& camera, Size size,
+                        unsigned threads) {
+  const auto triangles = blob.triangles();
+  const auto positions = blob.positions();
+  return trace_rows(camera, size, threads, [&](const Ray& ray, Sample& s) {
+    typename View::Cost cost;
+    const Hit h = view.intersect_counting(ray, cost);
+    s.nodes = cost.nodes, s.tests = cost.triangles;
+    if ((s.hit = h.prim != kNoHit))
+      s.t = h.t, s.normal = triangle_normal(triangles, positions, h.prim);
+  });
+}
+
+const VoxelHit& voxel_hit_of(const VoxelHit& hit) {
+  return hit;
+}
+const VoxelHit& voxel_hit_of(const EsvoHit& hit) {
+  return hit.hit;
+}
+
+// A voxel structure (DAG, ESVO): voxel tests count as the primitive tests.
+template <class View>
+Samples trace_voxels(const View& view, const Camera& camera, Size size, unsigned threads) {
+  return trace_rows(camera, size, threads, [&](const Ray& ray, Sample& s) {
+    typename View::Cost cost;
+    const auto result = view.intersect_counting(ray, cost);
+    const VoxelHit& h = voxel_hit_of(result);
+    s.nodes = cost.nodes, s.tests = cost.voxels;
+    if ((s.hit = h.hit())) s.t = h.t, s.normal = voxel_normal(h);
+  });
+}
+
 }  // namespace
 
 std::vector<std::string> ray_structures(const Blob& blob) {
@@ -103,42 +136,14 @@ Samples trace_view(const Blob& blob, const std::string& accel, const Camera& cam
   if (structure == nullptr)
     throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
   switch (kind_of(*structure)) {
-    case Kind::kBvh: {
-      const BvhView view = BvhView::from_blob(blob, accel);
-      return trace_rows(camera, size, threads, [&](const Ray& ray, Sample& s) {
-        BvhView::Cost cost;
-        const Hit h = view.intersect_counting(ray, cost);
-        s.nodes = cost.nodes, s.tests = cost.triangles;
-        if ((s.hit = h.prim != kNoHit)) s.t = h.t, s.normal = triangle_normal(blob, h.prim);
-      });
-    }
-    case Kind::kKdTree: {
-      const KdTreeView view = KdTreeView::from_blob(blob, accel);
-      return trace_rows(camera, size, threads, [&](const Ray& ray, Sample& s) {
-        KdTreeView::Cost cost;
-        const Hit h = view.intersect_counting(ray, cost);
-        s.nodes = cost.nodes, s.tests = cost.triangles;
-        if ((s.hit = h.prim != kNoHit)) s.t = h.t, s.normal = triangle_normal(blob, h.prim);
-      });
-    }
-    case Kind::kDag: {
-      const VoxelDagView view = VoxelDagView::from_blob(blob, accel);
-      return trace_rows(camera, size, threads, [&](const Ray& ray, Sample& s) {
-        VoxelDagView::Cost cost;
-        const VoxelHit h = view.intersect_counting(ray, cost);
-        s.nodes = cost.nodes, s.tests = cost.voxels;
-        if ((s.hit = h.hit())) s.t = h.t, s.normal = voxel_normal(h);
-      });
-    }
-    case Kind::kEsvo: {
-      const EsvoView view = EsvoView::from_blob(blob, accel);
-      return trace_rows(camera, size, threads, [&](const Ray& ray, Sample& s) {
-        EsvoView::Cost cost;
-        const EsvoHit h = view.intersect_counting(ray, cost);
-        s.nodes = cost.nodes, s.tests = cost.voxels;
-        if ((s.hit = h.hit.hit())) s.t = h.hit.t, s.normal = voxel_normal(h.hit);
-      });
-    }
+    case Kind::kBvh:
+      return trace_triangles(blob, BvhView::from_blob(blob, accel), camera, size, threads);
+    case Kind::kKdTree:
+      return trace_triangles(blob, KdTreeView::from_blob(blob, accel), camera, size, threads);
+    case Kind::kDag:
+      return trace_voxels(VoxelDagView::from_blob(blob, accel), camera, size, threads);
+    case Kind::kEsvo:
+      return trace_voxels(EsvoView::from_blob(blob, accel), camera, size, threads);
     case Kind::kNone:
       break;
   }
