@@ -33,8 +33,7 @@ void fill(Image& image, int x0, int y0, int x1, int y1, Rgb colour) {
 constexpr Rgb kText{240, 240, 240};
 constexpr int kPad = 4;
 
-}  // namespace
-
+// Text with stb_easy_font, each font pixel drawn as a `scale` x `scale` block; clipped.
 int text_width(std::string_view text, int scale) {
   std::string s = printable(text);
   return stb_easy_font_width(s.data()) * scale;
@@ -65,9 +64,13 @@ void draw_text(Image& image, int x, int y, std::string_view text, Rgb colour, in
   }
 }
 
+// Fills the rectangle (clipped) with the dark backing of captions and the legend, so overlaid
+// text stays readable on any picture (opaque: one colour, which keeps heatmaps palettable).
 void backing(Image& image, int x, int y, int w, int h) {
   fill(image, x, y, x + w, y + h, Rgb{12, 13, 18});
 }
+
+}  // namespace
 
 void draw_caption(Image& image, int x0, std::string_view text) {
   const int scale = image.height >= 300 ? 2 : 1;

@@ -43,7 +43,7 @@ struct Size {
 std::optional<Size> parse_size(std::string_view text, std::string& error);
 
 // A camera looking at the centre of the box [lo, hi] from a fixed direction (front, right and
-// above, +y up), far enough back for the box's bounding sphere to fit the frame.
+// above, +y up), far enough back for the box's eight corners to fit the frame (5 % margin).
 Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size size);
 // frame_bounds on the blob's scene bounds (the manifest's, over every kept vertex).
 Camera default_camera(const Blob& blob, Size size);
@@ -149,13 +149,6 @@ Rgb heat_colour(std::uint32_t cost, std::uint32_t scale);
 Image colour(const Samples& samples, Mode mode, std::uint32_t heat_scale, DepthRange depth,
              const Camera& camera);
 
-// Text with stb_easy_font, each font pixel drawn as a `scale` x `scale` block; clipped.
-void draw_text(Image& image, int x, int y, std::string_view text, Rgb colour, int scale);
-int text_width(std::string_view text, int scale);
-int text_height(std::string_view text, int scale);
-// Fills the rectangle (clipped) with the dark backing of captions and the legend, so overlaid
-// text stays readable on any picture (opaque: one colour, which keeps heatmaps palettable).
-void backing(Image& image, int x, int y, int w, int h);
 // A caption in the top-left corner of the image region starting at column x0.
 void draw_caption(Image& image, int x0, std::string_view text);
 // The heatmap legend: `title` over a bar of the heatmap's colours with "0", the middle and the
