@@ -32,7 +32,6 @@
 
 namespace {
 
-
 struct Settings {
   std::vector<std::uint32_t> resolutions{1024, 2048};
   std::size_t rays = 200000;

@@ -26,7 +26,6 @@
 
 namespace {
 
-
 struct Settings {
   std::vector<std::uint32_t> resolutions{1024, 2048, 4096};
   std::size_t rays = 200000;
