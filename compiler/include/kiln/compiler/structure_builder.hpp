@@ -1,0 +1,91 @@
+// The compiler's registry of structure kinds: each kind's options (with defaults, validation
+// and the global flag that may set them), what it consumes, and its builder. `kiln build` and
+// the build cache loop over it; they never name a structure. docs/ARCHITECTURE.md says how to
+// add a kind.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "kiln/compiler/blob_writer.hpp"
+#include "kiln/compiler/scene.hpp"
+#include "kiln/runtime/input_kind.hpp"
+
+namespace flatbuffers {
+class FlatBufferBuilder;  // declared only: the schema stays private to the compiler
+}
+
+namespace kiln {
+
+/// One option of a structure kind, set per structure as `--accel KIND:key=value,...` or for
+/// every structure of the kind by its global flag (`--bvh-bins 16`).
+struct StructureOption {
+  std::string key;            ///< "bins"
+  std::string flag;           ///< "--bvh-bins", or empty; flags may be shared between kinds
+  std::string default_value;  ///< canonical text; "false" for a switch
+  std::string help;
+  bool is_switch = false;  ///< boolean: the global flag takes no value
+  /// Checks a value and returns its canonical text; throws std::invalid_argument with a
+  /// one-line reason (the caller adds which option).
+  std::function<std::string(std::string_view)> parse;
+  bool enters_output = true;  ///< false: never changes the blob (not in the cache key)
+};
+
+/// A structure to build, resolved: every option of its kind present, canonical.
+struct StructureRequest {
+  std::string name;  ///< unique in the blob; the kind's name by default
+  std::string kind;
+  std::map<std::string, std::string> options;
+
+  std::uint32_t uint_option(const std::string& key) const;
+  float float_option(const std::string& key) const;
+  double double_option(const std::string& key) const;
+  bool switch_option(const std::string& key) const;
+  const std::string& text_option(const std::string& key) const;
+};
+
+/// What one structure contributes to a blob: its sections (borrowing from `storage`), its
+/// StructureDesc member for the manifest, and a line for `kiln build --stats`.
+struct BuiltStructure {
+  std::vector<SectionPayload> sections;
+  std::shared_ptr<const void> storage;
+  /// Writes the kind's description table given the blob's indices of `sections` (same order);
+  /// returns the StructureDesc union type and the table's offset.
+  std::function<std::pair<std::uint8_t, std::uint32_t>(flatbuffers::FlatBufferBuilder&,
+                                                       std::span<const std::uint32_t>)>
+      describe;
+  std::string summary;  ///< statistics, one line, no timing
+};
+
+struct StructureBuilder {
+  std::string kind;
+  std::string help;  ///< one line for `kiln build --help`
+  InputKind consumes;
+  std::vector<StructureOption> options;
+  BuiltStructure (*build)(const Scene& scene, const StructureRequest& request, unsigned threads);
+};
+
+/// Every registered kind, in registration order (the first triangle kind is the default ray
+/// structure of tools that need one).
+std::span<const StructureBuilder* const> structure_builders();
+const StructureBuilder* find_structure_builder(std::string_view kind);
+
+/// Resolves "KIND[:key=value,...]" (key `name` names the structure): each option from the spec,
+/// else from `flags` (global flag -> value, as given on the command line), else its default.
+/// Throws std::invalid_argument with one line for an unknown kind or key or a bad value.
+StructureRequest resolve_structure_request(std::string_view spec,
+                                           const std::map<std::string, std::string>& flags);
+
+/// Option parsers for StructureOption::parse.
+std::function<std::string(std::string_view)> parse_uint_in(std::uint64_t lo, std::uint64_t hi);
+std::function<std::string(std::string_view)> parse_float_in(double lo, double hi);
+std::function<std::string(std::string_view)> parse_one_of(std::vector<std::string> choices);
+std::function<std::string(std::string_view)> parse_switch();
+
+}  // namespace kiln

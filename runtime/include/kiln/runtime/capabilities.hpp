@@ -1,0 +1,82 @@
+// What an opened structure can answer, one small interface per capability. Tools ask a
+// StructureView for a capability and get nullptr when the structure lacks it; they never name
+// a structure. The concrete views (BvhView, ...) offer the same operations without virtual
+// calls, for code that knows what it holds.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "kiln/formats/geometry.hpp"
+#include "kiln/runtime/query_results.hpp"
+#include "kiln/runtime/ray.hpp"
+
+namespace kiln {
+
+/// A hit seen as a surface to draw: the hit (t, prim) and the normal to shade with (a
+/// triangle's geometric normal; a voxel's attached normal, else the entered face or contour
+/// plane), not normalised and possibly zero.
+struct SurfaceHit {
+  Hit hit;
+  format::Float3 normal{0, 0, 0};
+};
+
+/// Ray casting: closest hit, first hit found, counted casts.
+class RayQueries {
+ public:
+  virtual ~RayQueries() = default;
+  /// Bytes of one record in a HITS file: sizeof(Hit) or sizeof(VoxelHitRecord).
+  virtual std::size_t record_size() const = 0;
+  /// One record per ray into `records` (rays.size() * record_size() bytes), closest hits or,
+  /// with `any_hit`, the first hit found; on up to `threads` threads (0 = all cores).
+  virtual void trace_records(std::span<const Ray> rays, std::span<std::byte> records,
+                             bool any_hit, unsigned threads) const = 0;
+  /// The closest hit of one ray (its Hit part for voxel structures).
+  virtual Hit closest(const Ray& ray) const = 0;
+  /// The closest hit of one ray as a surface, counting the work into `cost`.
+  virtual SurfaceHit intersect_counting(const Ray& ray, Cost& cost) const = 0;
+};
+
+/// Proximity on a triangle surface: closest point, inside/outside (by ray parity; meaningful
+/// for closed meshes), every triangle overlapping a box (sorted, unique ids).
+class SurfaceQueries {
+ public:
+  virtual ~SurfaceQueries() = default;
+  virtual ClosestPoint closest_point(const format::Float3& p, float max_distance) const = 0;
+  virtual bool inside(const format::Float3& p) const = 0;
+  virtual void triangles_in_box(const format::Float3& lo, const format::Float3& hi,
+                                std::vector<std::uint32_t>& out) const = 0;
+};
+
+/// Nearest neighbours among 3D points, sorted by (distance, id) as a brute-force scan sorts.
+class NeighborQueries {
+ public:
+  virtual ~NeighborQueries() = default;
+  /// The min(k, point count) nearest points, k = out.size(); returns how many were written.
+  virtual std::size_t nearest(const format::Float3& query, std::span<Neighbor> out) const = 0;
+  /// Every point with squared distance <= radius^2, into `out` (cleared first).
+  virtual void within_radius(const format::Float3& query, float radius,
+                             std::vector<Neighbor>& out) const = 0;
+};
+
+/// Occupancy of space: whether a world-space point lies in the structure's solid.
+class OccupancyQueries {
+ public:
+  virtual ~OccupancyQueries() = default;
+  virtual bool occupied(const format::Float3& point) const = 0;
+};
+
+/// An opened, validated structure: the capabilities it has (nullptr for those it lacks).
+/// Borrows the Blob it was opened from, which must outlive it.
+class StructureView {
+ public:
+  virtual ~StructureView() = default;
+  virtual const RayQueries* rays() const { return nullptr; }
+  virtual const SurfaceQueries* surface() const { return nullptr; }
+  virtual const NeighborQueries* neighbors() const { return nullptr; }
+  virtual const OccupancyQueries* occupancy() const { return nullptr; }
+};
+
+}  // namespace kiln
