@@ -53,7 +53,7 @@ FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuild
   s.duplication_factor = double(s.reference_count) / triangles;
   s.sah_cost = bvh_sah_cost(root, options);
   s.bytes_per_triangle = double(out.nodes.size() * sizeof(format::BvhNode) +
-                                out.triangles.size() * sizeof(format::BvhTriangle) +
+                                out.triangles.size() * sizeof(format::RayTriangle) +
                                 out.prim_ids.size() * sizeof(std::uint32_t)) /
                          triangles;
   return out;

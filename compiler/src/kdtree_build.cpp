@@ -312,7 +312,7 @@ FlatKdTree build_kdtree(const Scene& scene, const KdTreeBuildOptions& options) {
   s.references_per_triangle = double(s.reference_count) / double(scene.triangles.size());
   s.bytes_per_triangle = double(tree.nodes.size() * sizeof(format::KdNode) +
                                 tree.prim_ids.size() * sizeof(std::uint32_t) +
-                                tree.triangles.size() * sizeof(format::BvhTriangle)) /
+                                tree.triangles.size() * sizeof(format::RayTriangle)) /
                          double(scene.triangles.size());
   measure(tree, options, s);
   return tree;

@@ -89,7 +89,7 @@ void Blob::validate_geometry() {
         check((where + "nodes").c_str(), bvh->nodes(), format::kSectionBvhNodes,
               sizeof(format::BvhNode), bvh->node_count(), false);
         check((where + "triangles").c_str(), bvh->triangles(), format::kSectionBvhTriangles,
-              sizeof(format::BvhTriangle), bvh->reference_count(), false);
+              sizeof(format::RayTriangle), bvh->reference_count(), false);
         check((where + "primitive ids").c_str(), bvh->prim_ids(), format::kSectionBvhPrimIds,
               sizeof(std::uint32_t), bvh->reference_count(), false);
         if (bvh->node_count() == 0) fail_section(0, where + "has no nodes");
@@ -101,7 +101,7 @@ void Blob::validate_geometry() {
         check((where + "primitive ids").c_str(), kd->prim_ids(), format::kSectionKdPrimIds,
               sizeof(std::uint32_t), kd->reference_count(), false);
         check((where + "triangles").c_str(), kd->triangles(), format::kSectionKdTriangles,
-              sizeof(format::BvhTriangle), triangle_count, false);
+              sizeof(format::RayTriangle), triangle_count, false);
         if (kd->node_count() == 0) fail_section(0, where + "has no nodes");
         if (kd->bounds() == nullptr) fail_section(0, where + "has no bounds");
       }

@@ -145,7 +145,7 @@ void Blob::verify_bvh(const schema::Acceleration& accel_table) const {
                                                    " names triangle " +
                                                    std::to_string(prim_ids[r]));
       const auto& t = triangles_view[prim_ids[r]];
-      const format::BvhTriangle expected{positions_view[t.v[0]], positions_view[t.v[1]],
+      const format::RayTriangle expected{positions_view[t.v[0]], positions_view[t.v[1]],
                                          positions_view[t.v[2]]};
       if (std::memcmp(&expected, &leaf_triangles[r], sizeof(expected)) != 0)
         fail_section(accel->bvh()->triangles(), name + " reference " + std::to_string(r) +
@@ -165,7 +165,7 @@ void Blob::verify_kdtree(const schema::Acceleration& accel) const {
   const auto copies = tree.triangles();
   for (std::size_t i = 0; i < triangles_view.size(); ++i) {
     const auto& t = triangles_view[i];
-    const format::BvhTriangle expected{positions_view[t.v[0]], positions_view[t.v[1]],
+    const format::RayTriangle expected{positions_view[t.v[0]], positions_view[t.v[1]],
                                        positions_view[t.v[2]]};
     if (std::memcmp(&expected, &copies[i], sizeof(expected)) != 0)
       fail_section(desc->triangles(),

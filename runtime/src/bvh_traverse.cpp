@@ -57,7 +57,7 @@ Hit traverse(const BvhView& bvh, const Ray& ray, BvhView::Cost* cost) {
     } else {
       for (std::uint32_t i = n.offset, end = n.offset + n.count; i < end; ++i) {
         if constexpr (kCount) cost->triangles += 1;
-        const format::BvhTriangle& tri = triangles[i];
+        const format::RayTriangle& tri = triangles[i];
         float t, u, v;
         if (intersect_watertight(tri_ray, tri.v0, tri.v1, tri.v2, ray.tmin, hit.t, t, u, v)) {
           hit.t = t;

@@ -9,7 +9,7 @@
 namespace kiln {
 
 BvhView::BvhView(std::span<const format::BvhNode> nodes,
-                 std::span<const format::BvhTriangle> triangles,
+                 std::span<const format::RayTriangle> triangles,
                  std::span<const std::uint32_t> prim_ids, const std::string& name)
     : nodes_(nodes), triangles_(triangles), prim_ids_(prim_ids) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
@@ -62,7 +62,7 @@ BvhView BvhView::from_blob(const Blob& blob, const std::string& name) {
     // open() checked kinds, sizes and counts of these sections.
     const auto* d = accel->bvh();
     return BvhView(blob.section_view<format::BvhNode>(d->nodes()),
-                   blob.section_view<format::BvhTriangle>(d->triangles()),
+                   blob.section_view<format::RayTriangle>(d->triangles()),
                    blob.section_view<std::uint32_t>(d->prim_ids()), blob.name() + ": " + name);
   }
   throw BlobError(blob.name() + ": has no acceleration structure '" + name + "'");

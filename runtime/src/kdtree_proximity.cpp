@@ -147,7 +147,7 @@ void triangles_in_box(const KdTreeView& tree, const format::Float3& lo_f,
   if (!prepare_query_box(lo_f, hi_f, lo, hi)) return;  // empty or NaN box
   collect_prims(
       tree, [&](const Cell& c) { return box_overlaps(c.lo, c.hi, lo, hi); },
-      [&](const format::BvhTriangle& t) { return triangle_in_box(t, lo, hi); }, out);
+      [&](const format::RayTriangle& t) { return triangle_in_box(t, lo, hi); }, out);
 }
 
 bool point_inside(const KdTreeView& tree, const format::Float3& p) {
@@ -160,7 +160,7 @@ bool point_inside(const KdTreeView& tree, const format::Float3& p) {
           float tmin = 0.0f, tmax = INFINITY;
           return clip_to_box(c.lo, c.hi, box_ray, tmin, tmax);
         },
-        [&](const format::BvhTriangle& t) { return ray_crosses(tri_ray, t); }, crossed);
+        [&](const format::RayTriangle& t) { return ray_crosses(tri_ray, t); }, crossed);
   });
 }
 

@@ -76,7 +76,7 @@ Hit traverse(const KdTreeView& tree, const Ray& ray, KdTreeView::Cost* cost) {
       for (std::uint32_t i = begin; i < end; ++i) {
         if constexpr (kCount) cost->triangles += 1;
         const std::uint32_t prim = prim_ids[i];
-        const format::BvhTriangle& tri = triangles[prim];
+        const format::RayTriangle& tri = triangles[prim];
         float t, u, v;
         if (intersect_watertight(tri_ray, tri.v0, tri.v1, tri.v2, ray.tmin, hit.t, t, u, v)) {
           hit = {t, prim, u, v};

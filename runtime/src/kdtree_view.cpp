@@ -10,7 +10,7 @@ namespace kiln {
 
 KdTreeView::KdTreeView(std::span<const format::KdNode> nodes,
                        std::span<const std::uint32_t> prim_ids,
-                       std::span<const format::BvhTriangle> triangles, const float bounds_min[3],
+                       std::span<const format::RayTriangle> triangles, const float bounds_min[3],
                        const float bounds_max[3], const std::string& name)
     : nodes_(nodes), prim_ids_(prim_ids), triangles_(triangles) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
@@ -36,7 +36,7 @@ KdTreeView KdTreeView::from_blob(const Blob& blob, const std::string& name) {
     const float hi[3] = {b ? b->max().x() : 0, b ? b->max().y() : 0, b ? b->max().z() : 0};
     return KdTreeView(blob.section_view<format::KdNode>(d->nodes()),
                       blob.section_view<std::uint32_t>(d->prim_ids()),
-                      blob.section_view<format::BvhTriangle>(d->triangles()), lo, hi,
+                      blob.section_view<format::RayTriangle>(d->triangles()), lo, hi,
                       blob.name() + ": " + name);
   }
   throw BlobError(blob.name() + ": has no k-d tree '" + name + "'");

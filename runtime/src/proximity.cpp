@@ -80,7 +80,7 @@ void triangles_in_box(const BvhView& bvh, const format::Float3& lo_f, const form
   if (!prepare_query_box(lo_f, hi_f, lo, hi)) return;  // empty or NaN box
   collect_prims(
       bvh, [&](const format::BvhNode& n) { return box_overlaps(n.min, n.max, lo, hi); },
-      [&](const format::BvhTriangle& t) { return triangle_in_box(t, lo, hi); }, out);
+      [&](const format::RayTriangle& t) { return triangle_in_box(t, lo, hi); }, out);
 }
 
 bool point_inside(const BvhView& bvh, const format::Float3& p) {
@@ -90,7 +90,7 @@ bool point_inside(const BvhView& bvh, const format::Float3& p) {
     collect_prims(
         bvh,
         [&](const format::BvhNode& n) { return enter_box(n, box_ray, 0.0f, INFINITY) != INFINITY; },
-        [&](const format::BvhTriangle& t) { return ray_crosses(tri_ray, t); }, crossed);
+        [&](const format::RayTriangle& t) { return ray_crosses(tri_ray, t); }, crossed);
   });
 }
 

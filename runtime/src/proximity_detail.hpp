@@ -35,7 +35,7 @@ inline bool box_overlaps(const float lo[3], const float hi[3], const Vec3d& qlo,
 // Offers triangle `prim` to a closest-point search whose best squared distance so far is
 // `best`. Ties go to the lower primitive id, so duplicated references and traversal order never
 // change the answer.
-inline void consider_closest(const Vec3d& p, const format::BvhTriangle& t, std::uint32_t prim,
+inline void consider_closest(const Vec3d& p, const format::RayTriangle& t, std::uint32_t prim,
                              double& best, ClosestPoint& result) {
   double v = 0, w = 0;
   const Vec3d q = closest_on_triangle(p, to_d(t.v0), to_d(t.v1), to_d(t.v2), v, w);
@@ -60,12 +60,12 @@ inline bool prepare_query_box(const format::Float3& lo_f, const format::Float3& 
   return lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z;
 }
 
-inline bool triangle_in_box(const format::BvhTriangle& t, const Vec3d& lo, const Vec3d& hi) {
+inline bool triangle_in_box(const format::RayTriangle& t, const Vec3d& lo, const Vec3d& hi) {
   return triangle_overlaps_box(to_d(t.v0), to_d(t.v1), to_d(t.v2), lo, hi);
 }
 
 // Whether the ray crosses the triangle anywhere in (0, inf).
-inline bool ray_crosses(const WatertightRay& ray, const format::BvhTriangle& t) {
+inline bool ray_crosses(const WatertightRay& ray, const format::RayTriangle& t) {
   float hit_t, u, v;
   return intersect_watertight(ray, t.v0, t.v1, t.v2, 0.0f, INFINITY, hit_t, u, v);
 }

@@ -52,7 +52,7 @@ struct BvhStatistics {
 // The flattened structure, ready for the blob.
 struct FlatBvh {
   std::vector<format::BvhNode> nodes;
-  std::vector<format::BvhTriangle> triangles;
+  std::vector<format::RayTriangle> triangles;
   std::vector<std::uint32_t> prim_ids;
   BvhStatistics stats;
 };

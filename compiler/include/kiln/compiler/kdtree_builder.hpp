@@ -29,7 +29,7 @@ struct FlatKdTree {
   Aabb bounds;  // the root cell
   std::vector<format::KdNode> nodes;
   std::vector<std::uint32_t> prim_ids;         // leaf references in leaf order
-  std::vector<format::BvhTriangle> triangles;  // every triangle's corners, by primitive id
+  std::vector<format::RayTriangle> triangles;  // every triangle's corners, by primitive id
   KdTreeStatistics stats;
 };
 

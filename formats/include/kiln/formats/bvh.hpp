@@ -7,6 +7,7 @@
 
 #include "kiln/formats/container.hpp"
 #include "kiln/formats/geometry.hpp"
+#include "kiln/formats/ray_triangle.hpp"
 
 namespace kiln::format {
 
@@ -31,12 +32,6 @@ static_assert(offsetof(BvhNode, max) == 16);
 static_assert(offsetof(BvhNode, count) == 28);
 static_assert(offsetof(BvhNode, axis) == 30);
 
-// A leaf reference's triangle, copied in leaf order so a leaf's triangles are contiguous: the
-// three corners are exactly what the watertight test (Woop et al. 2013) consumes.
-struct BvhTriangle {
-  Float3 v0, v1, v2;
-};
-static_assert(sizeof(BvhTriangle) == 36);
 
 // Traversal keeps a fixed stack; builders never produce a deeper tree.
 inline constexpr std::uint32_t kBvhMaxDepth = 64;

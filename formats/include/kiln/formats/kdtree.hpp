@@ -6,7 +6,7 @@
 #include <bit>
 #include <cstdint>
 
-#include "kiln/formats/bvh.hpp"
+#include "kiln/formats/ray_triangle.hpp"
 #include "kiln/formats/container.hpp"
 
 namespace kiln::format {

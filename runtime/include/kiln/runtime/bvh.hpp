@@ -18,7 +18,7 @@ class Blob;
 // range, loop or overflow its stack, whatever the bytes. Throws BlobError otherwise.
 class BvhView {
  public:
-  BvhView(std::span<const format::BvhNode> nodes, std::span<const format::BvhTriangle> triangles,
+  BvhView(std::span<const format::BvhNode> nodes, std::span<const format::RayTriangle> triangles,
           std::span<const std::uint32_t> prim_ids, const std::string& name = "bvh");
   // The structure named `name` ("bvh", "sbvh") in a blob; throws BlobError when absent.
   static BvhView from_blob(const Blob& blob, const std::string& name);
@@ -35,12 +35,12 @@ class BvhView {
   Hit intersect_counting(const Ray& ray, Cost& cost) const;
 
   std::span<const format::BvhNode> nodes() const { return nodes_; }
-  std::span<const format::BvhTriangle> triangles() const { return triangles_; }
+  std::span<const format::RayTriangle> triangles() const { return triangles_; }
   std::span<const std::uint32_t> prim_ids() const { return prim_ids_; }
 
  private:
   std::span<const format::BvhNode> nodes_;
-  std::span<const format::BvhTriangle> triangles_;
+  std::span<const format::RayTriangle> triangles_;
   std::span<const std::uint32_t> prim_ids_;
 };
 

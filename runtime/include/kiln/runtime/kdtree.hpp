@@ -19,7 +19,7 @@ class Blob;
 class KdTreeView {
  public:
   KdTreeView(std::span<const format::KdNode> nodes, std::span<const std::uint32_t> prim_ids,
-             std::span<const format::BvhTriangle> triangles, const float bounds_min[3],
+             std::span<const format::RayTriangle> triangles, const float bounds_min[3],
              const float bounds_max[3], const std::string& name = "kdtree");
   // The k-d tree named `name` in a blob; throws BlobError when absent.
   static KdTreeView from_blob(const Blob& blob, const std::string& name);
@@ -37,14 +37,14 @@ class KdTreeView {
 
   std::span<const format::KdNode> nodes() const { return nodes_; }
   std::span<const std::uint32_t> prim_ids() const { return prim_ids_; }
-  std::span<const format::BvhTriangle> triangles() const { return triangles_; }
+  std::span<const format::RayTriangle> triangles() const { return triangles_; }
   const float* bounds_min() const { return min_; }
   const float* bounds_max() const { return max_; }
 
  private:
   std::span<const format::KdNode> nodes_;
   std::span<const std::uint32_t> prim_ids_;
-  std::span<const format::BvhTriangle> triangles_;
+  std::span<const format::RayTriangle> triangles_;
   float min_[3], max_[3];
 };
 
