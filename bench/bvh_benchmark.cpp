@@ -42,6 +42,7 @@
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/ray.hpp"
+#include "kiln/runtime/ray_structure.hpp"
 #include "kiln/tools/ray_generator.hpp"
 
 #ifdef KILN_BENCH_EMBREE

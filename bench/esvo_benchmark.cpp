@@ -26,7 +26,8 @@
 #include "kiln/compiler/voxel_dag_builder.hpp"
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/runtime/esvo.hpp"
-#include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/ray_structure.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
 #include "kiln/tools/ray_generator.hpp"
 

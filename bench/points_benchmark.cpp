@@ -27,7 +27,8 @@
 #include "kiln/compiler/kdtree_builder.hpp"
 #include "kiln/compiler/point_tree_builder.hpp"
 #include "kiln/runtime/point_tree.hpp"
-#include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/kdtree.hpp"
 
 namespace {
 

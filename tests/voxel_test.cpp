@@ -382,8 +382,8 @@ TEST(Voxelizer, GeneratedWorstCases) {
   {
     const Scene sliver = triangles_scene({{{{0, 0, 0}, {1, 0, 0}, {1, 1e-4f, 0}}}});
     const Voxels v =
-        expect_matches_brute_force(sliver, format::kDagMaxResolution, Sweep::kBoxPlus2, "sliver");
-    EXPECT_GE(v.codes.size(), std::size_t(format::kDagMaxResolution));
+        expect_matches_brute_force(sliver, format::kVoxelMaxResolution, Sweep::kBoxPlus2, "sliver");
+    EXPECT_GE(v.codes.size(), std::size_t(format::kVoxelMaxResolution));
   }
 }
 
@@ -462,11 +462,11 @@ TEST(Voxelizer, ByteIdenticalAcrossThreadCountsAndNormals) {
 TEST(Voxelizer, RefusesResolutionsOutsidePowersOfTwo8To16384) {
   const Scene scene = triangles_scene({{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}});
   for (const std::uint32_t n :
-       {0u, 1u, 2u, 3u, 4u, 6u, 12u, 100u, 1000u, 16383u, 16385u, format::kDagMaxResolution * 2,
+       {0u, 1u, 2u, 3u, 4u, 6u, 12u, 100u, 1000u, 16383u, 16385u, format::kVoxelMaxResolution * 2,
         1u << 31, std::numeric_limits<std::uint32_t>::max()})
     EXPECT_THROW(voxelize_surface(scene, {n, false, 1}), std::invalid_argument) << n;
-  EXPECT_LT(4u, format::kDagMinResolution);
-  for (const std::uint32_t n : {format::kDagMinResolution, 16u, 1024u})
+  EXPECT_LT(4u, format::kVoxelMinResolution);
+  for (const std::uint32_t n : {format::kVoxelMinResolution, 16u, 1024u})
     EXPECT_NO_THROW(voxelize_surface(scene, {n, false, 1})) << n;
 }
 
@@ -800,7 +800,7 @@ std::vector<std::uint64_t> grid_where(std::uint32_t n, auto keep) {
 
 TEST(VoxelDag, ExpandsToTheSvoVoxelSet) {
   // Single voxels, at the corners and inside, up to the largest grid.
-  for (const std::uint32_t n : {8u, 16u, 1024u, format::kDagMaxResolution})
+  for (const std::uint32_t n : {8u, 16u, 1024u, format::kVoxelMaxResolution})
     for (const auto& v : {std::array<std::uint32_t, 3>{0, 0, 0},
                           {n - 1, n - 1, n - 1},
                           {n / 2 - 1, n / 2, 1},
@@ -833,7 +833,7 @@ TEST(VoxelDag, ExpandsToTheSvoVoxelSet) {
                 64, "sphere shell 64^3");
   // Random sparse sets, uniform and clustered (random walks), up to the largest grid.
   std::mt19937_64 rng(21);
-  for (const std::uint32_t n : {8u, 32u, 256u, 4096u, format::kDagMaxResolution}) {
+  for (const std::uint32_t n : {8u, 32u, 256u, 4096u, format::kVoxelMaxResolution}) {
     const std::uint64_t cells = std::uint64_t(n) * n * n;
     std::vector<std::uint64_t> uniform;
     for (int i = 0; i < 2000; ++i) uniform.push_back(rng() % cells);

@@ -8,7 +8,7 @@
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/voxel_dag_builder.hpp"
 #include "kiln/compiler/voxelizer.hpp"
-#include "kiln/formats/voxel_dag.hpp"
+#include "kiln/formats/voxel_grid.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
@@ -105,7 +105,7 @@ TEST(Voxelizer, MatchesBruteForceOnWorstCases) {
 
 TEST(Voxelizer, RefusesBadResolutions) {
   const Scene scene = triangles_scene({{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}});
-  for (const std::uint32_t n : {0u, 3u, 4u, 100u, format::kDagMaxResolution * 2})
+  for (const std::uint32_t n : {0u, 3u, 4u, 100u, format::kVoxelMaxResolution * 2})
     EXPECT_THROW(voxelize_surface(scene, {n, false, 1}), std::invalid_argument) << n;
 }
 

@@ -3,7 +3,6 @@
 #include <chrono>
 #include <stdexcept>
 
-#include "accel_entry.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
@@ -14,25 +13,69 @@ namespace kiln {
 
 namespace {
 
-AccelEntry make_accel_entry(const Scene& scene, const AccelRequest& request, unsigned threads) {
-  if (request.kind == "bvh" || request.kind == "sbvh")
-    return make_bvh_entry(scene, request, threads);
-  if (request.kind == "kdtree") return make_kdtree_entry(scene, request, threads);
-  if (request.kind == "points") return make_point_tree_entry(scene, request, threads);
-  if (request.kind == "dag") return make_voxel_dag_entry(scene, request, threads);
-  if (request.kind == "esvo") return make_esvo_entry(scene, request, threads);
-  throw std::runtime_error("unknown acceleration structure '" + request.kind + "'");
-}
-
 template <class T>
 std::span<const std::byte> as_bytes(const std::vector<T>& values) {
   return std::as_bytes(std::span<const T>(values));
 }
 
+// "--accel a or --accel b": every kind that a blob of this input can hold.
+std::string kinds_for(InputKind input) {
+  std::string text;
+  for (const StructureBuilder* builder : structure_builders())
+    if (input_provides(input, builder->consumes))
+      text += (text.empty() ? "--accel " : " or --accel ") + builder->kind;
+  return text;
+}
+
+// Refuses duplicate names and structures the input cannot feed, each with one line.
+void check_requests(const Scene& scene, const BuildOptions& options) {
+  const auto& requests = options.structures;
+  for (std::size_t i = 0; i < requests.size(); ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      if (requests[i].name == requests[j].name)
+        throw ImportError("two structures named '" + requests[i].name +
+                          "' (give one another name: --accel KIND:name=NAME)");
+  const InputKind input = input_kind_of(scene);
+  if (input == InputKind::kTriangles) return;
+  const std::string what = scene.sources.empty() ? "the scene" : scene.sources.front().path;
+  // Every other input kind lacks triangles, and triangles are what most structures consume.
+  const std::string is = what + ": is a " + std::string(input_kind_name(input)) + " (no triangles)";
+  if (requests.empty()) throw ImportError(is + "; it needs " + kinds_for(input));
+  for (const StructureRequest& request : requests) {
+    const StructureBuilder* builder = find_structure_builder(request.kind);
+    if (!builder) throw std::invalid_argument("unknown structure kind '" + request.kind + "'");
+    if (!input_provides(input, builder->consumes))
+      throw ImportError(is + ", so --accel " + request.kind +
+                        " cannot be built (this input takes " + kinds_for(input) + ")");
+  }
+}
+
+// Appends the input's sections (after the manifest's slot) and says where they went.
+InputSectionIndices add_input_sections(const Scene& scene, std::vector<SectionPayload>& sections) {
+  constexpr auto kRequired = std::uint16_t(format::SectionFlag::kRequired);
+  auto add = [&](std::uint32_t kind, std::uint32_t element_size, std::uint64_t count,
+                 std::span<const std::byte> bytes) {
+    sections.push_back({kind, kRequired, element_size, count, bytes, true});
+    return std::uint32_t(sections.size() - 1);
+  };
+  InputSectionIndices indices;
+  indices.positions = add(format::kSectionPositions, sizeof(format::Float3), scene.positions.size(),
+                          as_bytes(scene.positions));
+  if (input_kind_of(scene) != InputKind::kTriangles) return indices;
+  indices.triangles = add(format::kSectionTriangles, sizeof(format::Triangle),
+                          scene.triangles.size(), as_bytes(scene.triangles));
+  indices.triangle_mesh = add(format::kSectionTriangleMesh, sizeof(std::uint32_t),
+                              scene.triangle_mesh.size(), as_bytes(scene.triangle_mesh));
+  if (!scene.normals.empty())
+    indices.normals = add(format::kSectionNormals, sizeof(format::Float3), scene.normals.size(),
+                          as_bytes(scene.normals));
+  return indices;
+}
+
 }  // namespace
 
-bool needs_triangles(const std::string& kind) {
-  return kind != "points";
+InputKind input_kind_of(const Scene& scene) {
+  return scene.triangles.empty() ? InputKind::kPoint3 : InputKind::kTriangles;
 }
 
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
@@ -60,52 +103,34 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
 
 std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
                                     std::vector<AccelReport>* reports) {
-  if (scene.triangles.empty()) {
-    const std::string what = scene.sources.empty() ? "the scene" : scene.sources.front().path;
-    if (options.accels.empty())
-      throw ImportError(what + ": has points but no triangles; a point cloud needs --accel points");
-    for (const AccelRequest& request : options.accels)
-      if (needs_triangles(request.kind))
-        throw ImportError(what + ": has points but no triangles, so --accel " + request.kind +
-                          " cannot be built (a point cloud takes --accel points alone)");
-  }
-  constexpr auto kRequired = std::uint16_t(format::SectionFlag::kRequired);
+  check_requests(scene, options);
   std::vector<SectionPayload> sections;
   sections.push_back({});  // the manifest, filled in once the other indices are known
-  auto add = [&](std::uint32_t kind, std::uint32_t element_size, std::uint64_t count,
-                 std::span<const std::byte> bytes) {
-    sections.push_back({kind, kRequired, element_size, count, bytes, true});
-    return std::uint32_t(sections.size() - 1);
-  };
-  GeometrySectionIndices indices{};
-  indices.positions = add(format::kSectionPositions, sizeof(format::Float3), scene.positions.size(),
-                          as_bytes(scene.positions));
-  indices.triangles = add(format::kSectionTriangles, sizeof(format::Triangle),
-                          scene.triangles.size(), as_bytes(scene.triangles));
-  indices.triangle_mesh = add(format::kSectionTriangleMesh, sizeof(std::uint32_t),
-                              scene.triangle_mesh.size(), as_bytes(scene.triangle_mesh));
-  indices.normals = scene.normals.empty() ? kNoSection
-                                          : add(format::kSectionNormals, sizeof(format::Float3),
-                                                scene.normals.size(), as_bytes(scene.normals));
+  const InputSectionIndices input = add_input_sections(scene, sections);
   // Each structure is built in turn (each build is parallel inside) and kept alive until the
   // blob is serialised, since sections only borrow their bytes.
-  std::vector<AccelEntry> entries;
-  std::vector<std::vector<std::uint32_t>> entry_sections;
-  for (const AccelRequest& request : options.accels) {
+  std::vector<BuiltStructure> built;
+  std::vector<std::vector<std::uint32_t>> owned_sections;
+  for (const StructureRequest& request : options.structures) {
     const auto start = std::chrono::steady_clock::now();
-    entries.push_back(make_accel_entry(scene, request, options.threads));
+    built.push_back(find_structure_builder(request.kind)->build(scene, request, options.threads));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (reports) reports->push_back({request.kind, entries.back().summary, seconds});
-    auto& owned = entry_sections.emplace_back();
-    for (const SectionPayload& section : entries.back().sections) {
+    if (reports) reports->push_back({request.name, request.kind, built.back().summary, seconds});
+    auto& owned = owned_sections.emplace_back();
+    for (const SectionPayload& section : built.back().sections) {
       sections.push_back(section);
       owned.push_back(std::uint32_t(sections.size() - 1));
     }
   }
   const std::vector<std::byte> manifest =
-      build_manifest(scene, options, indices, entries, entry_sections);
-  sections[0] = {format::kSectionManifest, kRequired, 1, manifest.size(), manifest, false};
+      build_manifest(scene, options, input, built, owned_sections);
+  sections[0] = {format::kSectionManifest,
+                 std::uint16_t(format::SectionFlag::kRequired),
+                 1,
+                 manifest.size(),
+                 manifest,
+                 false};
   return serialize_blob(sections, options.compression, options.threads);
 }
 

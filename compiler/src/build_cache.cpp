@@ -8,7 +8,6 @@
 #include <xxhash.h>
 #include <zstd.h>
 
-#include <bit>
 #include <cerrno>
 #include <charconv>
 #include <filesystem>
@@ -29,7 +28,7 @@ namespace fs = std::filesystem;
 
 // Bumped whenever what goes into a key or the layout of the cache folder changes: entries of an
 // older layout are then never looked up again.
-constexpr int kCacheLayoutRevision = 1;
+constexpr int kCacheLayoutRevision = 2;
 constexpr std::size_t kMaxEntriesPerManifest = 8;
 constexpr std::size_t kMaxManifestBytes = 16u << 20;
 constexpr std::string_view kManifestHeader = "kiln-build-cache-manifest 1\n";
@@ -48,8 +47,6 @@ class Hasher {
   }
   void bytes(const void* data, std::size_t size) { XXH3_128bits_update(state_.get(), data, size); }
   void u64(std::uint64_t value) { bytes(&value, sizeof value); }
-  void f32(float value) { u64(std::bit_cast<std::uint32_t>(value)); }
-  void f64(double value) { u64(std::bit_cast<std::uint64_t>(value)); }
   void text(std::string_view value) {
     u64(value.size());
     bytes(value.data(), value.size());
@@ -84,44 +81,23 @@ std::optional<Hash128> hash_descriptor(int fd, std::uint64_t& size) {
   return hasher.digest();
 }
 
-// Each structure's own options, every field named: a field added to an options struct breaks
-// the build here until it is hashed (or declared irrelevant, as the thread counts are), so the
-// key cannot silently miss an option that changes the output.
-void hash_request(Hasher& h, const AccelRequest& request) {
+// A structure's name, kind and every option its kind says enters the output, in the kind's
+// declaration order, as canonical text (so "1" and "1.0" share a key). Thread counts are never
+// options, so they never enter.
+void hash_request(Hasher& h, const StructureRequest& request) {
+  h.text(request.name);
   h.text(request.kind);
-  if (request.kind == "bvh" || request.kind == "sbvh") {
-    const auto& [builder, bins, traversal_cost, intersection_cost, max_leaf_size, sbvh_alpha,
-                 sbvh_max_duplication, threads] = request.bvh;
-    h.u64(std::uint64_t(builder));
-    h.u64(bins);
-    h.f32(traversal_cost);
-    h.f32(intersection_cost);
-    h.u64(max_leaf_size);
-    h.f32(sbvh_alpha);
-    h.f32(sbvh_max_duplication);
-  } else if (request.kind == "kdtree") {
-    const auto& [traversal_cost, intersection_cost, empty_bonus, threads] = request.kdtree;
-    h.f32(traversal_cost);
-    h.f32(intersection_cost);
-    h.f32(empty_bonus);
-  } else if (request.kind == "points") {
-    const auto& [split, max_leaf_size, threads] = request.points;
-    h.u64(std::uint64_t(split));
-    h.u64(max_leaf_size);
-  } else if (request.kind == "dag") {
-    const auto& [resolution, normals, threads, solid] = request.voxels;
-    h.u64(resolution);
-    h.u64(normals);
-    h.u64(solid);
-  } else if (request.kind == "esvo") {
-    const auto& [resolution, contours, contour_error, threads] = request.esvo;
-    h.u64(resolution);
-    h.u64(contours);
-    if (contours) h.f64(contour_error);  // without contours it cannot change the output
-  } else {
+  const StructureBuilder* builder = find_structure_builder(request.kind);
+  if (!builder) {
     // An unknown kind fails the build anyway; nothing is stored under this key.
     h.text("unknown");
+    return;
   }
+  for (const StructureOption& option : builder->options)
+    if (option.enters_output) {
+      h.text(option.key);
+      h.text(request.text_option(option.key));
+    }
 }
 
 std::string shard_path(const std::string& cache_dir, std::string_view folder, const Hash128& hash,
@@ -211,7 +187,7 @@ std::string toolchain_fingerprint() {
 
 Hash128 direct_key(const BuildOptions& options, std::span<const Hash128> input_hashes,
                    std::string_view fingerprint) {
-  const auto& [inputs, accels, compression, threads] = options;
+  const auto& [inputs, structures, compression, threads] = options;
   if (input_hashes.size() != inputs.size())
     throw std::invalid_argument("direct_key: one hash per input expected");
   Hasher h;
@@ -220,8 +196,8 @@ Hash128 direct_key(const BuildOptions& options, std::span<const Hash128> input_h
   const auto& [compress, level] = compression;
   h.u64(compress);
   if (compress) h.u64(std::uint64_t(level));  // the level is ignored without compression
-  h.u64(accels.size());
-  for (const AccelRequest& request : accels) hash_request(h, request);
+  h.u64(structures.size());
+  for (const StructureRequest& request : structures) hash_request(h, request);
   h.u64(inputs.size());
   for (std::size_t i = 0; i < inputs.size(); ++i) {
     h.text(inputs[i]);

@@ -1,6 +1,6 @@
 // Top-down ESVO construction. The surface cells come from the voxelizer (the same conservative
-// cells the DAG holds), so a voxel exists exactly where the DAG has a voxel below it; the
-// triangles are narrowed to each child by the voxelizer's separating-axis test, clipped to it,
+// cells every voxel structure holds), so a voxel exists exactly where a surface cell lies below it;
+// the triangles are narrowed to each child by the voxelizer's separating-axis test, clipped to it,
 // and fitted with a contour. A voxel stops subdividing when its contour slab stays within reach
 // of the surface cells (esvo_contour.hpp), or at the finest level.
 //
@@ -18,7 +18,7 @@
 
 #include "esvo_contour.hpp"
 #include "esvo_tree.hpp"
-#include "kiln/formats/voxel_dag.hpp"
+#include "kiln/formats/voxel_grid.hpp"
 #include "kiln/runtime/parallel.hpp"
 
 namespace kiln {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include "kiln/formats/voxel_dag.hpp"
+#include "kiln/formats/voxel_grid.hpp"
 
 namespace kiln::esvo {
 

@@ -141,10 +141,10 @@ ImportedFile import_file(const std::string& path) {
     throw ImportError(path + ": out of memory while importing (file claims absurd sizes?)");
   }
   // One shared guard behind every importer: nothing out of range reaches the scene.
-  std::uint64_t triangles = 0, cloud_points = 0;
+  std::uint64_t triangles = 0, cloud_vertices = 0;
   for (const auto& mesh : file.meshes) {
     triangles += mesh.triangles.size();
-    if (mesh.point_cloud) cloud_points += mesh.positions.size();
+    if (mesh.point_cloud) cloud_vertices += mesh.positions.size();
     if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
       throw ImportError(path + ": mesh '" + mesh.name + "' has " +
                         std::to_string(mesh.normals.size()) + " normals for " +
@@ -156,7 +156,7 @@ ImportedFile import_file(const std::string& path) {
                             std::to_string(v) + " of " + std::to_string(mesh.positions.size()) +
                             " vertices");
   }
-  if (triangles == 0 && cloud_points == 0)
+  if (triangles == 0 && cloud_vertices == 0)
     throw ImportError(path + ": contains no triangles (and is not a point cloud)");
   normalize_accesses(file.accessed);
   return file;

@@ -1,6 +1,6 @@
 // Assimp importer: node hierarchy walked in pre-order (children in file order), each node's
-// meshes in its list order, faces in mesh order. Line primitives are discarded; a mesh of points
-// alone is kept as a point cloud.
+// meshes in its list order, faces in mesh order. Line primitives are discarded; a mesh of bare
+// vertices alone is kept as a point cloud.
 #include <assimp/DefaultIOSystem.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -194,7 +194,7 @@ ImportedMesh convert_mesh(const aiMesh& mesh, const aiMatrix4x4& world,
     const aiFace& face = mesh.mFaces[f];
     has_lines |= face.mNumIndices == 2;
     if (face.mNumIndices != 3 || face.mIndices == nullptr)
-      continue;  // points and lines carry no surface
+      continue;  // point and line primitives carry no surface
     // Index ranges are checked once for every importer, in import_file.
     const format::Triangle t{{face.mIndices[0], face.mIndices[1], face.mIndices[2]}};
     out.triangles.push_back(t);
@@ -246,7 +246,7 @@ std::vector<ImportedMesh> import_with_assimp(const std::string& path,
   // Read without post-processing, check the raw arrays ourselves, then triangulate: Assimp's
   // post-processing steps assert (abort) on inconsistent faces, and its own validation step
   // rejects a whole file for one empty mesh (an STL with an empty solid), as does SortByPType;
-  // points and lines are skipped face by face in convert_mesh instead.
+  // point and line primitives are skipped face by face in convert_mesh instead.
   // Reading from the path lets Assimp find companion files; inflated bytes have no path.
   const aiScene* scene =
       bytes_are_file ? importer.ReadFile(path, 0)

@@ -241,7 +241,7 @@ void append_mesh(const tinygltf::Model& model, int mesh_index, const Matrix4& wo
     const int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
     if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
         mode != TINYGLTF_MODE_TRIANGLE_FAN)
-      continue;  // points and lines carry no surface
+      continue;  // point and line primitives carry no surface
     const auto position = primitive.attributes.find("POSITION");
     if (position == primitive.attributes.end()) continue;
 

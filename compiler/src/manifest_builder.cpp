@@ -5,53 +5,88 @@
 #include <cstring>
 #include <map>
 
-#include "accel_entry.hpp"
 #include "kiln/schema/manifest_generated.h"
 
 namespace kiln {
 
-std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& options,
-                                      const GeometrySectionIndices& sections,
-                                      std::span<const AccelEntry> accels,
-                                      std::span<const std::vector<std::uint32_t>> accel_sections) {
-  flatbuffers::FlatBufferBuilder fbb(1024);
+namespace {
 
-  // Options that shape the output; thread counts do not, so they are not recorded.
+using flatbuffers::FlatBufferBuilder;
+using flatbuffers::Offset;
+
+// Options that shape the output; thread counts do not, so they are not recorded.
+std::vector<Offset<schema::BuildOption>> recorded_options(FlatBufferBuilder& fbb,
+                                                          const BuildOptions& options) {
   std::map<std::string, std::string> recorded;  // sorted by key
   recorded["compress"] =
       options.compression.enabled ? "zstd:" + std::to_string(options.compression.level) : "none";
   if (options.compression.enabled) recorded["zstd_version"] = ZSTD_versionString();
-  std::vector<flatbuffers::Offset<schema::BuildOption>> option_offsets;
+  std::vector<Offset<schema::BuildOption>> offsets;
   for (const auto& [key, value] : recorded)
-    option_offsets.push_back(schema::CreateBuildOptionDirect(fbb, key.c_str(), value.c_str()));
+    offsets.push_back(schema::CreateBuildOptionDirect(fbb, key.c_str(), value.c_str()));
+  return offsets;
+}
 
-  std::vector<flatbuffers::Offset<schema::SourceFile>> sources;
-  for (const auto& s : scene.sources)
-    sources.push_back(schema::CreateSourceFileDirect(fbb, s.path.c_str(), s.size, s.xxh3));
+schema::Bounds bounds_of(const Scene& scene) {
+  return schema::Bounds(schema::Vec3(scene.bounds.min.x, scene.bounds.min.y, scene.bounds.min.z),
+                        schema::Vec3(scene.bounds.max.x, scene.bounds.max.y, scene.bounds.max.z));
+}
 
-  std::vector<flatbuffers::Offset<schema::Mesh>> meshes;
+Offset<void> triangle_scene(FlatBufferBuilder& fbb, const Scene& scene,
+                            const InputSectionIndices& input) {
+  std::vector<Offset<schema::Mesh>> meshes;
   for (const auto& m : scene.meshes)
     meshes.push_back(schema::CreateMeshDirect(fbb, m.name.c_str(), m.source_file, m.first_triangle,
                                               m.triangle_count, m.first_vertex, m.vertex_count));
-
   const EdgeTopology topology = edge_topology(scene);
-  const schema::Bounds bounds(
-      schema::Vec3(scene.bounds.min.x, scene.bounds.min.y, scene.bounds.min.z),
-      schema::Vec3(scene.bounds.max.x, scene.bounds.max.y, scene.bounds.max.z));
-  const auto stats = schema::CreateSceneStats(
-      fbb, scene.positions.size(), scene.triangles.size(), &bounds, scene.input_triangle_count,
-      scene.degenerate_triangles_dropped, !scene.normals.empty(), topology.boundary_edges,
-      topology.non_manifold_edges, topology.closed() && !scene.triangles.empty());
-  const auto geometry = schema::CreateGeometry(fbb, sections.positions, sections.triangles,
-                                               sections.triangle_mesh, sections.normals);
-  std::vector<flatbuffers::Offset<schema::Acceleration>> accelerations;
-  for (std::size_t i = 0; i < accels.size(); ++i)
-    accelerations.push_back(accels[i].describe(fbb, accel_sections[i]));
-  const auto manifest =
-      schema::CreateManifestDirect(fbb, kToolName, kToolVersion, &option_offsets, &sources, stats,
-                                   &meshes, geometry, &accelerations);
-  schema::FinishManifestBuffer(fbb, manifest);
+  const schema::Bounds bounds = bounds_of(scene);
+  return schema::CreateTriangleSceneDirect(
+             fbb, scene.positions.size(), scene.triangles.size(), &bounds,
+             scene.input_triangle_count, scene.degenerate_triangles_dropped,
+             topology.boundary_edges, topology.non_manifold_edges, topology.closed(), &meshes,
+             input.positions, input.triangles, input.triangle_mesh, input.normals)
+      .Union();
+}
 
+Offset<void> point_set(FlatBufferBuilder& fbb, const Scene& scene,
+                       const InputSectionIndices& input) {
+  const schema::Bounds bounds = bounds_of(scene);
+  return schema::CreatePointCloud(fbb, scene.positions.size(), &bounds, input.positions).Union();
+}
+
+std::vector<Offset<schema::Structure>> structures(
+    FlatBufferBuilder& fbb, const BuildOptions& options, std::span<const BuiltStructure> built,
+    std::span<const std::vector<std::uint32_t>> sections) {
+  std::vector<Offset<schema::Structure>> offsets;
+  for (std::size_t i = 0; i < built.size(); ++i) {
+    const auto [type, desc] = built[i].describe(fbb, sections[i]);
+    offsets.push_back(schema::CreateStructureDirect(
+        fbb, options.structures[i].name.c_str(), options.structures[i].kind.c_str(), &sections[i],
+        schema::StructureDesc(type), Offset<void>(desc)));
+  }
+  return offsets;
+}
+
+}  // namespace
+
+std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& options,
+                                      const InputSectionIndices& input,
+                                      std::span<const BuiltStructure> built,
+                                      std::span<const std::vector<std::uint32_t>> sections) {
+  FlatBufferBuilder fbb(1024);
+  const auto option_offsets = recorded_options(fbb, options);
+  std::vector<Offset<schema::SourceFile>> sources;
+  for (const auto& s : scene.sources)
+    sources.push_back(schema::CreateSourceFileDirect(fbb, s.path.c_str(), s.size, s.xxh3));
+  const bool triangles = input_kind_of(scene) == InputKind::kTriangles;
+  const Offset<void> input_table =
+      triangles ? triangle_scene(fbb, scene, input) : point_set(fbb, scene, input);
+  const auto structure_offsets = structures(fbb, options, built, sections);
+  const auto manifest = schema::CreateManifestDirect(
+      fbb, kToolName, kToolVersion, &option_offsets, &sources,
+      triangles ? schema::Input::TriangleScene : schema::Input::PointCloud, input_table,
+      &structure_offsets);
+  schema::FinishManifestBuffer(fbb, manifest);
   std::vector<std::byte> bytes(fbb.GetSize());
   std::memcpy(bytes.data(), fbb.GetBufferPointer(), bytes.size());
   return bytes;

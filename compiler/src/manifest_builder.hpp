@@ -1,3 +1,4 @@
+// The manifest (section 0): the input's table, the sources, and one Structure per structure.
 #pragma once
 
 #include <cstdint>
@@ -5,19 +6,22 @@
 #include <vector>
 
 #include "kiln/compiler/build.hpp"
+#include "kiln/runtime/blob.hpp"
 
 namespace kiln {
 
-struct GeometrySectionIndices {
-  std::uint32_t positions, triangles, triangle_mesh, normals;
+/// Where compile_blob put the input's sections; kNoSection where the input has none.
+struct InputSectionIndices {
+  std::uint32_t positions = kNoSection, triangles = kNoSection, triangle_mesh = kNoSection,
+                normals = kNoSection;
 };
 
-struct AccelEntry;
-
-// The manifest FlatBuffer for a scene. Deterministic: same scene and options, same bytes.
+/// The manifest FlatBuffer for a scene. `built[i]` is the structure `options.structures[i]` asked
+/// for, and `sections[i]` the blob's indices of its sections. Deterministic: same scene and
+/// options, same bytes.
 std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& options,
-                                      const GeometrySectionIndices& sections,
-                                      std::span<const AccelEntry> accels,
-                                      std::span<const std::vector<std::uint32_t>> accel_sections);
+                                      const InputSectionIndices& input,
+                                      std::span<const BuiltStructure> built,
+                                      std::span<const std::vector<std::uint32_t>> sections);
 
 }  // namespace kiln

@@ -1,7 +1,7 @@
 // Perfect splits need the exact extent of a triangle inside a cell, not its box's overlap.
 #include <cmath>
 
-#include "kiln/compiler/kdtree_builder.hpp"
+#include "kiln/compiler/triangle_clip.hpp"
 #include "polygon_clip.hpp"
 
 namespace kiln {

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "kiln/compiler/voxelizer.hpp"
-#include "kiln/formats/voxel_dag.hpp"
+#include "kiln/formats/voxel_grid.hpp"
 #include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
@@ -125,11 +125,11 @@ bool triangle_touches_voxel(const GridTriangle& t, std::uint32_t x, std::uint32_
 
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
   const std::uint32_t n = options.resolution;
-  if (!format::is_valid_dag_resolution(n))
+  if (!format::is_valid_voxel_resolution(n))
     throw std::invalid_argument("--resolution " + std::to_string(n) +
                                 " must be a power of two in " +
-                                std::to_string(format::kDagMinResolution) + ".." +
-                                std::to_string(format::kDagMaxResolution));
+                                std::to_string(format::kVoxelMinResolution) + ".." +
+                                std::to_string(format::kVoxelMaxResolution));
   Voxels out;
   out.grid = fit_voxel_grid(scene.bounds, n);
   const std::uint32_t brick = std::min(n, kBrickSide);

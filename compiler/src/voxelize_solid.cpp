@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "kiln/compiler/voxelizer.hpp"
-#include "kiln/formats/voxel_dag.hpp"
+#include "kiln/formats/voxel_grid.hpp"
 #include "kiln/runtime/parallel.hpp"
 
 namespace kiln {

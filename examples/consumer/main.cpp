@@ -1,6 +1,7 @@
 // A program using a Kiln blob the way a game or a renderer would: map the blob built at build
-// time, take its BVH, trace rays. Here: an orthographic camera above the scene looking down -z,
-// one ray per character of an ASCII image, then one ray through the centre.
+// time, take its BVH (the structure named "bvh"), trace rays. Here: an orthographic camera above
+// the scene looking down -z, one ray per character of an ASCII image, then one ray through the
+// centre.
 //
 //   consumer [scene.kiln]     (default: the blob kiln_add_blob built beside this program)
 
@@ -25,8 +26,8 @@ kiln::Ray down_at(float x, float y) {
 // The name of the mesh a hit triangle came from (as the manifest records it).
 std::string mesh_name(const kiln::Blob& blob, const kiln::Hit& hit) {
   const std::uint32_t mesh = blob.triangle_mesh_ids()[hit.prim];
-  const auto* name = blob.manifest().meshes()->Get(mesh)->name();
-  return name != nullptr ? name->str() : "mesh " + std::to_string(mesh);
+  const std::string name = blob.mesh(mesh).name;
+  return !name.empty() ? name : "mesh " + std::to_string(mesh);
 }
 
 }  // namespace
@@ -37,7 +38,7 @@ int main(int argc, char** argv) {
     // Maps the file and checks its structure in O(sections); the views below read the mapping.
     const kiln::Blob blob = kiln::Blob::open_file(path);
     const kiln::BvhView bvh = kiln::BvhView::from_blob(blob, "bvh");
-    std::printf("%s: %u meshes, %zu triangles\n", path.c_str(), blob.manifest().meshes()->size(),
+    std::printf("%s: %zu meshes, %zu triangles\n", path.c_str(), blob.mesh_count(),
                 blob.triangles().size());
 
     // One ray through the centre of each character cell: '#' the box, '+' the backdrop.
@@ -48,7 +49,7 @@ int main(int argc, char** argv) {
         const float x = (col - kColumns / 2 + 0.5f) * kCell;
         const float y = (kRows / 2 - row - 0.5f) * kCell;
         const kiln::Hit hit = bvh.intersect(down_at(x, y));
-        if (hit.prim == kiln::kNoHit) {
+        if (!hit.hit()) {
           line += '.';
         } else {
           ++hits;
@@ -60,7 +61,7 @@ int main(int argc, char** argv) {
     std::printf("hits: %d of %d\n", hits, kColumns * kRows);
 
     const kiln::Hit centre = bvh.intersect(down_at(0.0f, 0.0f));
-    if (centre.prim == kiln::kNoHit) {
+    if (!centre.hit()) {
       std::printf("centre: miss\n");
     } else {
       std::printf("centre: t = %.3f on %s\n", centre.t, mesh_name(blob, centre).c_str());

@@ -6,15 +6,12 @@
 #include <cstring>
 #include <limits>
 
-#include "kiln/formats/bvh.hpp"
-#include "kiln/formats/esvo.hpp"
-#include "kiln/formats/kdtree.hpp"
-#include "kiln/formats/point_tree.hpp"
 #include "kiln/formats/section_kinds.hpp"
-#include "kiln/formats/voxel_dag.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/checksum.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
+#include "kiln/runtime/structure_registry.hpp"
 
 namespace kiln {
 
@@ -29,18 +26,17 @@ constexpr flatbuffers::uoffset_t kManifestMaxDepth = 64;
 constexpr flatbuffers::uoffset_t kManifestMaxTables = 1u << 22;
 constexpr std::uint64_t kManifestMaxSize = 1u << 30;
 
+// The manifest's and the inputs' section kinds, and every registered structure kind's.
 bool is_known_kind(std::uint32_t kind) {
-  return kind == format::kSectionManifest || kind == format::kSectionPositions ||
-         kind == format::kSectionNormals || kind == format::kSectionTriangles ||
-         kind == format::kSectionTriangleMesh || kind == format::kSectionBvhNodes ||
-         kind == format::kSectionBvhTriangles || kind == format::kSectionBvhPrimIds ||
-         kind == format::kSectionKdNodes || kind == format::kSectionKdPrimIds ||
-         kind == format::kSectionKdTriangles || kind == format::kSectionPointNodes ||
-         kind == format::kSectionPointPositions || kind == format::kSectionPointIds ||
-         kind == format::kSectionDagWords || kind == format::kSectionVoxelCodes ||
-         kind == format::kSectionVoxelNormals || kind == format::kSectionEsvoWords ||
-         kind == format::kSectionEsvoPages || kind == format::kSectionEsvoBlocks ||
-         kind == format::kSectionEsvoNormals || kind == format::kSectionEsvoColors;
+  if (kind == format::kSectionManifest || kind == format::kSectionPositions ||
+      kind == format::kSectionNormals || kind == format::kSectionTriangles ||
+      kind == format::kSectionTriangleMesh)
+    return true;
+  for (const StructureKind* structure : structure_kinds())
+    if (std::find(structure->sections.begin(), structure->sections.end(), kind) !=
+        structure->sections.end())
+      return true;
+  return false;
 }
 
 }  // namespace
@@ -75,13 +71,6 @@ std::optional<Blob> Blob::try_open_file(const std::string& path, std::string& er
   return std::nullopt;
 }
 
-const schema::Acceleration* Blob::acceleration(std::string_view name) const {
-  if (const auto* accels = manifest().accelerations())
-    for (const auto* accel : *accels)
-      if (accel->kind()->string_view() == name) return accel;
-  return nullptr;
-}
-
 void Blob::fail(const std::string& what) const {
   throw BlobError(name_ + ": " + what);
 }
@@ -97,7 +86,8 @@ void Blob::validate() {
   validate_section_table();
   decode_sections();
   validate_manifest();
-  validate_geometry();
+  validate_input();
+  validate_structures();
 }
 
 void Blob::validate_header() {
@@ -113,12 +103,17 @@ void Blob::validate_header() {
           "conversion");
     fail("not a kiln blob (wrong identifier)");
   }
+  const std::string version =
+      std::to_string(header_.version_major) + "." + std::to_string(header_.version_minor);
+  if (header_.version_major < format::kVersionMajor)
+    fail("format " + version + " blob: this kiln reads format " +
+         std::to_string(format::kVersionMajor) +
+         ".x; rebuild it with kiln build and the same inputs");
   if (header_.version_major != format::kVersionMajor)
     fail("unsupported major version " + std::to_string(header_.version_major) +
          " (this reader reads " + std::to_string(format::kVersionMajor) + ".x)");
   if (header_.version_minor > format::kVersionMinor)
-    fail("version " + std::to_string(header_.version_major) + "." +
-         std::to_string(header_.version_minor) + " is newer than this reader (" +
+    fail("version " + version + " is newer than this reader (" +
          std::to_string(format::kVersionMajor) + "." + std::to_string(format::kVersionMinor) + ")");
   if (header_.header_size != sizeof(FileHeader))
     fail("header size " + std::to_string(header_.header_size) + " is not 64");

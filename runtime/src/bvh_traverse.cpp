@@ -4,7 +4,6 @@
 #include <limits>
 
 #include "kiln/runtime/bvh.hpp"
-#include "kiln/runtime/parallel.hpp"
 #include "kiln/runtime/watertight.hpp"
 #include "ray_box.hpp"
 
@@ -15,7 +14,7 @@ namespace {
 // Both children's boxes are tested at their parent: the nearer is visited first, the farther
 // is pushed with its entry distance and skipped on pop if a closer hit has been found since.
 template <bool kAnyHit, bool kCount>
-Hit traverse(const BvhView& bvh, const Ray& ray, BvhView::Cost* cost) {
+Hit traverse(const BvhView& bvh, const Ray& ray, Cost* cost) {
   constexpr float kMiss = std::numeric_limits<float>::infinity();
   const auto nodes = bvh.nodes();
   const auto triangles = bvh.triangles();
@@ -56,7 +55,7 @@ Hit traverse(const BvhView& bvh, const Ray& ray, BvhView::Cost* cost) {
       }
     } else {
       for (std::uint32_t i = n.offset, end = n.offset + n.count; i < end; ++i) {
-        if constexpr (kCount) cost->triangles += 1;
+        if constexpr (kCount) cost->tests += 1;
         const format::RayTriangle& tri = triangles[i];
         float t, u, v;
         if (intersect_watertight(tri_ray, tri.v0, tri.v1, tri.v2, ray.tmin, hit.t, t, u, v)) {
@@ -94,17 +93,12 @@ Hit BvhView::intersect_counting(const Ray& ray, Cost& cost) const {
   return traverse<false, true>(*this, ray, &cost);
 }
 
-bool BvhView::occluded(const Ray& ray, float* t) const {
-  const Hit hit = traverse<true, false>(*this, ray, nullptr);
-  if (t != nullptr) *t = hit.t;
-  return hit.prim != kNoHit;
+Hit BvhView::intersect_any(const Ray& ray) const {
+  return traverse<true, false>(*this, ray, nullptr);
 }
 
-void trace_rays(const BvhView& bvh, std::span<const Ray> rays, std::span<Hit> hits, bool any_hit,
-                unsigned threads) {
-  parallel_for_batched(rays.size(), kRaysPerTask, threads, [&](std::size_t i) {
-    hits[i] = any_hit ? traverse<true, false>(bvh, rays[i], nullptr) : bvh.intersect(rays[i]);
-  });
+bool BvhView::occluded(const Ray& ray) const {
+  return traverse<true, false>(*this, ray, nullptr).hit();
 }
 
 }  // namespace kiln

@@ -1,3 +1,4 @@
+// The BVH view's structural check, and its view of a blob's structure.
 #include "kiln/runtime/bvh.hpp"
 
 #include <string>
@@ -5,6 +6,7 @@
 
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
 
 namespace kiln {
 
@@ -53,19 +55,15 @@ BvhView::BvhView(std::span<const format::BvhNode> nodes,
     fail(std::to_string(triangles.size() - next_ref) + " references are in no leaf");
 }
 
-}  // namespace kiln
-
-namespace kiln {
-
 BvhView BvhView::from_blob(const Blob& blob, const std::string& name) {
-  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->bvh() != nullptr) {
-    // open() checked kinds, sizes and counts of these sections.
-    const auto* d = accel->bvh();
-    return BvhView(blob.section_view<format::BvhNode>(d->nodes()),
-                   blob.section_view<format::RayTriangle>(d->triangles()),
-                   blob.section_view<std::uint32_t>(d->prim_ids()), blob.name() + ": " + name);
-  }
-  throw BlobError(blob.name() + ": has no acceleration structure '" + name + "'");
+  const StructureInfo* info = blob.structure(name);
+  if (info == nullptr) blob.fail("has no structure '" + name + "'");
+  const auto* d = structure_table(blob, *info).desc_as<schema::BvhDesc>();
+  if (d == nullptr) blob.fail("structure '" + name + "' is a " + info->kind + ", not a BVH");
+  // Blob::open checked kinds, sizes and counts of these sections.
+  return BvhView(blob.section_view<format::BvhNode>(d->nodes()),
+                 blob.section_view<format::RayTriangle>(d->triangles()),
+                 blob.section_view<std::uint32_t>(d->prim_ids()), blob.name() + ": " + name);
 }
 
 }  // namespace kiln

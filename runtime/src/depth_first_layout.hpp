@@ -1,4 +1,6 @@
-// The one structural check every mapped tree of two-way nodes gets before it is traversed.
+// Trees of two-way nodes in depth-first order (the below child next, the above child beside):
+// the one structural check every such mapped tree gets before it is traversed, and the walk that
+// hands each node its cell, for the deep checks.
 #pragma once
 
 #include <cstdint>
@@ -48,6 +50,38 @@ void check_depth_first_layout(std::span<const Node> nodes, std::uint32_t max_dep
     fail(std::to_string(nodes.size() - next_node) + " nodes are unreachable");
   if (next_item != item_count)
     fail(std::to_string(item_count - next_item) + " " + items + " are in no leaf");
+}
+
+/// An axis-aligned cell of space, as a walk narrows it.
+struct TreeCell {
+  float lo[3], hi[3];
+};
+
+// Depth-first walk of a tree that passed check_depth_first_layout, handing each node the cell
+// it owns: the root's box [lo, hi], cut on the way down by `split(index, node, below, above)`,
+// which receives two copies of the parent's cell to narrow; each leaf gets `leaf(node, cell)`.
+template <class Node, class Split, class Leaf>
+void walk_tree_cells(std::span<const Node> nodes, const float lo[3], const float hi[3], Split split,
+                     Leaf leaf) {
+  struct Pending {
+    std::uint32_t node;
+    TreeCell cell;
+  };
+  std::vector<Pending> stack(1);
+  for (int a = 0; a < 3; ++a) stack[0].cell.lo[a] = lo[a], stack[0].cell.hi[a] = hi[a];
+  while (!stack.empty()) {
+    const Pending p = stack.back();
+    stack.pop_back();
+    const Node& n = nodes[p.node];
+    if (n.is_leaf()) {
+      leaf(n, p.cell);
+      continue;
+    }
+    Pending below{p.node + 1, p.cell}, above{n.above_child(), p.cell};
+    split(p.node, n, below.cell, above.cell);
+    stack.push_back(above);
+    stack.push_back(below);
+  }
 }
 
 }  // namespace kiln

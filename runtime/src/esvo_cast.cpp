@@ -8,9 +8,9 @@
 // is the hit.
 #include <bit>
 #include <cmath>
+#include <utility>
 
 #include "kiln/runtime/esvo.hpp"
-#include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
 
@@ -27,207 +27,267 @@ float float_of(std::uint32_t u) {
   return std::bit_cast<float>(u);
 }
 
-}  // namespace
-
-template <bool kAnyHit, bool kCount>
-EsvoHit EsvoView::cast(const Ray& ray, const EsvoLod& lod, Cost* cost) const {
-  EsvoHit out;
-  const double to_octree = 1.0 / (double(frame_.resolution) * frame_.voxel_size);
-  const float org[3] = {ray.org.x, ray.org.y, ray.org.z};
-  const float dir[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
-  float o[3], d[3];
-  for (int a = 0; a < 3; ++a) {
-    o[a] = float(1.0 + (double(org[a]) - frame_.origin[a]) * to_octree);
-    d[a] = float(double(dir[a]) * to_octree);  // so t stays the world-space parameter
-    if (!std::isfinite(o[a]) || !std::isfinite(d[a])) return out;
-  }
-  if (std::isnan(ray.tmin) || std::isnan(ray.tmax)) return out;
-  const float d_max = std::fmax(std::fabs(d[0]), std::fmax(std::fabs(d[1]), std::fabs(d[2])));
-  if (!(d_max > 0)) return out;
-  // Tiny components would divide by zero; the paper clamps them to 2^-23 of the direction.
-  const float eps = d_max * 0x1p-23f;
-  for (float& c : d)
-    if (std::fabs(c) < eps) c = std::copysign(eps, c);
-
-  float coef[3], bias[3];
-  std::uint32_t mirror = 0;
-  for (int a = 0; a < 3; ++a) {
-    coef[a] = 1.0f / -std::fabs(d[a]);
-    bias[a] = coef[a] * o[a];
-    if (d[a] > 0) mirror |= 1u << a, bias[a] = 3.0f * coef[a] - bias[a];
-  }
-  // Entry and exit of the root cube; the entry axis gives the face normal.
-  int entry_axis = 0;
-  float t_min = 2.0f * coef[0] - bias[0];
-  for (int a = 1; a < 3; ++a)
-    if (2.0f * coef[a] - bias[a] > t_min) t_min = 2.0f * coef[a] - bias[a], entry_axis = a;
-  float t_max = std::fmin(coef[0] - bias[0], std::fmin(coef[1] - bias[1], coef[2] - bias[2]));
-  if (!(t_min > ray.tmin)) t_min = ray.tmin, entry_axis = -1;
-  t_max = std::fmin(t_max, ray.tmax);
-  if (!(t_min <= t_max)) return out;
-  float entry_contour[3] = {0, 0, 0};  // valid when entry_axis == 3
-
+// The kernel's variables: the ray in octree space and mirrored (t = x * coef - bias on each
+// axis), the span [t_min, t_max] still to search in the parent, the current voxel (its octant
+// idx in the mirrored parent, its corner pos, its size scale_exp2 = 2^(scale - kMaxScale)) and
+// the stack of (parent, t_max) per scale.
+struct CastState {
   struct Frame {
     std::uint64_t parent;
     float t_max;
   };
-  Frame stack[kMaxScale + 1];
+  float o[3], d[3];
+  float coef[3], bias[3];
+  std::uint32_t mirror = 0;
+  float t_min = 0, t_max = 0;
+  int entry_axis = 0;                  // surface entered: -1 none, 0..2 a cube face, 3 a contour
+  float entry_contour[3] = {0, 0, 0};  // the contour's normal when entry_axis == 3
   std::uint64_t parent = 0;
-  std::uint32_t w0 = 0, w1 = 0;
-  bool loaded = false;
   std::uint32_t idx = 0;
   float pos[3] = {1, 1, 1};
   int scale = kMaxScale - 1;
   float scale_exp2 = 0.5f;
+  Frame stack[kMaxScale + 1];
+};
+
+// The ray in octree space ([1,2]^3, t kept the world-space parameter); false when it cannot
+// hit (non-finite, or no direction). Tiny direction components would divide by zero; the paper
+// clamps them to 2^-23 of the direction.
+inline bool to_octree_ray(const Ray& ray, const VoxelGridFrame& frame, double to_octree,
+                          CastState& s) {
+  const float org[3] = {ray.org.x, ray.org.y, ray.org.z};
+  const float dir[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
+  for (int a = 0; a < 3; ++a) {
+    s.o[a] = float(1.0 + (double(org[a]) - frame.origin[a]) * to_octree);
+    s.d[a] = float(double(dir[a]) * to_octree);  // so t stays the world-space parameter
+    if (!std::isfinite(s.o[a]) || !std::isfinite(s.d[a])) return false;
+  }
+  if (std::isnan(ray.tmin) || std::isnan(ray.tmax)) return false;
+  const float d_max =
+      std::fmax(std::fabs(s.d[0]), std::fmax(std::fabs(s.d[1]), std::fabs(s.d[2])));
+  if (!(d_max > 0)) return false;
+  const float eps = d_max * 0x1p-23f;
+  for (float& c : s.d)
+    if (std::fabs(c) < eps) c = std::copysign(eps, c);
+  return true;
+}
+
+// Mirrors the ray, clips it to the root cube and [ray.tmin, ray.tmax] (the entry axis gives the
+// face normal) and picks the first child; false when it misses the root.
+inline bool enter_root(const Ray& ray, CastState& s) {
+  for (int a = 0; a < 3; ++a) {
+    s.coef[a] = 1.0f / -std::fabs(s.d[a]);
+    s.bias[a] = s.coef[a] * s.o[a];
+    if (s.d[a] > 0) s.mirror |= 1u << a, s.bias[a] = 3.0f * s.coef[a] - s.bias[a];
+  }
+  s.entry_axis = 0;
+  s.t_min = 2.0f * s.coef[0] - s.bias[0];
+  for (int a = 1; a < 3; ++a)
+    if (2.0f * s.coef[a] - s.bias[a] > s.t_min) s.t_min = 2.0f * s.coef[a] - s.bias[a], s.entry_axis = a;
+  s.t_max = std::fmin(s.coef[0] - s.bias[0],
+                      std::fmin(s.coef[1] - s.bias[1], s.coef[2] - s.bias[2]));
+  if (!(s.t_min > ray.tmin)) s.t_min = ray.tmin, s.entry_axis = -1;
+  s.t_max = std::fmin(s.t_max, ray.tmax);
+  if (!(s.t_min <= s.t_max)) return false;
   for (int a = 0; a < 3; ++a)
-    if (1.5f * coef[a] - bias[a] > t_min) idx ^= 1u << a, pos[a] = 1.5f;
+    if (1.5f * s.coef[a] - s.bias[a] > s.t_min) s.idx ^= 1u << a, s.pos[a] = 1.5f;
+  return true;
+}
+
+// Cuts the current voxel's span [tv_min, tv_max] by its contour slab: n . (p(t) - centre)
+// against the slab, all in octree units of the voxel's size. True when the slab's entry set
+// tv_min.
+inline bool cut_by_contour(const CastState& s, const format::Contour& contour, float& tv_min,
+                           float& tv_max) {
+  const float half = s.scale_exp2 * 0.5f;
+  float no = 0, nd = 0;
+  for (int a = 0; a < 3; ++a) {
+    const float centre = (s.mirror >> a & 1) ? 3.0f - (s.pos[a] + half) : s.pos[a] + half;
+    no += float(contour.normal[a]) * (s.o[a] - centre);
+    nd += float(contour.normal[a]) * s.d[a];
+  }
+  const float unit = float(format::contour_extent(contour)) * (1.0f / 128.0f) * s.scale_exp2;
+  const float lo = float(contour.position) * unit;
+  const float hi = float(contour.position + contour.thickness) * unit;
+  if (nd == 0.0f) {
+    if (no < lo || no > hi) tv_max = -INFINITY;
+    return false;
+  }
+  float t0 = (lo - no) / nd, t1 = (hi - no) / nd;
+  if (t0 > t1) std::swap(t0, t1);
+  bool entered = false;
+  if (t0 > tv_min) tv_min = t0, entered = true;
+  tv_max = std::fmin(tv_max, t1);
+  return entered;
+}
+
+// The outward normal of the surface the ray entered last: a cube face or a contour's plane;
+// stays 0 when the ray starts inside.
+inline void entered_normal(const CastState& s, float normal[3]) {
+  if (s.entry_axis >= 0 && s.entry_axis < 3) {
+    normal[s.entry_axis] = s.d[s.entry_axis] > 0 ? -1.0f : 1.0f;
+  } else if (s.entry_axis == 3) {
+    const float* n = s.entry_contour;
+    const float dn = n[0] * s.d[0] + n[1] * s.d[1] + n[2] * s.d[2];
+    const float length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    const float sign = (dn > 0 ? -1.0f : 1.0f) / length;
+    for (int a = 0; a < 3; ++a) normal[a] = n[a] * sign;
+  }
+}
+
+// The hit on the current voxel (a leaf, or a voxel coarse enough for the LOD) at tv_min: its
+// level, the finest-grid voxel holding the hit point (clamped into the voxel's cube) and the
+// entered surface's normal.
+inline void leaf_hit(const CastState& s, float tv_min, std::uint32_t resolution, VoxelHit& hit) {
+  hit.level = std::uint32_t(kMaxScale - s.scale);
+  hit.t = tv_min;
+  hit.prim = 0;
+  const float n = float(resolution);
+  const auto cells = std::uint32_t(resolution >> hit.level);
+  std::uint32_t cell[3];
+  for (int a = 0; a < 3; ++a) {
+    const float corner = (s.mirror >> a & 1) ? 3.0f - s.pos[a] - s.scale_exp2 : s.pos[a];
+    const auto first = std::uint32_t((corner - 1.0f) * n);
+    const float at = ((s.o[a] + tv_min * s.d[a]) - 1.0f) * n;
+    const float rel = std::floor(at) - float(first);
+    cell[a] = first + (rel < 0 ? 0 : rel >= float(cells) ? cells - 1 : std::uint32_t(rel));
+  }
+  hit.x = cell[0], hit.y = cell[1], hit.z = cell[2];
+  entered_normal(s, hit.face_normal);
+}
+
+// PUSH: descend into the current voxel, the descriptor at word `child`, whose subtree is
+// searched within [tv_min, tv_max]; tc are the current voxel's exits per axis.
+inline void push(CastState& s, std::uint64_t child, const float tc[3], float tv_min,
+                 float tv_max) {
+  const float half = s.scale_exp2 * 0.5f;
+  s.stack[s.scale] = {s.parent, s.t_max};
+  s.parent = child;
+  s.idx = 0;
+  --s.scale;
+  s.scale_exp2 = half;
+  for (int a = 0; a < 3; ++a)
+    if (half * s.coef[a] + tc[a] > tv_min) s.idx ^= 1u << a, s.pos[a] += half;
+  s.t_min = tv_min;
+  s.t_max = tv_max;
+}
+
+// ADVANCE to the next sibling along the ray, leaving the current voxel at tc_max; when that
+// leaves the parent, POP to the level left behind (the highest differing bit of the stepped
+// coordinates) and set `popped`. False when the ray leaves the octree.
+inline bool advance(CastState& s, const float tc[3], float tc_max, bool& popped) {
+  std::uint32_t step = 0;
+  for (int a = 0; a < 3; ++a)
+    if (tc[a] <= tc_max) step |= 1u << a, s.pos[a] -= s.scale_exp2;
+  s.t_min = tc_max;
+  s.entry_axis = std::countr_zero(step | 8u);
+  s.idx ^= step;
+  if ((s.idx & step) == 0) return true;
+  std::uint32_t differing = 0;
+  for (int a = 0; a < 3; ++a)
+    if (step >> a & 1) differing |= bits_of(s.pos[a]) ^ bits_of(s.pos[a] + s.scale_exp2);
+  s.scale = int(bits_of(float(differing)) >> 23) - 127;
+  if (s.scale >= kMaxScale) return false;
+  s.scale_exp2 = float_of(std::uint32_t(s.scale - kMaxScale + 127) << 23);
+  s.parent = s.stack[s.scale].parent;
+  s.t_max = s.stack[s.scale].t_max;
+  s.idx = 0;
+  for (int a = 0; a < 3; ++a) {
+    const std::uint32_t shifted = bits_of(s.pos[a]) >> s.scale;
+    s.pos[a] = float_of(shifted << s.scale);
+    s.idx |= (shifted & 1) << a;
+  }
+  popped = true;
+  return true;
+}
+
+}  // namespace
+
+template <bool kAnyHit, bool kCount>
+VoxelHit EsvoView::cast(const Ray& ray, const EsvoLod& lod, Cost* cost) const {
+  VoxelHit hit;
+  const double to_octree = 1.0 / (double(frame_.resolution) * frame_.voxel_size);
+  CastState s;
+  if (!to_octree_ray(ray, frame_, to_octree, s) || !enter_root(ray, s)) return hit;
   const float lod_coef = float(lod.coef * to_octree), lod_bias = float(lod.bias * to_octree);
   const bool use_lod = lod.coef > 0 || lod.bias > 0;
-
-  for (std::uint32_t iteration = 0; scale < kMaxScale && iteration < kMaxIterations; ++iteration) {
-    if (!loaded) {
-      w0 = words_[parent], w1 = words_[parent + 1], loaded = true;
+  std::uint32_t w0 = 0, w1 = 0;
+  bool popped = true;  // the parent's descriptor is still to load
+  for (std::uint32_t iteration = 0; s.scale < kMaxScale && iteration < kMaxIterations;
+       ++iteration) {
+    if (popped) {
+      w0 = words_[s.parent], w1 = words_[s.parent + 1], popped = false;
       if constexpr (kCount) cost->nodes += 1;
     }
-    if constexpr (kCount) cost->voxels += 1;
+    if constexpr (kCount) cost->tests += 1;
     float tc[3];
-    for (int a = 0; a < 3; ++a) tc[a] = pos[a] * coef[a] - bias[a];
+    for (int a = 0; a < 3; ++a) tc[a] = s.pos[a] * s.coef[a] - s.bias[a];
     const float tc_max = std::fmin(tc[0], std::fmin(tc[1], tc[2]));
-    const std::uint32_t octant = idx ^ mirror;
-
-    if ((w0 >> 8 >> octant & 1) != 0 && t_min <= t_max) {
-      float tv_min = t_min, tv_max = std::fmin(t_max, tc_max);
-      const float half = scale_exp2 * 0.5f;
+    const std::uint32_t octant = s.idx ^ s.mirror;
+    if ((w0 >> 8 >> octant & 1) != 0 && s.t_min <= s.t_max) {
+      float tv_min = s.t_min, tv_max = std::fmin(s.t_max, tc_max);
       bool contour_entry = false;
       format::Contour contour{};
       if ((w1 >> octant & 1) != 0) {
         contour = format::decode_contour(
-            words_[parent + (w1 >> 8) + 1 + format::rank_below(w1 & 0xFF, octant)]);
-        // n . (p(t) - centre) against the slab, all in octree units of this voxel's size.
-        float no = 0, nd = 0;
-        for (int a = 0; a < 3; ++a) {
-          const float centre = (mirror >> a & 1) ? 3.0f - (pos[a] + half) : pos[a] + half;
-          no += float(contour.normal[a]) * (o[a] - centre);
-          nd += float(contour.normal[a]) * d[a];
-        }
-        const float unit = float(format::contour_extent(contour)) * (1.0f / 128.0f) * scale_exp2;
-        const float lo = float(contour.position) * unit;
-        const float hi = float(contour.position + contour.thickness) * unit;
-        if (nd == 0.0f) {
-          if (no < lo || no > hi) tv_max = -INFINITY;
-        } else {
-          float t0 = (lo - no) / nd, t1 = (hi - no) / nd;
-          if (t0 > t1) std::swap(t0, t1);
-          if (t0 > tv_min) tv_min = t0, contour_entry = true;
-          tv_max = std::fmin(tv_max, t1);
-        }
+            words_[s.parent + (w1 >> 8) + 1 + format::rank_below(w1 & 0xFF, octant)]);
+        contour_entry = cut_by_contour(s, contour, tv_min, tv_max);
       }
       if (tv_min <= tv_max) {
         // The slab's plane is the surface entered, at a leaf hit or for the subtree below.
         if (contour_entry) {
-          entry_axis = 3;
-          for (int a = 0; a < 3; ++a) entry_contour[a] = float(contour.normal[a]);
+          s.entry_axis = 3;
+          for (int a = 0; a < 3; ++a) s.entry_contour[a] = float(contour.normal[a]);
         }
         const bool leaf = (w0 >> octant & 1) == 0;
-        if (leaf || (use_lod && tc_max * lod_coef + lod_bias >= scale_exp2)) {
-          out.level = std::uint32_t(kMaxScale - scale);
-          VoxelHit& hit = out.hit;
-          hit.t = tv_min;
-          const float n = float(frame_.resolution);
-          const auto cells = std::uint32_t(frame_.resolution >> out.level);
-          std::uint32_t cell[3];
-          for (int a = 0; a < 3; ++a) {
-            const float corner = (mirror >> a & 1) ? 3.0f - pos[a] - scale_exp2 : pos[a];
-            const auto first = std::uint32_t((corner - 1.0f) * n);
-            const float at = ((o[a] + tv_min * d[a]) - 1.0f) * n;
-            const float rel = std::floor(at) - float(first);
-            cell[a] = first + (rel < 0 ? 0 : rel >= float(cells) ? cells - 1 : std::uint32_t(rel));
-          }
-          hit.x = cell[0], hit.y = cell[1], hit.z = cell[2];
-          if (entry_axis >= 0 && entry_axis < 3) {
-            hit.face_normal[entry_axis] = d[entry_axis] > 0 ? -1.0f : 1.0f;
-          } else if (entry_axis == 3) {
-            const float dn =
-                entry_contour[0] * d[0] + entry_contour[1] * d[1] + entry_contour[2] * d[2];
-            const float length = std::sqrt(entry_contour[0] * entry_contour[0] +
-                                           entry_contour[1] * entry_contour[1] +
-                                           entry_contour[2] * entry_contour[2]);
-            const float s = (dn > 0 ? -1.0f : 1.0f) / length;
-            for (int a = 0; a < 3; ++a) hit.face_normal[a] = entry_contour[a] * s;
-          }
+        if (leaf || (use_lod && tc_max * lod_coef + lod_bias >= s.scale_exp2)) {
+          leaf_hit(s, tv_min, frame_.resolution, hit);
           if constexpr (!kAnyHit) {
-            const std::uint64_t attachment = attachment_index(parent, w0, w1, octant);
+            const std::uint64_t attachment = attachment_index(s.parent, w0, w1, octant);
             format::decode_octahedral(normals_[attachment], hit.normal);
-            if (!colors_.empty()) out.color = colors_[attachment];
+            if (!colors_.empty()) hit.color = colors_[attachment];
           }
-          return out;
+          return hit;
         }
-        // PUSH: descend into the child; its subtree is searched within [tv_min, tv_max].
-        stack[scale] = {parent, t_max};
-        parent = format::first_child_word(words_.data(), parent, w0) +
-                 2 * format::rank_below(w0 & 0xFF, octant);
-        idx = 0;
-        --scale;
-        scale_exp2 = half;
-        for (int a = 0; a < 3; ++a)
-          if (half * coef[a] + tc[a] > tv_min) idx ^= 1u << a, pos[a] += half;
-        t_min = tv_min;
-        t_max = tv_max;
-        loaded = false;
+        push(s,
+             format::first_child_word(words_.data(), s.parent, w0) +
+                 2 * format::rank_below(w0 & 0xFF, octant),
+             tc, tv_min, tv_max);
+        popped = true;
         continue;
       }
     }
-
-    // ADVANCE to the next sibling along the ray.
-    std::uint32_t step = 0;
-    for (int a = 0; a < 3; ++a)
-      if (tc[a] <= tc_max) step |= 1u << a, pos[a] -= scale_exp2;
-    t_min = tc_max;
-    entry_axis = std::countr_zero(step | 8u);
-    idx ^= step;
-    if ((idx & step) != 0) {
-      // POP: the highest differing bit of the stepped coordinates is the level left behind.
-      std::uint32_t differing = 0;
-      for (int a = 0; a < 3; ++a)
-        if (step >> a & 1) differing |= bits_of(pos[a]) ^ bits_of(pos[a] + scale_exp2);
-      scale = int(bits_of(float(differing)) >> 23) - 127;
-      if (scale >= kMaxScale) break;
-      scale_exp2 = float_of(std::uint32_t(scale - kMaxScale + 127) << 23);
-      parent = stack[scale].parent;
-      t_max = stack[scale].t_max;
-      idx = 0;
-      for (int a = 0; a < 3; ++a) {
-        const std::uint32_t shifted = bits_of(pos[a]) >> scale;
-        pos[a] = float_of(shifted << scale);
-        idx |= (shifted & 1) << a;
-      }
-      loaded = false;
-    }
+    if (!advance(s, tc, tc_max, popped)) break;
   }
-  return out;
+  return hit;
 }
 
-EsvoHit EsvoView::intersect(const Ray& ray, const EsvoLod& lod) const {
+VoxelHit EsvoView::intersect(const Ray& ray) const {
+  return cast<false, false>(ray, {}, nullptr);
+}
+VoxelHit EsvoView::intersect(const Ray& ray, const EsvoLod& lod) const {
   return cast<false, false>(ray, lod, nullptr);
 }
 
-EsvoHit EsvoView::intersect_counting(const Ray& ray, Cost& cost, const EsvoLod& lod) const {
+VoxelHit EsvoView::intersect_counting(const Ray& ray, Cost& cost) const {
+  return cast<false, true>(ray, {}, &cost);
+}
+VoxelHit EsvoView::intersect_counting(const Ray& ray, Cost& cost, const EsvoLod& lod) const {
   return cast<false, true>(ray, lod, &cost);
 }
 
-EsvoHit EsvoView::intersect_any(const Ray& ray, const EsvoLod& lod) const {
+VoxelHit EsvoView::intersect_any(const Ray& ray) const {
+  return cast<true, false>(ray, {}, nullptr);
+}
+VoxelHit EsvoView::intersect_any(const Ray& ray, const EsvoLod& lod) const {
   return cast<true, false>(ray, lod, nullptr);
 }
 
-bool EsvoView::occluded(const Ray& ray, const EsvoLod& lod) const {
-  return cast<true, false>(ray, lod, nullptr).hit.hit();
+bool EsvoView::occluded(const Ray& ray) const {
+  return cast<true, false>(ray, {}, nullptr).hit();
 }
-
-void trace_rays(const EsvoView& esvo, std::span<const Ray> rays, std::span<VoxelHit> hits,
-                bool any_hit, unsigned threads, const EsvoLod& lod) {
-  parallel_for_batched(rays.size(), kRaysPerTask, threads, [&](std::size_t i) {
-    hits[i] = any_hit ? esvo.intersect_any(rays[i], lod).hit : esvo.intersect(rays[i], lod).hit;
-  });
+bool EsvoView::occluded(const Ray& ray, const EsvoLod& lod) const {
+  return cast<true, false>(ray, lod, nullptr).hit();
 }
 
 }  // namespace kiln

@@ -3,9 +3,10 @@
 #include <string>
 #include <vector>
 
-#include "grid_frame.hpp"
+#include "voxel_grid_frame.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/esvo.hpp"
 
 namespace kiln {
@@ -57,16 +58,21 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
       fail("page header " + std::to_string(p) + " names the wrong block");
   }
 
-  // Depth-first over every descriptor reachable from the root. Pointers only go forward, so
-  // there is no cycle, and an octree shares nothing: a descriptor reached twice is refused, so
-  // the walk (and any later one) is linear in the words.
-  std::vector<std::uint8_t> seen(words.size() / 2);
+  check_descriptors(name);
+}
+
+// Depth-first over every descriptor reachable from the root. Pointers only go forward, so there
+// is no cycle, and an octree shares nothing: a descriptor reached twice is refused, so the walk
+// (and any later one) is linear in the words.
+void EsvoView::check_descriptors(const std::string& name) {
+  auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
+  std::vector<std::uint8_t> seen(words_.size() / 2);
   std::vector<std::pair<std::uint64_t, std::uint32_t>> stack{{0, 0}};
   seen[0] = 1;
   while (!stack.empty()) {
     const auto [w, level] = stack.back();
     stack.pop_back();
-    const format::EsvoDescriptor d = format::decode_descriptor(words[w], words[w + 1]);
+    const format::EsvoDescriptor d = format::decode_descriptor(words_[w], words_[w + 1]);
     counts_.descriptors += 1;
     counts_.voxels += std::popcount(d.valid);
     counts_.leaves += std::popcount(std::uint8_t(d.valid & ~d.non_leaf));
@@ -77,25 +83,25 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
     if (d.valid == 0 && w != 0) fail(where + " has no children");
     if (d.non_leaf != 0 && level + 1 >= levels_) fail(where + " goes deeper than the resolution");
     const std::uint64_t run = w + d.contour_pointer;
-    if (d.contour_pointer < 2 || run + 1 + std::popcount(d.contour_mask) > words.size())
+    if (d.contour_pointer < 2 || run + 1 + std::popcount(d.contour_mask) > words_.size())
       fail(where + " has its voxel run out of range");
     for (int k = 0; k < std::popcount(d.contour_mask); ++k)
-      if (format::contour_extent(format::decode_contour(words[run + 1 + k])) == 0)
+      if (format::contour_extent(format::decode_contour(words_[run + 1 + k])) == 0)
         fail(where + " has a contour without a normal");
     const std::size_t b = block_of(w);
-    if (blocks[b].attachment_base + words[run] + std::popcount(d.valid) >
-        attachment_end(blocks, b, normals.size()))
+    if (blocks_[b].attachment_base + words_[run] + std::popcount(d.valid) >
+        attachment_end(blocks_, b, normals_.size()))
       fail(where + " has attachments outside its block");
     if (d.non_leaf == 0) continue;
     std::uint64_t offset = 2 * std::uint64_t(d.child_pointer);
     if (d.far) {
-      if (d.child_pointer < 2 || w + d.child_pointer >= words.size())
+      if (d.child_pointer < 2 || w + d.child_pointer >= words_.size())
         fail(where + " has its far pointer out of range");
-      offset = words[w + d.child_pointer];
+      offset = words_[w + d.child_pointer];
     }
     const std::uint64_t child = w + offset;
     const std::uint64_t count = std::popcount(d.non_leaf);
-    if (offset < 2 || offset % 2 != 0 || child + 2 * count > words.size())
+    if (offset < 2 || offset % 2 != 0 || child + 2 * count > words_.size())
       fail(where + " points at word " + std::to_string(child) + ", out of range");
     for (std::uint64_t i = 0; i < count; ++i) {
       const std::uint64_t c = child + 2 * i;
@@ -107,16 +113,15 @@ EsvoView::EsvoView(std::span<const std::uint32_t> words, std::span<const std::ui
 }
 
 EsvoView EsvoView::from_blob(const Blob& blob, const std::string& name) {
-  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->esvo() != nullptr) {
-    const auto* e = accel->esvo();
-    const VoxelGridFrame frame = grid_frame_of(*e);
-    return EsvoView(
-        blob.section_view<std::uint32_t>(e->words()), blob.section_view<std::uint32_t>(e->pages()),
-        blob.section_view<format::EsvoBlockInfo>(e->blocks()),
-        blob.section_view<std::uint32_t>(e->normals()),
-        blob.section_view<std::uint32_t>(e->colors()), frame, blob.name() + ": " + name);
-  }
-  throw BlobError(blob.name() + ": has no ESVO '" + name + "' (build with --accel esvo)");
+  const StructureInfo* info = blob.structure(name);
+  const auto* e = info ? structure_table(blob, *info).desc_as<schema::EsvoDesc>() : nullptr;
+  if (e == nullptr) blob.fail("has no ESVO '" + name + "'");
+  // Blob::open checked kinds, sizes and counts of these sections.
+  return EsvoView(
+      blob.section_view<std::uint32_t>(e->words()), blob.section_view<std::uint32_t>(e->pages()),
+      blob.section_view<format::EsvoBlockInfo>(e->blocks()),
+      blob.section_view<std::uint32_t>(e->normals()),
+      blob.section_view<std::uint32_t>(e->colors()), grid_frame_of(*e), blob.name() + ": " + name);
 }
 
 std::size_t EsvoView::block_of(std::uint64_t w) const {

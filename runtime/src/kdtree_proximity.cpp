@@ -1,5 +1,5 @@
-// Closest point, point inside and box queries on the SAH k-d tree, with the BVH versions'
-// semantics and tie rules (proximity.hpp).
+// Closest point, point inside and box queries on the SAH k-d tree, with the semantics and tie
+// rules every triangle structure shares (proximity_detail.hpp).
 //
 // Every walk starts from the root cell (the tree's bounds, which hold every triangle) and cuts the
 // current cell at each interior node's plane, so the leaf cells tile the root box. The builder
@@ -20,7 +20,6 @@
 #include <vector>
 
 #include "kiln/runtime/kdtree.hpp"
-#include "kiln/runtime/proximity.hpp"
 #include "kiln/runtime/triangle_geometry.hpp"
 #include "kiln/runtime/watertight.hpp"
 #include "proximity_detail.hpp"

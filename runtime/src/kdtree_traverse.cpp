@@ -7,7 +7,6 @@
 #include <cmath>
 
 #include "kiln/runtime/kdtree.hpp"
-#include "kiln/runtime/parallel.hpp"
 #include "kiln/runtime/watertight.hpp"
 #include "ray_box.hpp"
 
@@ -18,7 +17,7 @@ namespace {
 constexpr float kNearScale = 2.0f - kFarScale;
 
 template <bool kAnyHit, bool kCount>
-Hit traverse(const KdTreeView& tree, const Ray& ray, KdTreeView::Cost* cost) {
+Hit traverse(const KdTreeView& tree, const Ray& ray, Cost* cost) {
   const auto nodes = tree.nodes();
   const auto prim_ids = tree.prim_ids();
   const auto triangles = tree.triangles();
@@ -74,7 +73,7 @@ Hit traverse(const KdTreeView& tree, const Ray& ray, KdTreeView::Cost* cost) {
     } else {
       const std::uint32_t begin = n.first_reference(), end = begin + n.reference_count();
       for (std::uint32_t i = begin; i < end; ++i) {
-        if constexpr (kCount) cost->triangles += 1;
+        if constexpr (kCount) cost->tests += 1;
         const std::uint32_t prim = prim_ids[i];
         const format::RayTriangle& tri = triangles[prim];
         float t, u, v;
@@ -108,17 +107,12 @@ Hit KdTreeView::intersect_counting(const Ray& ray, Cost& cost) const {
   return traverse<false, true>(*this, ray, &cost);
 }
 
-bool KdTreeView::occluded(const Ray& ray, float* t) const {
-  const Hit hit = traverse<true, false>(*this, ray, nullptr);
-  if (t != nullptr) *t = hit.t;
-  return hit.prim != kNoHit;
+Hit KdTreeView::intersect_any(const Ray& ray) const {
+  return traverse<true, false>(*this, ray, nullptr);
 }
 
-void trace_rays(const KdTreeView& tree, std::span<const Ray> rays, std::span<Hit> hits,
-                bool any_hit, unsigned threads) {
-  parallel_for_batched(rays.size(), kRaysPerTask, threads, [&](std::size_t i) {
-    hits[i] = any_hit ? traverse<true, false>(tree, rays[i], nullptr) : tree.intersect(rays[i]);
-  });
+bool KdTreeView::occluded(const Ray& ray) const {
+  return traverse<true, false>(*this, ray, nullptr).hit();
 }
 
 }  // namespace kiln

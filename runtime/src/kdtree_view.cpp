@@ -1,3 +1,4 @@
+// The k-d tree view's structural check, and its view of a blob's structure.
 #include <string>
 #include <vector>
 
@@ -5,6 +6,7 @@
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/kdtree.hpp"
+#include "kiln/runtime/manifest.hpp"
 
 namespace kiln {
 
@@ -28,18 +30,18 @@ KdTreeView::KdTreeView(std::span<const format::KdNode> nodes,
 }
 
 KdTreeView KdTreeView::from_blob(const Blob& blob, const std::string& name) {
-  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->kdtree() != nullptr) {
-    // open() checked kinds, sizes and counts of these sections.
-    const auto* d = accel->kdtree();
-    const auto* b = d->bounds();
-    const float lo[3] = {b ? b->min().x() : 0, b ? b->min().y() : 0, b ? b->min().z() : 0};
-    const float hi[3] = {b ? b->max().x() : 0, b ? b->max().y() : 0, b ? b->max().z() : 0};
-    return KdTreeView(blob.section_view<format::KdNode>(d->nodes()),
-                      blob.section_view<std::uint32_t>(d->prim_ids()),
-                      blob.section_view<format::RayTriangle>(d->triangles()), lo, hi,
-                      blob.name() + ": " + name);
-  }
-  throw BlobError(blob.name() + ": has no k-d tree '" + name + "'");
+  const StructureInfo* info = blob.structure(name);
+  if (info == nullptr) blob.fail("has no structure '" + name + "'");
+  const auto* d = structure_table(blob, *info).desc_as<schema::KdTreeDesc>();
+  if (d == nullptr) blob.fail("structure '" + name + "' is a " + info->kind + ", not a k-d tree");
+  // Blob::open checked kinds, sizes and counts of these sections, and that the bounds exist.
+  const auto& b = *d->bounds();
+  const float lo[3] = {b.min().x(), b.min().y(), b.min().z()};
+  const float hi[3] = {b.max().x(), b.max().y(), b.max().z()};
+  return KdTreeView(blob.section_view<format::KdNode>(d->nodes()),
+                    blob.section_view<std::uint32_t>(d->prim_ids()),
+                    blob.section_view<format::RayTriangle>(d->triangles()), lo, hi,
+                    blob.name() + ": " + name);
 }
 
 }  // namespace kiln

@@ -4,6 +4,7 @@
 #include "depth_first_layout.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/point_tree.hpp"
 
 namespace kiln {
@@ -26,19 +27,17 @@ PointTreeView::PointTreeView(std::span<const format::PointNode> nodes,
 }
 
 PointTreeView PointTreeView::from_blob(const Blob& blob, const std::string& name) {
-  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->points() != nullptr) {
-    // open() checked kinds, sizes and counts of these sections, and the bounds' presence.
-    const auto* d = accel->points();
-    const auto* b = d->bounds();
-    const float lo[3] = {b->min().x(), b->min().y(), b->min().z()};
-    const float hi[3] = {b->max().x(), b->max().y(), b->max().z()};
-    return PointTreeView(blob.section_view<format::PointNode>(d->nodes()),
-                         blob.section_view<format::Float3>(d->points()),
-                         blob.section_view<std::uint32_t>(d->point_ids()), lo, hi,
-                         blob.name() + ": " + name);
-  }
-  throw BlobError(blob.name() + ": has no point k-d tree '" + name +
-                  "' (build with --accel points)");
+  const StructureInfo* info = blob.structure(name);
+  const auto* d = info ? structure_table(blob, *info).desc_as<schema::PointTreeDesc>() : nullptr;
+  if (d == nullptr) blob.fail("has no point k-d tree '" + name + "'");
+  // Blob::open checked kinds, sizes and counts of these sections, and the bounds' presence.
+  const auto* b = d->bounds();
+  const float lo[3] = {b->min().x(), b->min().y(), b->min().z()};
+  const float hi[3] = {b->max().x(), b->max().y(), b->max().z()};
+  return PointTreeView(blob.section_view<format::PointNode>(d->nodes()),
+                       blob.section_view<format::Float3>(d->points()),
+                       blob.section_view<std::uint32_t>(d->point_ids()), lo, hi,
+                       blob.name() + ": " + name);
 }
 
 }  // namespace kiln

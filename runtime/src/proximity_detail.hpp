@@ -1,6 +1,6 @@
-// Pieces shared by the proximity queries on the BVH (proximity.cpp) and on the k-d tree
-// (kdtree_proximity.cpp): box distances, the per-triangle predicates with their tie rules, and
-// the ray-parity vote.
+// Pieces shared by the proximity queries of the triangle structures (each structure's
+// *_proximity.cpp): box distances, the per-triangle predicates with their tie rules, and the
+// ray-parity vote.
 #pragma once
 
 #include <algorithm>
@@ -8,8 +8,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "kiln/formats/bvh.hpp"
-#include "kiln/runtime/proximity.hpp"
+#include "kiln/formats/ray_triangle.hpp"
+#include "kiln/runtime/query_results.hpp"
+#include "kiln/runtime/ray.hpp"
 #include "kiln/runtime/triangle_geometry.hpp"
 #include "kiln/runtime/watertight.hpp"
 

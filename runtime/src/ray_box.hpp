@@ -1,9 +1,9 @@
-// The conservative ray-box slab test shared by every ray walk over a BVH or a k-d tree's root.
+// The conservative ray-box slab test shared by every ray walk over a tree of boxes or a tree's
+// root cell.
 #pragma once
 
 #include <limits>
 
-#include "kiln/formats/bvh.hpp"
 #include "kiln/runtime/ray.hpp"
 
 namespace kiln {
@@ -46,8 +46,10 @@ inline bool clip_to_box(const float box_min[3], const float box_max[3], const Bo
   return tmin <= tmax;
 }
 
-// Entry distance of the ray into the node's box, or +inf when it misses within [tmin, tmax].
-inline float enter_box(const format::BvhNode& n, const BoxRay& r, float tmin, float tmax) {
+// Entry distance of the ray into a node's box (its `min` and `max` corners), or +inf when it
+// misses within [tmin, tmax].
+template <class BoxNode>
+inline float enter_box(const BoxNode& n, const BoxRay& r, float tmin, float tmax) {
   return clip_to_box(n.min, n.max, r, tmin, tmax) ? tmin : std::numeric_limits<float>::infinity();
 }
 

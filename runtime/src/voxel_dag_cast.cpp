@@ -8,7 +8,6 @@
 #include <bit>
 #include <cmath>
 
-#include "kiln/runtime/parallel.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
 
 namespace kiln {
@@ -66,20 +65,56 @@ int order_children(const GridRay& r, std::uint32_t mask, std::uint32_t x, std::u
   return count;
 }
 
-}  // namespace
-
-template <bool kAnyHit, bool kCount>
-VoxelHit VoxelDagView::cast(const Ray& ray, Cost* cost) const {
+// The ray in grid space (voxel = unit cube); t stays the world-space ray parameter.
+GridRay grid_ray(const Ray& ray, const VoxelGridFrame& frame) {
   GridRay r;
   const float org[3] = {ray.org.x, ray.org.y, ray.org.z};
   const float dir[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
   for (int a = 0; a < 3; ++a) {
-    r.org[a] = float((double(org[a]) - frame_.origin[a]) / frame_.voxel_size);
+    r.org[a] = float((double(org[a]) - frame.origin[a]) / frame.voxel_size);
     // Scaling the direction by 1/voxel_size keeps t the world-space ray parameter.
-    r.inv_dir[a] = float(frame_.voxel_size / double(dir[a]));
+    r.inv_dir[a] = float(frame.voxel_size / double(dir[a]));
     r.negative[a] = r.inv_dir[a] < 0.0f;
   }
   r.tmin = ray.tmin, r.tmax = ray.tmax;
+  return r;
+}
+
+// The first set voxel of the 4x4x4 leaf `leaf` at cell `c` along the ray, into `hit` (t, voxel,
+// entered face); false when the ray passes through it. Its bytes are the 2x2x2 quarters in
+// octant order, their bits the voxels inside.
+template <bool kCount>
+bool leaf_hit(const GridRay& r, std::uint64_t leaf, const Cell& c, Cost* cost, VoxelHit& hit) {
+  Candidate order[8], inner[8];
+  std::uint32_t byte_mask = 0;
+  for (std::uint32_t b = 0; b < 8; ++b) byte_mask |= (leaf >> (8 * b) & 0xFF) != 0 ? 1u << b : 0u;
+  const int quarters = order_children(r, byte_mask, c.x, c.y, c.z, 2, order);
+  for (int q = 0; q < quarters; ++q) {
+    const std::uint32_t b = order[q].index;
+    if constexpr (kCount) {
+      cost->nodes += 1;
+      cost->tests += std::uint32_t(std::popcount(std::uint32_t(leaf >> (8 * b) & 0xFF)));
+    }
+    const std::uint32_t qx = c.x + (b & 1) * 2, qy = c.y + (b >> 1 & 1) * 2,
+                        qz = c.z + (b >> 2 & 1) * 2;
+    const int voxels =
+        order_children(r, std::uint32_t(leaf >> (8 * b) & 0xFF), qx, qy, qz, 1, inner);
+    if (voxels == 0) continue;
+    const Candidate& v = inner[0];
+    hit.t = v.t;
+    hit.prim = 0;
+    hit.x = qx + (v.index & 1), hit.y = qy + (v.index >> 1 & 1), hit.z = qz + (v.index >> 2 & 1);
+    if (v.axis >= 0) hit.face_normal[v.axis] = r.negative[v.axis] ? 1.0f : -1.0f;
+    return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+template <bool kAnyHit, bool kCount>
+VoxelHit VoxelDagView::cast(const Ray& ray, Cost* cost) const {
+  const GridRay r = grid_ray(ray, frame_);
   VoxelHit hit;
   float t_root;
   int axis_root;
@@ -90,44 +125,25 @@ VoxelHit VoxelDagView::cast(const Ray& ray, Cost* cost) const {
   Cell stack[8 * 16];
   std::uint32_t top = 0;
   stack[top++] = {0, 0, 0, 0, 0};
-  Candidate order[8], inner[8];
+  Candidate order[8];
   while (top > 0) {
     const Cell c = stack[--top];
     if constexpr (kCount) cost->nodes += 1;
-    const std::uint32_t half = frame_.resolution >> (c.level + 1);
-    if (c.level < leaf_level) {
-      const std::uint32_t mask = words_[c.word];
-      const int count = order_children(r, mask, c.x, c.y, c.z, half, order);
-      for (int i = count; i-- > 0;) {
-        const std::uint32_t octant = order[i].index;
-        const std::uint32_t child = words_[c.word + 1 + std::popcount(mask & ((1u << octant) - 1))];
-        stack[top++] = {child, c.level + 1, c.x + (octant & 1) * half,
-                        c.y + (octant >> 1 & 1) * half, c.z + (octant >> 2 & 1) * half};
-      }
-      continue;
-    }
-    // A 4x4x4 leaf: bytes are its 2x2x2 quarters in octant order, bits the voxels inside.
-    const std::uint64_t leaf = words_[c.word] | std::uint64_t(words_[c.word + 1]) << 32;
-    std::uint32_t byte_mask = 0;
-    for (std::uint32_t b = 0; b < 8; ++b) byte_mask |= (leaf >> (8 * b) & 0xFF) != 0 ? 1u << b : 0u;
-    const int quarters = order_children(r, byte_mask, c.x, c.y, c.z, 2, order);
-    for (int q = 0; q < quarters; ++q) {
-      const std::uint32_t b = order[q].index;
-      if constexpr (kCount) {
-        cost->nodes += 1;
-        cost->voxels += std::uint32_t(std::popcount(std::uint32_t(leaf >> (8 * b) & 0xFF)));
-      }
-      const std::uint32_t qx = c.x + (b & 1) * 2, qy = c.y + (b >> 1 & 1) * 2,
-                          qz = c.z + (b >> 2 & 1) * 2;
-      const int voxels =
-          order_children(r, std::uint32_t(leaf >> (8 * b) & 0xFF), qx, qy, qz, 1, inner);
-      if (voxels == 0) continue;
-      const Candidate& v = inner[0];
-      hit.t = v.t;
-      hit.x = qx + (v.index & 1), hit.y = qy + (v.index >> 1 & 1), hit.z = qz + (v.index >> 2 & 1);
-      if (v.axis >= 0) hit.face_normal[v.axis] = r.negative[v.axis] ? 1.0f : -1.0f;
+    if (c.level >= leaf_level) {
+      const std::uint64_t leaf = words_[c.word] | std::uint64_t(words_[c.word + 1]) << 32;
+      if (!leaf_hit<kCount>(r, leaf, c, cost, hit)) continue;
+      hit.level = levels_;
       if constexpr (!kAnyHit) attached_normal(hit.x, hit.y, hit.z, hit.normal);
       return hit;
+    }
+    const std::uint32_t half = frame_.resolution >> (c.level + 1);
+    const std::uint32_t mask = words_[c.word];
+    const int count = order_children(r, mask, c.x, c.y, c.z, half, order);
+    for (int i = count; i-- > 0;) {
+      const std::uint32_t octant = order[i].index;
+      const std::uint32_t child = words_[c.word + 1 + std::popcount(mask & ((1u << octant) - 1))];
+      stack[top++] = {child, c.level + 1, c.x + (octant & 1) * half,
+                      c.y + (octant >> 1 & 1) * half, c.z + (octant >> 2 & 1) * half};
     }
   }
   return hit;
@@ -147,15 +163,6 @@ bool VoxelDagView::occluded(const Ray& ray) const {
 
 VoxelHit VoxelDagView::intersect_any(const Ray& ray) const {
   return cast<true, false>(ray, nullptr);
-}
-
-void trace_rays(const VoxelDagView& dag, std::span<const Ray> rays, std::span<VoxelHit> hits,
-                bool any_hit, unsigned threads) {
-  // The walk is front to back, so the first voxel found is the closest: any-hit casts differ
-  // only in skipping the attachment lookup.
-  parallel_for_batched(rays.size(), kRaysPerTask, threads, [&](std::size_t i) {
-    hits[i] = any_hit ? dag.intersect_any(rays[i]) : dag.intersect(rays[i]);
-  });
 }
 
 }  // namespace kiln

@@ -3,9 +3,10 @@
 #include <string>
 #include <vector>
 
-#include "grid_frame.hpp"
+#include "voxel_grid_frame.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
 
 namespace kiln {
@@ -62,18 +63,17 @@ VoxelDagView::VoxelDagView(std::span<const std::uint32_t> words, const VoxelGrid
 }
 
 VoxelDagView VoxelDagView::from_blob(const Blob& blob, const std::string& name) {
-  if (const auto* accel = blob.acceleration(name); accel != nullptr && accel->dag() != nullptr) {
-    const auto* d = accel->dag();
-    const VoxelGridFrame frame = grid_frame_of(*d);
-    std::vector<std::uint64_t> firsts;
-    if (d->level_stats())
-      for (const auto* level : *d->level_stats()) firsts.push_back(level->first_word());
-    return VoxelDagView(blob.section_view<std::uint32_t>(d->words()), frame, firsts,
-                        d->leaf_first_word(), blob.section_view<std::uint64_t>(d->voxel_codes()),
-                        blob.section_view<std::uint32_t>(d->voxel_normals()),
-                        blob.name() + ": " + name);
-  }
-  throw BlobError(blob.name() + ": has no voxel DAG '" + name + "' (build with --accel dag)");
+  const StructureInfo* info = blob.structure(name);
+  const auto* d =
+      info ? structure_table(blob, *info).desc_as<schema::VoxelDagDesc>() : nullptr;
+  if (d == nullptr) blob.fail("has no voxel DAG '" + name + "'");
+  // Blob::open checked kinds, sizes and counts of these sections, and the level table's presence.
+  std::vector<std::uint64_t> firsts;
+  for (const auto* level : *d->level_stats()) firsts.push_back(level->first_word());
+  return VoxelDagView(blob.section_view<std::uint32_t>(d->words()), grid_frame_of(*d), firsts,
+                      d->leaf_first_word(), blob.section_view<std::uint64_t>(d->voxel_codes()),
+                      blob.section_view<std::uint32_t>(d->voxel_normals()),
+                      blob.name() + ": " + name);
 }
 
 bool VoxelDagView::occupied(const format::Float3& point) const {

@@ -1,77 +1,47 @@
-#include "kiln/tools/query_command.hpp"
-
+// `kiln query`: closest point, inside, box, kNN, radius and occupancy queries from a file of
+// 3D positions or boxes, answered by whichever structure of the blob has the capability.
 #include <cmath>
-#include <cstring>
 #include <iostream>
+#include <memory>
+#include <string>
 #include <vector>
 
+#include "commands.hpp"
 #include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
-#include "kiln/runtime/error.hpp"
-#include "kiln/runtime/esvo.hpp"
-#include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/runtime/parallel.hpp"
-#include "kiln/runtime/point_tree.hpp"
-#include "kiln/runtime/proximity.hpp"
-#include "kiln/runtime/voxel_dag.hpp"
+#include "kiln/tools/structure_choice.hpp"
 
-namespace kiln {
+namespace kiln::cli {
 
 namespace {
 
 constexpr std::size_t kBatch = 1024;
 
+struct QueryArgs {
+  std::string blob, op, in, out, accel;
+  float max_distance = std::numeric_limits<float>::infinity();
+  unsigned k = 1;
+  float radius = 0;
+  unsigned threads = 0;
+};
+
+// The query file: `count` queries of `stride` floats each (3 per point, 6 per box).
+struct Queries {
+  const float* floats = nullptr;
+  std::size_t stride = 3, count = 0;
+  // Query i's point (or a box's corner at offset k).
+  format::Float3 at(std::size_t i, std::size_t k = 0) const {
+    const float* f = floats + i * stride + k;
+    return {f[0], f[1], f[2]};
+  }
+};
+
 template <class T>
 void append_pod(std::vector<std::byte>& out, const T& value) {
   const auto* p = reinterpret_cast<const std::byte*>(&value);
   out.insert(out.end(), p, p + sizeof(T));
-}
-
-// What a query runs on: triangles (closest, inside, box), points (knn, radius) or voxels
-// (occupied).
-enum class Need { kSurface, kPoints, kVoxels };
-
-// The structure a query runs on: the one --accel names, else the first BVH, else the first k-d
-// tree (surface queries), the first point tree (knn, radius), or the first ESVO or DAG
-// (occupied).
-const schema::Acceleration& pick_structure(const Blob& blob, const QueryArgs& args, Need need) {
-  const auto* accels = blob.manifest().accelerations();
-  const bool points = need == Need::kPoints;
-  const char* wanted = points ? "a point k-d tree (build with --accel points)"
-                       : need == Need::kVoxels
-                           ? "an ESVO or a voxel DAG (build with --accel esvo or dag)"
-                           : "a BVH or k-d tree (build with --accel bvh, sbvh or kdtree)";
-  auto first = [&](auto accepts) -> const schema::Acceleration* {
-    if (accels)
-      for (const auto* a : *accels)
-        if (accepts(*a)) return a;
-    return nullptr;
-  };
-  auto fits = [&](const schema::Acceleration& a) {
-    if (need == Need::kVoxels) return a.esvo() != nullptr || a.dag() != nullptr;
-    return points ? a.points() != nullptr : (a.bvh() != nullptr || a.kdtree() != nullptr);
-  };
-  if (!args.accel.empty()) {
-    const auto* named = blob.acceleration(args.accel);
-    if (named == nullptr) throw BlobError(blob.name() + ": has no structure '" + args.accel + "'");
-    if (!fits(*named))
-      throw BlobError(blob.name() + ": --op " + args.op + " needs " + wanted + ", and '" +
-                      args.accel + "' is not one");
-    return *named;
-  }
-  // A surface query prefers a BVH (the faster closest-point walk), else any structure that fits.
-  const auto* found =
-      need == Need::kSurface ? first([](const auto& a) { return a.bvh() != nullptr; }) : nullptr;
-  if (found == nullptr) found = first(fits);
-  if (found == nullptr) throw BlobError(blob.name() + ": holds no " + wanted);
-  return *found;
-}
-
-// Query i's point (or a box's corner at offset k) in an input of `stride` floats per query.
-format::Float3 point_at(const float* floats, std::size_t i, std::size_t stride, std::size_t k) {
-  const float* f = floats + i * stride + k;
-  return {f[0], f[1], f[2]};
 }
 
 // Runs `answer(i, bytes)` for every query in parallel batches and concatenates the bytes in
@@ -89,98 +59,83 @@ std::vector<std::byte> answer_all(std::size_t count, unsigned threads, Answer an
   return out;
 }
 
-// closest, inside and box: the same code on a BVH or a k-d tree.
-template <class Tree>
-std::vector<std::byte> surface_queries(const Tree& tree, const Blob& blob, const QueryArgs& args,
-                                       const float* floats, std::size_t count) {
+// closest: distance, triangle, point; inside: one byte; box: a count, then the triangle ids.
+std::vector<std::byte> surface_answers(const Blob& blob, const QueryArgs& args, const Queries& q) {
+  const auto chosen =
+      choose_structure(blob, args.accel, &StructureView::surface, "answer surface queries");
+  const SurfaceQueries& s = *chosen.view->surface();
   if (args.op == "closest")
-    return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-      const ClosestPoint c = closest_point(tree, point_at(floats, i, 3, 0), args.max_distance);
+    return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+      const ClosestPoint c = s.closest_point(q.at(i), args.max_distance);
       append_pod(bytes, c.distance);
       append_pod(bytes, c.prim);
       append_pod(bytes, c.point);
     });
   if (args.op == "inside") {
-    if (!blob.manifest().scene()->closed())
+    if (!blob.input().closed)
       std::cerr << "kiln query: warning: " << args.blob
                 << " is not a closed mesh; inside answers are a best guess\n";
-    return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-      append_pod(bytes, std::uint8_t(point_inside(tree, point_at(floats, i, 3, 0)) ? 1 : 0));
+    return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+      append_pod(bytes, std::uint8_t(s.inside(q.at(i)) ? 1 : 0));
     });
   }
-  return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+  return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
     std::vector<std::uint32_t> ids;
-    triangles_in_box(tree, point_at(floats, i, 6, 0), point_at(floats, i, 6, 3), ids);
+    s.triangles_in_box(q.at(i), q.at(i, 3), ids);
     append_pod(bytes, std::uint32_t(ids.size()));
     for (const auto id : ids) append_pod(bytes, id);
   });
 }
 
-// knn: K records per query, padded with (0xFFFFFFFF, +inf) when the tree holds fewer points;
-// radius: a count, then the ids by distance.
-std::vector<std::byte> point_queries(const PointTreeView& tree, const QueryArgs& args,
-                                     const float* floats, std::size_t count) {
+// knn: K records per query, padded with (0xFFFFFFFF, +inf) when there are fewer; radius: a
+// count, then the ids by distance.
+std::vector<std::byte> neighbor_answers(const Blob& blob, const QueryArgs& args, const Queries& q) {
+  const auto chosen = choose_structure(blob, args.accel, &StructureView::neighbors,
+                                       "answer nearest-neighbour queries");
+  const NeighborQueries& n = *chosen.view->neighbors();
   if (args.op == "knn")
-    return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+    return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
       std::vector<Neighbor> found(args.k, Neighbor{kNoHit, INFINITY});
-      tree.nearest(point_at(floats, i, 3, 0), found);
-      for (const Neighbor& n : found) append_pod(bytes, n);
+      n.nearest(q.at(i), found);
+      for (const Neighbor& neighbor : found) append_pod(bytes, neighbor);
     });
-  return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+  return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
     std::vector<Neighbor> found;
-    tree.within_radius(point_at(floats, i, 3, 0), args.radius, found);
+    n.within_radius(q.at(i), args.radius, found);
     append_pod(bytes, std::uint32_t(found.size()));
-    for (const Neighbor& n : found) append_pod(bytes, n.id);
+    for (const Neighbor& neighbor : found) append_pod(bytes, neighbor.id);
   });
 }
 
-// occupied: 1 when the point lies in a leaf's region of the ESVO (cube cut by its contours) or in
-// a set voxel of the DAG.
-std::vector<std::byte> voxel_queries(const Blob& blob, const schema::Acceleration& structure,
-                                     const QueryArgs& args, const float* floats,
-                                     std::size_t count) {
-  const std::string accel = structure.kind()->str();
-  auto answer = [&](const auto& view) {
-    return answer_all(count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
-      append_pod(bytes, std::uint8_t(view.occupied(point_at(floats, i, 3, 0)) ? 1 : 0));
-    });
-  };
-  if (structure.esvo() != nullptr) return answer(EsvoView::from_blob(blob, accel));
-  return answer(VoxelDagView::from_blob(blob, accel));
+// occupied: 1 when the point lies in the structure's solid.
+std::vector<std::byte> occupancy_answers(const Blob& blob, const QueryArgs& args,
+                                         const Queries& q) {
+  const auto chosen =
+      choose_structure(blob, args.accel, &StructureView::occupancy, "answer occupancy queries");
+  const OccupancyQueries& o = *chosen.view->occupancy();
+  return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
+    append_pod(bytes, std::uint8_t(o.occupied(q.at(i)) ? 1 : 0));
+  });
 }
-
-}  // namespace
 
 int run_query(const QueryArgs& args) {
   try {
-    const bool points = args.op == "knn" || args.op == "radius";
-    const Need need = points                  ? Need::kPoints
-                      : args.op == "occupied" ? Need::kVoxels
-                                              : Need::kSurface;
-    if (need == Need::kSurface && args.op != "closest" && args.op != "inside" && args.op != "box")
-      throw std::runtime_error("unknown --op " + args.op);
     const Blob blob = Blob::open_file(args.blob);
-    const schema::Acceleration& structure = pick_structure(blob, args, need);
-    const std::string accel = structure.kind()->str();
     const MappedFile input(args.in);
-    const std::size_t stride = args.op == "box" ? 24 : 12;
-    if (input.bytes().size() % stride != 0)
-      throw std::runtime_error(args.in + ": size " + std::to_string(input.bytes().size()) +
-                               " is not a multiple of " + std::to_string(stride) + " bytes (" +
-                               (stride == 24 ? "float32 x 6 per box" : "float32 x 3 per point") +
+    const std::size_t stride = args.op == "box" ? 6 : 3;
+    const std::size_t bytes = input.bytes().size();
+    if (bytes % (stride * sizeof(float)) != 0)
+      throw std::runtime_error(args.in + ": size " + std::to_string(bytes) +
+                               " is not a multiple of " + std::to_string(stride * 4) + " bytes (" +
+                               (stride == 6 ? "float32 x 6 per box" : "float32 x 3 per point") +
                                ")");
-    const std::size_t count = input.bytes().size() / stride;
     // A mapping is page-aligned, so the floats are aligned too.
-    const auto* floats = reinterpret_cast<const float*>(input.bytes().data());
-    std::vector<std::byte> out;
-    if (need == Need::kVoxels)
-      out = voxel_queries(blob, structure, args, floats, count);
-    else if (points)
-      out = point_queries(PointTreeView::from_blob(blob, accel), args, floats, count);
-    else if (structure.bvh() != nullptr)
-      out = surface_queries(BvhView::from_blob(blob, accel), blob, args, floats, count);
-    else
-      out = surface_queries(KdTreeView::from_blob(blob, accel), blob, args, floats, count);
+    const Queries queries{reinterpret_cast<const float*>(input.bytes().data()), stride,
+                          bytes / (stride * sizeof(float))};
+    const std::vector<std::byte> out =
+        args.op == "knn" || args.op == "radius" ? neighbor_answers(blob, args, queries)
+        : args.op == "occupied"                 ? occupancy_answers(blob, args, queries)
+                                                : surface_answers(blob, args, queries);
     write_file_atomically(args.out, out);
     return 0;
   } catch (const std::exception& e) {
@@ -189,4 +144,31 @@ int run_query(const QueryArgs& args) {
   }
 }
 
-}  // namespace kiln
+}  // namespace
+
+Command add_query_command(CLI::App& app) {
+  auto args = std::make_shared<QueryArgs>();
+  auto* command = app.add_subcommand(
+      "query", "Closest point, inside, box, knn, radius and occupied queries on a blob");
+  command->add_option("blob", args->blob, "The .kiln file")->required();
+  command
+      ->add_option("--op", args->op,
+                   "closest, inside, box (surface queries); knn, radius (nearest neighbours among "
+                   "the vertices); occupied (voxel structures)")
+      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius", "occupied"}))
+      ->required();
+  command->add_option("--in", args->in, "Queries: float32 x 3 per point, x 6 per box (min, max)")
+      ->required();
+  command->add_option("--out", args->out, "Answers (docs/FORMAT.md)")->required();
+  command->add_option("--accel", args->accel,
+                      "Structure to use, by name (default: the first that answers --op)");
+  command->add_option("--max-distance", args->max_distance, "closest: ignore surfaces farther away")
+      ->check(CLI::PositiveNumber);
+  command->add_option("--k", args->k, "knn: neighbours per query")->check(CLI::Range(1u, 4096u));
+  command->add_option("--radius", args->radius, "radius: search radius")
+      ->check(CLI::NonNegativeNumber);
+  add_threads_option(command, args->threads);
+  return {command, [args] { return run_query(*args); }};
+}
+
+}  // namespace kiln::cli

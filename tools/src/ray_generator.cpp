@@ -4,6 +4,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "kiln/runtime/parallel.hpp"
 #include "kiln/runtime/triangle_geometry.hpp"
 
 namespace kiln {
@@ -78,7 +79,8 @@ std::vector<Ray> generate_rays(const RayScene& s, RayKind kind, std::size_t coun
     std::vector<Ray> primaries(batch);
     for (auto& r : primaries) r = primary_ray(camera, rng);
     std::vector<Hit> hits(batch);
-    trace_rays(s.bvh, primaries, hits, false, threads);
+    parallel_for_batched(batch, kRaysPerTask, threads,
+                         [&](std::size_t i) { hits[i] = s.closest(primaries[i]); });
     for (std::size_t i = 0; i < batch && rays.size() < count; ++i) {
       if (hits[i].prim == kNoHit) continue;
       const auto& t = s.triangles[hits[i].prim];

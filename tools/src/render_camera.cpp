@@ -65,7 +65,7 @@ std::optional<Camera> parse_camera(std::string_view text, std::string& error) {
   camera.fov_degrees = float(v[6]);
   const Vec3d d = to_d(camera.target) - to_d(camera.eye);
   if (!(dot(d, d) > 0) || !std::isfinite(dot(d, d))) {
-    error = "--camera: the eye and the target must be distinct points";
+    error = "--camera: the eye and the target must be distinct positions";
     return std::nullopt;
   }
   if (!(v[6] > 0 && v[6] < 180)) {
@@ -127,10 +127,8 @@ Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size siz
 }
 
 Camera default_camera(const Blob& blob, Size size) {
-  const auto* bounds = blob.manifest().scene()->bounds();
-  if (bounds == nullptr) return frame_bounds({-1, -1, -1}, {1, 1, 1}, size);
-  return frame_bounds({bounds->min().x(), bounds->min().y(), bounds->min().z()},
-                      {bounds->max().x(), bounds->max().y(), bounds->max().z()}, size);
+  const format::Box3f& bounds = blob.input().bounds;
+  return frame_bounds(bounds.min, bounds.max, size);
 }
 
 PixelRays::PixelRays(const Camera& camera, Size size) : eye_(camera.eye), size_(size) {

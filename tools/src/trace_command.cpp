@@ -1,83 +1,47 @@
-#include "kiln/tools/trace_command.hpp"
-
+// `kiln trace`: a RAYS file against one ray structure of a blob, into a HITS file of the
+// structure's own record (docs/FORMAT.md).
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
-#include <optional>
+#include <memory>
+#include <string>
+#include <vector>
 
-#include "kiln/compiler/build.hpp"
-#include "kiln/compiler/import.hpp"
+#include "commands.hpp"
 #include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
-#include "kiln/runtime/bvh.hpp"
-#include "kiln/runtime/error.hpp"
-#include "kiln/runtime/esvo.hpp"
-#include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/mapped_file.hpp"
-#include "kiln/runtime/voxel_dag.hpp"
-#include "kiln/tools/ray_generator.hpp"
+#include "kiln/tools/structure_choice.hpp"
 
-namespace kiln {
+namespace kiln::cli {
 
 namespace {
 
-std::string default_accel(const Blob& blob) {
-  const auto* accels = blob.manifest().accelerations();
-  if (accels == nullptr || accels->size() == 0)
-    throw BlobError(blob.name() + ": holds no acceleration structure (build with --accel)");
-  return accels->Get(0)->kind()->str();
-}
+struct TraceArgs {
+  std::string blob, rays, out, accel;
+  bool any_hit = false;
+  unsigned threads = 0;
+};
 
-// Traces with whichever structure `accel` names.
-void trace_with(const Blob& blob, const std::string& accel, std::span<const Ray> rays,
-                std::span<Hit> hits, bool any_hit, unsigned threads) {
-  const auto* a = blob.acceleration(accel);
-  if (a == nullptr)
-    throw BlobError(blob.name() + ": has no acceleration structure '" + accel + "'");
-  if (a->kdtree() != nullptr)
-    return trace_rays(KdTreeView::from_blob(blob, accel), rays, hits, any_hit, threads);
-  if (a->bvh() != nullptr)
-    return trace_rays(BvhView::from_blob(blob, accel), rays, hits, any_hit, threads);
-  throw BlobError(blob.name() + ": '" + accel + "' does not trace rays");
+// Every HITS record starts with the float32 t, +inf on a miss.
+std::size_t count_hits(std::span<const std::byte> records, std::size_t record_size) {
+  std::size_t hits = 0;
+  for (std::size_t offset = 0; offset < records.size(); offset += record_size) {
+    float t;
+    std::memcpy(&t, records.data() + offset, sizeof t);
+    hits += !std::isinf(t);
+  }
+  return hits;
 }
-
-// The DAG or the ESVO named `accel`, on the 40-byte voxel-hit record.
-void trace_voxels(const Blob& blob, const std::string& accel, std::span<const Ray> rays,
-                  std::span<VoxelHit> hits, bool any_hit, unsigned threads) {
-  if (const auto* a = blob.acceleration(accel); a != nullptr && a->esvo() != nullptr)
-    return trace_rays(EsvoView::from_blob(blob, accel), rays, hits, any_hit, threads);
-  trace_rays(VoxelDagView::from_blob(blob, accel), rays, hits, any_hit, threads);
-}
-
-bool is_voxel_structure(const Blob& blob, const std::string& accel) {
-  const auto* a = blob.acceleration(accel);
-  return a != nullptr && (a->dag() != nullptr || a->esvo() != nullptr);
-}
-
-// The first BVH in the blob, if any.
-std::string first_bvh(const Blob& blob) {
-  if (const auto* accels = blob.manifest().accelerations())
-    for (const auto* a : *accels)
-      if (a->bvh() != nullptr) return a->kind()->str();
-  return {};
-}
-
-bool looks_like_blob(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (f == nullptr) return false;
-  unsigned char id[12] = {};
-  const bool ok = std::fread(id, 1, 12, f) == 12;
-  std::fclose(f);
-  return ok && std::memcmp(id, format::kIdentifier.data(), 12) == 0;
-}
-
-}  // namespace
 
 int run_trace(const TraceArgs& args) {
   try {
     const Blob blob = Blob::open_file(args.blob);
-    const std::string accel = args.accel.empty() ? default_accel(blob) : args.accel;
+    const ChosenStructure chosen =
+        choose_structure(blob, args.accel, &StructureView::rays, "trace rays");
+    const RayQueries& queries = *chosen.view->rays();
     const MappedFile rays_file(args.rays);
     const auto bytes = rays_file.bytes();
     if (bytes.size() % sizeof(Ray) != 0) {
@@ -88,28 +52,14 @@ int run_trace(const TraceArgs& args) {
     // The mapping is page-aligned, so the rays can be read in place.
     const std::span<const Ray> rays(reinterpret_cast<const Ray*>(bytes.data()),
                                     bytes.size() / sizeof(Ray));
+    std::vector<std::byte> records(rays.size() * queries.record_size());
     const auto start = std::chrono::steady_clock::now();
-    std::size_t hit_count = 0;
-    double seconds = 0;
-    auto elapsed = [&] {
-      return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    };
-    if (is_voxel_structure(blob, accel)) {
-      // A voxel has no triangle id: voxel structures write the 40-byte voxel-hit record.
-      std::vector<VoxelHit> hits(rays.size());
-      trace_voxels(blob, accel, rays, hits, args.any_hit, args.threads);
-      seconds = elapsed();
-      write_file_atomically(args.out, std::as_bytes(std::span<const VoxelHit>(hits)));
-      for (const auto& h : hits) hit_count += h.hit();
-    } else {
-      std::vector<Hit> hits(rays.size());
-      trace_with(blob, accel, rays, hits, args.any_hit, args.threads);
-      seconds = elapsed();
-      write_file_atomically(args.out, std::as_bytes(std::span<const Hit>(hits)));
-      for (const auto& h : hits) hit_count += h.prim != kNoHit;
-    }
+    queries.trace_records(rays, records, args.any_hit, args.threads);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    write_file_atomically(args.out, records);
     std::fprintf(stderr, "kiln trace: %zu rays on %s, %zu hits, %.3f Mrays/s\n", rays.size(),
-                 accel.c_str(), hit_count,
+                 chosen.name.c_str(), count_hits(records, queries.record_size()),
                  seconds > 0 ? double(rays.size()) / seconds * 1e-6 : 0.0);
     return 0;
   } catch (const std::exception& e) {
@@ -118,50 +68,24 @@ int run_trace(const TraceArgs& args) {
   }
 }
 
-int run_rays(const RaysArgs& args) {
-  try {
-    const RayKind kind = args.kind == "primary"   ? RayKind::kPrimary
-                         : args.kind == "diffuse" ? RayKind::kDiffuse
-                                                  : RayKind::kShadow;
-    std::vector<Ray> rays;
-    auto generate = [&](const BvhView& bvh, std::span<const format::Float3> positions,
-                        std::span<const format::Triangle> triangles, format::Float3 lo,
-                        format::Float3 hi) {
-      rays = generate_rays({bvh, positions, triangles, lo, hi}, kind, args.count, args.seed,
-                           args.threads);
-    };
-    if (looks_like_blob(args.input)) {
-      const Blob blob = Blob::open_file(args.input);
-      const auto* b = blob.manifest().scene()->bounds();
-      const format::Float3 lo{b->min().x(), b->min().y(), b->min().z()};
-      const format::Float3 hi{b->max().x(), b->max().y(), b->max().z()};
-      if (const std::string bvh = first_bvh(blob); !bvh.empty()) {
-        generate(BvhView::from_blob(blob, bvh), blob.positions(), blob.triangles(), lo, hi);
-      } else {  // primary hits need a BVH: build one over the blob's own triangles
-        Scene scene;
-        scene.positions.assign(blob.positions().begin(), blob.positions().end());
-        scene.triangles.assign(blob.triangles().begin(), blob.triangles().end());
-        scene.bounds = {lo, hi};
-        BvhBuildOptions options;
-        options.threads = args.threads;
-        const FlatBvh flat = build_bvh(scene, options);
-        generate(BvhView(flat.nodes, flat.triangles, flat.prim_ids), blob.positions(),
-                 blob.triangles(), lo, hi);
-      }
-    } else {
-      const Scene scene = import_scene({args.input}, args.threads);
-      BvhBuildOptions options;
-      options.threads = args.threads;
-      const FlatBvh flat = build_bvh(scene, options);
-      const BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);
-      generate(bvh, scene.positions, scene.triangles, scene.bounds.min, scene.bounds.max);
-    }
-    write_file_atomically(args.out, std::as_bytes(std::span<const Ray>(rays)));
-    return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "kiln rays: " << e.what() << "\n";
-    return 1;
-  }
+}  // namespace
+
+Command add_trace_command(CLI::App& app) {
+  auto args = std::make_shared<TraceArgs>();
+  auto* command = app.add_subcommand("trace", "Trace a RAYS file against a structure in a blob");
+  command->add_option("blob", args->blob, "The .kiln file")->required();
+  command->add_option("--rays", args->rays, "RAYS file: 8 float32 per ray (org, tmin, dir, tmax)")
+      ->required();
+  command
+      ->add_option("--out", args->out,
+                   "HITS file: float32 t, uint32 prim, float32 u, v per ray (voxel structures: "
+                   "the 40-byte voxel-hit record, docs/FORMAT.md)")
+      ->required();
+  command->add_option("--accel", args->accel,
+                      "Structure to use, by name (default: the first that traces rays)");
+  command->add_flag("--any-hit", args->any_hit, "Occlusion: stop at the first hit found");
+  add_threads_option(command, args->threads);
+  return {command, [args] { return run_trace(*args); }};
 }
 
-}  // namespace kiln
+}  // namespace kiln::cli

@@ -7,6 +7,8 @@
 #include <span>
 #include <vector>
 
+#include "kiln/formats/container.hpp"
+
 namespace kiln {
 
 struct SectionPayload {
@@ -17,6 +19,13 @@ struct SectionPayload {
   std::span<const std::byte> bytes;  // raw (uncompressed) bytes
   bool compressible = true;          // the manifest is never compressed
 };
+
+/// A required, compressible section over `values`' elements (borrowed: keep them alive).
+template <class T>
+SectionPayload raw_section(std::uint32_t kind, const std::vector<T>& values) {
+  return {kind,          std::uint16_t(format::SectionFlag::kRequired), sizeof(T),
+          values.size(), std::as_bytes(std::span<const T>(values)),     true};
+}
 
 struct CompressionOptions {
   bool enabled = false;

@@ -8,59 +8,47 @@
 #include <vector>
 
 #include "kiln/compiler/blob_writer.hpp"
-#include "kiln/compiler/bvh_builder.hpp"
-#include "kiln/compiler/esvo_builder.hpp"
-#include "kiln/compiler/kdtree_builder.hpp"
-#include "kiln/compiler/point_tree_builder.hpp"
 #include "kiln/compiler/scene.hpp"
-#include "kiln/compiler/voxelizer.hpp"
+#include "kiln/compiler/structure_builder.hpp"
 
 namespace kiln {
 
 inline constexpr const char* kToolName = "kiln";
 extern const char* const kToolVersion;
 
-// One acceleration structure to build: kind "bvh" (binned or sweep builder), "sbvh", "kdtree",
-// "points", "dag" or "esvo"; only the options of its kind are read.
-struct AccelRequest {
-  std::string kind;
-  BvhBuildOptions bvh;
-  KdTreeBuildOptions kdtree;
-  PointTreeBuildOptions points{};
-  VoxelizeOptions voxels{};  // "dag"
-  EsvoBuildOptions esvo{};
-};
-
-// Whether a structure of this kind is built over triangles (every kind but "points").
-bool needs_triangles(const std::string& kind);
-
-// What building one structure produced, for `kiln build --stats` (never stored: timing would
-// break determinism).
+/// What building one structure produced, for `kiln build --stats` (never stored: timing would
+/// break determinism).
 struct AccelReport {
-  std::string kind;
-  std::string summary;  // its statistics in one line
+  std::string name;     ///< the structure's name in the blob
+  std::string kind;     ///< its kind (structure_builders())
+  std::string summary;  ///< its statistics in one line
   double build_seconds = 0;
 };
 
 struct BuildOptions {
   std::vector<std::string> inputs;
-  std::vector<AccelRequest> accels;
+  /// The structures to build, in blob order (resolve_structure_request); names unique.
+  std::vector<StructureRequest> structures;
   CompressionOptions compression;
   unsigned threads = 0;  // 0 = all hardware threads; never affects the output
 };
+
+/// The kind of input a scene is: a 3D point set when it has no triangle, else a triangle scene.
+InputKind input_kind_of(const Scene& scene);
 
 // (stage, done, total): called from the calling thread only.
 using BuildProgress = std::function<void(std::string_view, std::uint64_t, std::uint64_t)>;
 
 // Imports every input (in parallel, one task per file) and flattens them in input order; the
 // scene's `accessed` lists every file the import read. Throws ImportError naming the first
-// failing input in command-line order, or when nothing is left: no triangle and no point.
+// failing input in command-line order, or when nothing is left: no triangle and no vertex.
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
                    const BuildProgress& progress = {});
 
-// The complete blob for a scene: manifest (section 0), then the geometry sections, then each
-// structure's. Throws ImportError when a triangle structure is asked of a scene with no triangles
-// (a point cloud), or when such a scene is asked for nothing.
+// The complete blob for a scene: manifest (section 0), then the input's sections, then each
+// structure's. Throws ImportError when a structure consumes what the scene's input kind does not
+// provide (triangles of a point set), when a point set is asked for no structure, or when two
+// structures share a name.
 std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
                                     std::vector<AccelReport>* reports = nullptr);
 

@@ -43,10 +43,10 @@ std::optional<Hash128> hash_file(const std::string& path);
 // Throws std::runtime_error when the executable cannot be read.
 std::string toolchain_fingerprint();
 
-// The direct key: `fingerprint`, the options that shape the output (each structure's own
-// options, normalised: a BVH request ignores the voxel resolution; compression and, when on, its
-// level; never the thread counts), and per input in order its path as given (the blob records
-// it), its absolute path (companions are found relative to it) and `input_hashes[i]`.
+// The direct key: `fingerprint`, the options that shape the output (each structure's name, kind
+// and the options its kind declares as entering the output, as canonical text; compression and,
+// when on, its level; never the thread counts), and per input in order its path as given (the blob
+// records it), its absolute path (companions are found relative to it) and `input_hashes[i]`.
 Hash128 direct_key(const BuildOptions& options, std::span<const Hash128> input_hashes,
                    std::string_view fingerprint);
 

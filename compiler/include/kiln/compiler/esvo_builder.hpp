@@ -13,7 +13,7 @@
 namespace kiln {
 
 struct EsvoBuildOptions {
-  std::uint32_t resolution = 1024;  // the finest level, as for the DAG
+  std::uint32_t resolution = 1024;  // the finest level (format::is_valid_voxel_resolution)
   bool contours = true;
   // The bound, in finest voxels, on the distance from any point of a leaf's region (so any hit)
   // to a triangle; at least sqrt(3), what a finest cube guarantees. A coarser voxel becomes a
@@ -47,7 +47,8 @@ struct FlatEsvo {
   std::uint64_t hierarchy_bytes = 0, contour_bytes = 0, attachment_bytes = 0;
 };
 
-// Throws std::invalid_argument for a resolution outside the DAG's range or a bad contour_error.
+// Throws std::invalid_argument for a resolution outside the voxel grids' range or a bad
+// contour_error.
 FlatEsvo build_esvo(const Scene& scene, const EsvoBuildOptions& options);
 
 }  // namespace kiln

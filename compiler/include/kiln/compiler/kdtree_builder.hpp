@@ -7,6 +7,7 @@
 
 #include "kiln/compiler/aabb.hpp"
 #include "kiln/compiler/scene.hpp"
+#include "kiln/compiler/triangle_clip.hpp"  // clip_triangle_to_box: perfect splits
 #include "kiln/formats/kdtree.hpp"
 
 namespace kiln {
@@ -38,10 +39,5 @@ struct FlatKdTree {
 std::uint32_t kd_depth_limit(std::size_t triangle_count);
 
 FlatKdTree build_kdtree(const Scene& scene, const KdTreeBuildOptions& options);
-
-// Bounds of the part of triangle (a, b, c) inside `cell`, rounded outwards to float and clamped
-// to the cell; empty when the triangle misses the cell. Sutherland-Hodgman in double.
-Aabb clip_triangle_to_box(const format::Float3& a, const format::Float3& b, const format::Float3& c,
-                          const Aabb& cell);
 
 }  // namespace kiln

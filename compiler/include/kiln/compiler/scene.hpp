@@ -23,7 +23,7 @@ struct ImportedMesh {
   std::vector<std::uint32_t> colors;
   std::vector<format::Triangle> triangles;
   Matrix4 transform = kIdentity;  // mesh space to world space
-  // No surface, only points (a scan): every finite vertex is kept, not just those triangles use.
+  // No surface, only vertices (a scan): every finite vertex is kept, not just those triangles use.
   bool point_cloud = false;
 };
 

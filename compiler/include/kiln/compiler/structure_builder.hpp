@@ -24,10 +24,10 @@ class FlatBufferBuilder;  // declared only: the schema stays private to the comp
 namespace kiln {
 
 /// One option of a structure kind, set per structure as `--accel KIND:key=value,...` or for
-/// every structure of the kind by its global flag (`--bvh-bins 16`).
+/// every structure of the kind by its global flag (`--resolution 256`).
 struct StructureOption {
-  std::string key;            ///< "bins"
-  std::string flag;           ///< "--bvh-bins", or empty; flags may be shared between kinds
+  std::string key;            ///< "resolution"
+  std::string flag;           ///< "--resolution", or empty; flags may be shared between kinds
   std::string default_value;  ///< canonical text; "false" for a switch
   std::string help;
   bool is_switch = false;  ///< boolean: the global flag takes no value
@@ -63,11 +63,14 @@ struct BuiltStructure {
   std::string summary;  ///< statistics, one line, no timing
 };
 
+/// A structure kind as the compiler sees it; each kind's `<kind>_entry.cpp` defines one and
+/// compiler/src/structure_registry.cpp lists it.
 struct StructureBuilder {
-  std::string kind;
-  std::string help;  ///< one line for `kiln build --help`
-  InputKind consumes;
-  std::vector<StructureOption> options;
+  std::string kind;                      ///< the name `--accel` takes and the manifest records
+  std::string help;                      ///< one line for `kiln build --help`
+  InputKind consumes;                    ///< compile_blob refuses an input that does not provide it
+  std::vector<StructureOption> options;  ///< in help and cache-key order
+  /// Builds from a request resolved for this kind; `threads` never changes the result.
   BuiltStructure (*build)(const Scene& scene, const StructureRequest& request, unsigned threads);
 };
 

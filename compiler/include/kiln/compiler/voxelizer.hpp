@@ -10,7 +10,7 @@
 
 #include "kiln/compiler/scene.hpp"
 #include "kiln/runtime/triangle_geometry.hpp"
-#include "kiln/runtime/voxel_dag.hpp"
+#include "kiln/runtime/voxel_grid.hpp"
 
 namespace kiln {
 
@@ -51,17 +51,17 @@ struct VoxelizeOptions {
   std::uint32_t resolution = 512;
   bool normals = false;  // also average the touching triangles' normals per voxel
   unsigned threads = 0;  // never changes the result
-  bool solid = false;    // the DAG also holds the interior (solid_leaves); closed meshes only
+  bool solid = false;    // also the interior voxels (solid_leaves); closed meshes only
 };
 
 struct Voxels {
   VoxelGrid grid;
-  std::vector<std::uint64_t> codes;    // Morton codes (formats/voxel_dag.hpp), ascending, unique
+  std::vector<std::uint64_t> codes;    // Morton codes (formats/voxel_grid.hpp), ascending, unique
   std::vector<std::uint32_t> normals;  // octahedral, parallel to codes; empty unless asked
 };
 
 // Throws std::invalid_argument for a resolution that is not a power of two in
-// [kDagMinResolution, kDagMaxResolution].
+// [kVoxelMinResolution, kVoxelMaxResolution].
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options);
 
 // Voxels as 4x4x4 blocks: 8 bytes per 64 voxels, so a solid interior stays small.

@@ -32,7 +32,6 @@ static_assert(offsetof(BvhNode, max) == 16);
 static_assert(offsetof(BvhNode, count) == 28);
 static_assert(offsetof(BvhNode, axis) == 30);
 
-
 // Traversal keeps a fixed stack; builders never produce a deeper tree.
 inline constexpr std::uint32_t kBvhMaxDepth = 64;
 inline constexpr std::uint32_t kBvhMaxLeafSize = 0xFFFF;

@@ -1,4 +1,4 @@
-// Container v1: the fixed-width, little-endian header and section table at the start of every
+// Container v2: the fixed-width, little-endian header and section table at the start of every
 // .kiln blob. Shared by the writer and the reader; see docs/FORMAT.md for every byte.
 #pragma once
 
@@ -17,7 +17,7 @@ static_assert(std::endian::native == std::endian::little,
 inline constexpr std::array<std::uint8_t, 12> kIdentifier = {0xAB, 'K',  'I',  'L',  'N',  ' ',
                                                              '1',  0xBB, '\r', '\n', 0x1A, '\n'};
 
-inline constexpr std::uint16_t kVersionMajor = 1;
+inline constexpr std::uint16_t kVersionMajor = 2;
 inline constexpr std::uint16_t kVersionMinor = 0;
 
 struct FileHeader {
@@ -25,7 +25,7 @@ struct FileHeader {
   std::uint16_t version_major;
   std::uint16_t version_minor;
   std::uint32_t header_size;  // sizeof(FileHeader)
-  std::uint32_t flags;        // no flags are defined in v1.0; must be zero
+  std::uint32_t flags;        // no flags are defined in v2.0; must be zero
   std::uint64_t file_size;    // the whole blob, in bytes
   std::uint64_t section_table_offset;
   std::uint32_t section_count;

@@ -16,7 +16,7 @@
 // ESVP, one uint32 per 8 KiB page of ESVW (2048 words): the block holding the page's first word.
 // ESVB, EsvoBlockInfo per block, ascending first_word: a block is a run of words built as one
 // subtree; its voxels' attachments start at attachment_base.
-// ESVN, uint32 octahedral normal per voxel: the attachment, indexed
+// ESVN, uint32 octahedral normal per voxel (formats/voxel_grid.hpp): the attachment, indexed
 //   block.attachment_base + run word 0 + popcount(valid mask below the child's octant).
 // ESVC, RGBA8 colour per voxel (r in the low byte), indexed as ESVN: only when the input had
 // vertex or material colours.
@@ -27,6 +27,7 @@
 #include <cstdlib>
 
 #include "kiln/formats/container.hpp"
+#include "kiln/formats/voxel_grid.hpp"
 
 namespace kiln::format {
 

@@ -6,8 +6,8 @@
 #include <bit>
 #include <cstdint>
 
-#include "kiln/formats/ray_triangle.hpp"
 #include "kiln/formats/container.hpp"
+#include "kiln/formats/ray_triangle.hpp"
 
 namespace kiln::format {
 

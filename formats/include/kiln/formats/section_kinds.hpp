@@ -1,5 +1,5 @@
-// Section kinds (FourCC) known to this version. Adding a structure means adding kinds here and
-// a table in schema/manifest.fbs.
+// Section kinds (FourCC) of the manifest and of the inputs. A structure's own section kinds live
+// in its layout header (kiln/formats/<structure>.hpp).
 #pragma once
 
 #include <cstdint>

@@ -26,7 +26,7 @@ inline constexpr std::uint32_t kNoSection = 0xFFFFFFFFu;
 /// What the blob was built from. A point set fills the counts and bounds only.
 struct InputInfo {
   InputKind kind = InputKind::kTriangles;
-  std::uint64_t vertex_count = 0;  ///< vertices, or points of a point set
+  std::uint64_t vertex_count = 0;  ///< vertices; a point set's point count
   std::uint64_t triangle_count = 0;
   format::Box3f bounds{};  ///< over every kept vertex or point
   std::uint64_t input_triangle_count = 0;
@@ -87,8 +87,8 @@ class Blob {
   std::size_t mesh_count() const;
   MeshInfo mesh(std::size_t index) const;
 
-  std::span<const format::Float3> positions() const;  ///< vertices, or a point set's points
-  std::span<const format::Float3> normals() const;    ///< empty when the scene has none
+  std::span<const format::Float3> positions() const;    ///< vertices, or a point set's positions
+  std::span<const format::Float3> normals() const;      ///< empty when the scene has none
   std::span<const format::Triangle> triangles() const;  ///< empty for a point set
   std::span<const std::uint32_t> triangle_mesh_ids() const;
 

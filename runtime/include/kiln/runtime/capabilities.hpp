@@ -1,6 +1,6 @@
 // What an opened structure can answer, one small interface per capability. Tools ask a
 // StructureView for a capability and get nullptr when the structure lacks it; they never name
-// a structure. The concrete views (BvhView, ...) offer the same operations without virtual
+// a structure. The concrete views (one per kind) offer the same operations without virtual
 // calls, for code that knows what it holds.
 #pragma once
 
@@ -50,11 +50,11 @@ class SurfaceQueries {
                                 std::vector<std::uint32_t>& out) const = 0;
 };
 
-/// Nearest neighbours among 3D points, sorted by (distance, id) as a brute-force scan sorts.
+/// Nearest neighbours in a 3D point set, sorted by (distance, id) as a brute-force scan sorts.
 class NeighborQueries {
  public:
   virtual ~NeighborQueries() = default;
-  /// The min(k, point count) nearest points, k = out.size(); returns how many were written.
+  /// The min(k, point count) nearest, k = out.size(); returns how many were written.
   virtual std::size_t nearest(const format::Float3& query, std::span<Neighbor> out) const = 0;
   /// Every point with squared distance <= radius^2, into `out` (cleared first).
   virtual void within_radius(const format::Float3& query, float radius,

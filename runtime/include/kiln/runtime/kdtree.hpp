@@ -1,38 +1,45 @@
-// Traversal of a SAH k-d tree straight on its mapped sections.
+// A SAH k-d tree straight on its mapped sections: ray traversal, and the proximity, containment
+// and range queries.
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
+#include <vector>
 
+#include "kiln/formats/geometry.hpp"
 #include "kiln/formats/kdtree.hpp"
+#include "kiln/runtime/query_results.hpp"
 #include "kiln/runtime/ray.hpp"
 
 namespace kiln {
 
 class Blob;
 
-// A validated view of one k-d tree. Creating it walks the nodes once and reads every reference
-// (O(nodes + references)): nodes in depth-first order, no deeper than the traversal stack, leaf
-// ranges consecutive and in range, primitive ids naming stored triangles; so traversal cannot
-// read out of range, loop or overflow its stack, whatever the bytes. Throws BlobError otherwise.
+/// A validated view of one k-d tree; a RayStructure (kiln/runtime/ray_structure.hpp). Creating
+/// it walks the nodes once and reads every reference (O(nodes + references)): nodes in
+/// depth-first order, no deeper than the traversal stack, leaf ranges consecutive and in range,
+/// primitive ids naming stored triangles; so traversal cannot read out of range, loop or
+/// overflow its stack, whatever the bytes. Throws BlobError otherwise.
 class KdTreeView {
  public:
+  using HitType = Hit;
+
   KdTreeView(std::span<const format::KdNode> nodes, std::span<const std::uint32_t> prim_ids,
              std::span<const format::RayTriangle> triangles, const float bounds_min[3],
              const float bounds_max[3], const std::string& name = "kdtree");
-  // The k-d tree named `name` in a blob; throws BlobError when absent.
+  /// The structure named `name` of a blob; throws BlobError when the blob has no structure of
+  /// that name or it is not a k-d tree.
   static KdTreeView from_blob(const Blob& blob, const std::string& name);
 
-  // Closest hit in (tmin, tmax); Hit::prim == kNoHit on a miss.
+  /// Closest hit in (tmin, tmax); Hit::prim == kNoHit on a miss.
   Hit intersect(const Ray& ray) const;
-  // Any hit in (tmin, tmax), stopping at the first found.
-  bool occluded(const Ray& ray, float* t = nullptr) const;
-
-  // Node visits and triangle tests of one closest-hit query (for heatmaps and statistics).
-  struct Cost {
-    std::uint32_t nodes = 0, triangles = 0;
-  };
+  /// The first hit found in (tmin, tmax), not necessarily the closest.
+  Hit intersect_any(const Ray& ray) const;
+  /// Whether anything lies in (tmin, tmax).
+  bool occluded(const Ray& ray) const;
+  /// The closest hit, adding its node visits and triangle tests to `cost`.
   Hit intersect_counting(const Ray& ray, Cost& cost) const;
 
   std::span<const format::KdNode> nodes() const { return nodes_; }
@@ -48,8 +55,17 @@ class KdTreeView {
   float min_[3], max_[3];
 };
 
-// Closest hits (or any hits) for many rays on up to `threads` threads (0 = all cores).
-void trace_rays(const KdTreeView& tree, std::span<const Ray> rays, std::span<Hit> hits,
-                bool any_hit, unsigned threads);
+/// The proximity queries, with the same answers and tie rules as on any triangle structure:
+/// cells are walked from the tree's root bounds (nearest cell first for the closest point,
+/// pruned by cell distance), and the whole triangles a leaf references are tested. A point
+/// outside the root bounds is fine.
+/// The closest point of the surface within `max_distance`; ties go to the lower primitive id.
+ClosestPoint closest_point(const KdTreeView& tree, const format::Float3& p,
+                           float max_distance = std::numeric_limits<float>::infinity());
+/// Every triangle that intersects the box, as sorted, unique primitive ids, into `out`.
+void triangles_in_box(const KdTreeView& tree, const format::Float3& lo, const format::Float3& hi,
+                      std::vector<std::uint32_t>& out);
+/// Inside/outside by a majority of five ray-parity votes (meaningful for closed meshes).
+bool point_inside(const KdTreeView& tree, const format::Float3& p);
 
 }  // namespace kiln

@@ -1,4 +1,5 @@
-// k-nearest-neighbour and radius searches on a point k-d tree, straight on its mapped sections.
+// k-nearest-neighbour and radius searches on a point k-d tree over 3D points (a point set, or a
+// triangle scene's vertices), straight on its mapped sections.
 #pragma once
 
 #include <cstdint>
@@ -8,24 +9,11 @@
 
 #include "kiln/formats/geometry.hpp"
 #include "kiln/formats/point_tree.hpp"
+#include "kiln/runtime/query_results.hpp"
 
 namespace kiln {
 
 class Blob;
-
-// One answer: a point's id (its vertex index) and its squared distance to the query, computed
-// in float as (dx*dx + dy*dy) + dz*dz. The layout is the knn output record of `kiln query`.
-struct Neighbor {
-  std::uint32_t id;
-  float distance2;
-};
-static_assert(sizeof(Neighbor) == 8);
-
-// Answers are ordered by distance, then id: ties always go to the lower id, so results equal a
-// brute-force scan's exactly.
-inline bool closer(const Neighbor& a, const Neighbor& b) {
-  return a.distance2 < b.distance2 || (a.distance2 == b.distance2 && a.id < b.id);
-}
 
 // A validated view of one point k-d tree. Creating it walks the nodes once (O(nodes)): nodes in
 // depth-first order, no deeper than format::kPointMaxDepth, leaf ranges consecutive and covering
@@ -36,7 +24,8 @@ class PointTreeView {
   PointTreeView(std::span<const format::PointNode> nodes, std::span<const format::Float3> points,
                 std::span<const std::uint32_t> ids, const float bounds_min[3],
                 const float bounds_max[3], const std::string& name = "points");
-  // The point tree named `name` in a blob; throws BlobError when absent.
+  // The structure named `name` of a blob; throws BlobError when the blob has no structure of
+  // that name or it is not a point k-d tree.
   static PointTreeView from_blob(const Blob& blob, const std::string& name = "points");
 
   // The min(k, point count) nearest points, k = out.size(), written to `out` sorted by

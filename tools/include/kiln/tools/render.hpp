@@ -1,7 +1,7 @@
 // A small debug renderer for `kiln render`, on the runtime library alone: a pinhole camera,
-// one primary ray per pixel through any ray structure of a blob (BVH, SBVH, k-d tree, voxel DAG,
-// ESVO) into a buffer of samples, the samples coloured (shading, normals, depth or a traversal
-// cost heatmap with its legend), captions, and PNG output written atomically.
+// one primary ray per pixel through any ray structure of a blob (its RayQueries, found through
+// the runtime's registry) into a buffer of samples, the samples coloured (shading, normals, depth
+// or a traversal cost heatmap with its legend), captions, and PNG output written atomically.
 #pragma once
 
 #include <cstddef>
@@ -18,7 +18,8 @@
 
 namespace kiln {
 class Blob;
-}
+class RayQueries;
+}  // namespace kiln
 
 namespace kiln::render {
 
@@ -45,7 +46,7 @@ std::optional<Size> parse_size(std::string_view text, std::string& error);
 // A camera looking at the centre of the box [lo, hi] from a fixed direction (front, right and
 // above, +y up), far enough back for the box's eight corners to fit the frame (5 % margin).
 Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size size);
-// frame_bounds on the blob's scene bounds (the manifest's, over every kept vertex).
+// frame_bounds on the bounds of the blob's input (over every kept vertex or 3D point).
 Camera default_camera(const Blob& blob, Size size);
 
 // Primary rays through pixel centres (y = 0 is the top row). The camera's basis is worked out
@@ -84,13 +85,15 @@ struct Samples {
   std::vector<Sample> pixels;  // row-major, top row first
 };
 
-// The structures of a blob that trace rays (bvh, sbvh, kdtree, dag, esvo), in blob order.
+// The names of the structures of a blob that trace rays, in blob order.
 std::vector<std::string> ray_structures(const Blob& blob);
 // The first of them (what `kiln render` uses without --accel); throws BlobError when none.
 std::string default_structure(const Blob& blob);
 
-// One closest-hit query per pixel on `accel`, counting its work; rows are split across up to
-// `threads` threads (0 = all cores) and the result does not depend on the count. Throws
+// One closest-hit query per pixel, counting its work; rows are split across up to `threads`
+// threads (0 = all cores) and the result does not depend on the count.
+Samples trace_view(const RayQueries& rays, const Camera& camera, Size size, unsigned threads);
+// trace_view on the structure named `accel` (empty: the first that traces rays). Throws
 // BlobError when the blob has no such ray structure.
 Samples trace_view(const Blob& blob, const std::string& accel, const Camera& camera, Size size,
                    unsigned threads);

@@ -1,4 +1,5 @@
-#include "kiln/runtime/proximity.hpp"
+// Closest point, point inside and box queries on a BVH (kiln/runtime/bvh.hpp).
+#include "kiln/runtime/bvh.hpp"
 
 #include "kiln/runtime/triangle_geometry.hpp"
 #include "kiln/runtime/watertight.hpp"

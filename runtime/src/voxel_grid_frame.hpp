@@ -1,16 +1,16 @@
-// The voxel grid frame both voxel structures (DAG, ESVO) carry in their manifest entries, and
-// the checks both views make of it.
+// The voxel grid frame as the voxel structures' manifest entries record it, and the checks every
+// voxel view makes of it.
 #pragma once
 
 #include <cmath>
 #include <string>
 
-#include "kiln/formats/voxel_dag.hpp"
-#include "kiln/runtime/voxel_dag.hpp"
+#include "kiln/formats/voxel_grid.hpp"
+#include "kiln/runtime/voxel_grid.hpp"
 
 namespace kiln {
 
-// From a schema::VoxelDagDesc or schema::EsvoDesc: the same five fields.
+// From a description table with the five grid fields (origin_x/y/z, voxel_size, resolution).
 template <class Desc>
 VoxelGridFrame grid_frame_of(const Desc& d) {
   VoxelGridFrame frame;
@@ -22,7 +22,7 @@ VoxelGridFrame grid_frame_of(const Desc& d) {
 
 // Empty when the frame is usable: a power-of-two resolution in range, a finite positive voxel.
 inline std::string grid_frame_problem(const VoxelGridFrame& frame) {
-  if (!format::is_valid_dag_resolution(frame.resolution))
+  if (!format::is_valid_voxel_resolution(frame.resolution))
     return "resolution " + std::to_string(frame.resolution) + " is not a power of two in range";
   if (!(frame.voxel_size > 0) || !std::isfinite(frame.voxel_size)) return "bad voxel size";
   return {};

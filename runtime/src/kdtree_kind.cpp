@@ -1,0 +1,113 @@
+// The SAH k-d tree kind of the runtime registry ("kdtree"): its manifest checks, view, deep check
+// and description.
+#include <cstring>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "depth_first_layout.hpp"
+#include "kiln/formats/kdtree.hpp"
+#include "kiln/runtime/kdtree.hpp"
+#include "kiln/runtime/manifest.hpp"
+#include "kiln/runtime/structure_registry.hpp"
+#include "text_format.hpp"
+#include "triangle_structure.hpp"
+
+namespace kiln {
+
+namespace {
+
+constexpr std::uint32_t kSections[] = {format::kSectionKdNodes, format::kSectionKdPrimIds,
+                                       format::kSectionKdTriangles};
+
+void check(const Blob& blob, const StructureInfo& info) {
+  const auto& d = desc_of<schema::KdTreeDesc>(blob, info);
+  const auto where = "structure '" + info.name + "' ";
+  blob.check_section(where + "nodes", d.nodes(), format::kSectionKdNodes, sizeof(format::KdNode),
+                     d.node_count(), false);
+  blob.check_section(where + "primitive ids", d.prim_ids(), format::kSectionKdPrimIds,
+                     sizeof(std::uint32_t), d.reference_count(), false);
+  blob.check_section(where + "triangles", d.triangles(), format::kSectionKdTriangles,
+                     sizeof(format::RayTriangle), blob.input().triangle_count, false);
+  if (d.node_count() == 0) blob.fail_section(0, where + "has no nodes");
+  if (d.bounds() == nullptr) blob.fail_section(0, where + "has no bounds");
+}
+
+std::unique_ptr<StructureView> open(const Blob& blob, const StructureInfo& info) {
+  return std::make_unique<TriangleStructure<KdTreeView>>(blob,
+                                                         KdTreeView::from_blob(blob, info.name));
+}
+
+// Beyond the view's structural walk: the triangle copies equal to the input's, every triangle in
+// at least one leaf, and splits inside their cells.
+void verify(const Blob& blob, const StructureInfo& info) {
+  const auto& d = desc_of<schema::KdTreeDesc>(blob, info);
+  const std::string& name = info.name;
+  const KdTreeView tree = KdTreeView::from_blob(blob, name);
+  const auto positions = blob.positions();
+  const auto triangles = blob.triangles();
+  const auto copies = tree.triangles();
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    const auto& t = triangles[i];
+    const format::RayTriangle expected{positions[t.v[0]], positions[t.v[1]], positions[t.v[2]]};
+    if (std::memcmp(&expected, &copies[i], sizeof(expected)) != 0)
+      blob.fail_section(d.triangles(), name + " triangle " + std::to_string(i) +
+                                           " does not match the scene's corners");
+  }
+  std::vector<bool> referenced(triangles.size());
+  for (const auto id : tree.prim_ids()) referenced[id] = true;
+  for (std::size_t i = 0; i < referenced.size(); ++i)
+    if (!referenced[i])
+      blob.fail_section(d.prim_ids(), name + " triangle " + std::to_string(i) + " is in no leaf");
+  walk_tree_cells<format::KdNode>(
+      tree.nodes(), tree.bounds_min(), tree.bounds_max(),
+      [&](std::uint32_t index, const format::KdNode& n, TreeCell& below, TreeCell& above) {
+        const auto a = n.axis();
+        if (!(n.split() > below.lo[a] && n.split() < below.hi[a]))
+          blob.fail_section(d.nodes(),
+                            name + " node " + std::to_string(index) + " splits outside its cell");
+        below.hi[a] = above.lo[a] = n.split();
+      },
+      [](const format::KdNode&, const TreeCell&) {});
+}
+
+Description describe(const Blob& blob, const StructureInfo& info) {
+  const auto& k = desc_of<schema::KdTreeDesc>(blob, info);
+  Description out;
+  out.lines.push_back(printf_string("SAH constants Ct %g Ci %g, empty bonus %g, depth limit %u",
+                                    double(k.traversal_cost()), double(k.intersection_cost()),
+                                    double(k.empty_bonus()), k.depth_limit()));
+  out.lines.push_back(
+      printf_string("%llu nodes, %llu leaves (%llu empty), depth %u, largest leaf %u",
+                    (unsigned long long)k.node_count(), (unsigned long long)k.leaf_count(),
+                    (unsigned long long)k.empty_leaf_count(), k.max_depth(), k.largest_leaf()));
+  out.lines.push_back(
+      printf_string("%llu references (%.3f per triangle), SAH cost %.3f, %.1f bytes/triangle",
+                    (unsigned long long)k.reference_count(), k.references_per_triangle(),
+                    k.sah_cost(), k.bytes_per_triangle()));
+  out.field("traversal_cost", k.traversal_cost()).field("intersection_cost", k.intersection_cost());
+  out.field("empty_bonus", k.empty_bonus()).field("depth_limit", k.depth_limit());
+  out.field("node_count", k.node_count()).field("leaf_count", k.leaf_count());
+  out.field("empty_leaf_count", k.empty_leaf_count());
+  out.field("reference_count", k.reference_count()).field("max_depth", k.max_depth());
+  out.field("largest_leaf", k.largest_leaf());
+  out.field("references_per_triangle", k.references_per_triangle());
+  out.field("sah_cost", k.sah_cost()).field("bytes_per_triangle", k.bytes_per_triangle());
+  return out;
+}
+
+}  // namespace
+
+extern const StructureKind kKdTreeKind;
+
+const StructureKind kKdTreeKind{"kdtree",
+                                "SAH k-d tree: rays, closest point, inside, box",
+                                InputKind::kTriangles,
+                                kSections,
+                                std::uint8_t(schema::StructureDesc::KdTreeDesc),
+                                check,
+                                open,
+                                verify,
+                                describe};
+
+}  // namespace kiln
