@@ -26,9 +26,9 @@
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/kdtree_builder.hpp"
 #include "kiln/compiler/point_tree_builder.hpp"
-#include "kiln/runtime/point_tree.hpp"
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/kdtree.hpp"
+#include "kiln/runtime/point_tree.hpp"
 
 namespace {
 

@@ -13,6 +13,8 @@
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/checksum.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
+#include "kiln/runtime/ray_structure.hpp"
 #include "kiln/runtime/watertight.hpp"
 #include "kiln/tools/ray_generator.hpp"
 #include "ray_fixtures.hpp"
@@ -124,10 +126,8 @@ std::vector<std::byte> blob_with_bvhs(const Scene& scene, bool compress, unsigne
   options.inputs = {"generated"};
   options.threads = threads;
   options.compression.enabled = compress;
-  options.accels.push_back({"bvh", {}, {}});
-  BvhBuildOptions sbvh;
-  sbvh.builder = BvhBuilder::kSpatial;
-  options.accels.push_back({"sbvh", sbvh, {}});
+  options.structures = {resolve_structure_request("bvh", {}),
+                        resolve_structure_request("sbvh", {})};
   return compile_blob(scene, options);
 }
 
@@ -175,8 +175,8 @@ TEST(Bvh, CorruptedNodeArraysAreRefused) {
   AlignedBuffer aligned(blob.size(), 64);
   std::memcpy(aligned.data(), blob.data(), blob.size());
   const Blob original = Blob::open_memory(aligned.bytes());
-  const auto* desc = original.manifest().accelerations()->Get(0)->bvh();
-  const std::uint32_t section = desc->nodes();
+  const std::uint32_t section =
+      desc_of<schema::BvhDesc>(original, original.structures()[0]).nodes();
   const auto nodes = original.section_view<format::BvhNode>(section);
   ASSERT_EQ(nodes[0].count, 0);
 
@@ -226,7 +226,7 @@ TEST(Bvh, MissingStructureIsAClearError) {
     BvhView::from_blob(blob, "sbvh");
     FAIL();
   } catch (const BlobError& e) {
-    EXPECT_NE(std::string(e.what()).find("no acceleration structure 'sbvh'"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("has no structure 'sbvh'"), std::string::npos);
   }
 }
 

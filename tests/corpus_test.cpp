@@ -13,7 +13,7 @@
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/point_tree.hpp"
-#include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/ray_structure.hpp"
 #include "kiln/tools/ray_generator.hpp"
 #include "test_support.hpp"
 
@@ -82,12 +82,13 @@ void PrintTo(const CorpusMesh& mesh, std::ostream* out) {
 }
 
 void expect_blob_matches_scene(const Scene& scene, const Blob& blob) {
-  const auto& m = blob.manifest();
-  ASSERT_EQ(m.scene()->triangle_count(), scene.triangles.size());
-  ASSERT_EQ(m.scene()->vertex_count(), scene.positions.size());
-  EXPECT_EQ(m.scene()->input_triangle_count(), scene.input_triangle_count);
-  EXPECT_EQ(m.scene()->degenerate_triangles_dropped(), scene.degenerate_triangles_dropped);
-  EXPECT_EQ(m.scene()->has_normals(), !scene.normals.empty());
+  const InputInfo& input = blob.input();
+  EXPECT_EQ(input.kind, InputKind::kTriangles);
+  ASSERT_EQ(input.triangle_count, scene.triangles.size());
+  ASSERT_EQ(input.vertex_count, scene.positions.size());
+  EXPECT_EQ(input.input_triangle_count, scene.input_triangle_count);
+  EXPECT_EQ(input.degenerate_triangles_dropped, scene.degenerate_triangles_dropped);
+  EXPECT_EQ(input.has_normals, !scene.normals.empty());
   ASSERT_EQ(blob.positions().size(), scene.positions.size());
   EXPECT_EQ(
       0, std::memcmp(blob.positions().data(), scene.positions.data(), scene.positions.size() * 12));
@@ -102,21 +103,21 @@ void expect_blob_matches_scene(const Scene& scene, const Blob& blob) {
     EXPECT_EQ(0,
               std::memcmp(blob.normals().data(), scene.normals.data(), scene.normals.size() * 12));
   }
-  ASSERT_EQ(m.meshes()->size(), scene.meshes.size());
+  ASSERT_EQ(blob.mesh_count(), scene.meshes.size());
   for (std::uint32_t i = 0; i < scene.meshes.size(); ++i) {
-    const auto* mesh = m.meshes()->Get(i);
-    EXPECT_EQ(mesh->name()->str(), scene.meshes[i].name);
-    EXPECT_EQ(mesh->first_triangle(), scene.meshes[i].first_triangle);
-    EXPECT_EQ(mesh->triangle_count(), scene.meshes[i].triangle_count);
-    EXPECT_EQ(mesh->first_vertex(), scene.meshes[i].first_vertex);
-    EXPECT_EQ(mesh->vertex_count(), scene.meshes[i].vertex_count);
+    const MeshInfo mesh = blob.mesh(i);
+    EXPECT_EQ(mesh.name, scene.meshes[i].name);
+    EXPECT_EQ(mesh.first_triangle, scene.meshes[i].first_triangle);
+    EXPECT_EQ(mesh.triangle_count, scene.meshes[i].triangle_count);
+    EXPECT_EQ(mesh.first_vertex, scene.meshes[i].first_vertex);
+    EXPECT_EQ(mesh.vertex_count, scene.meshes[i].vertex_count);
   }
-  ASSERT_EQ(m.sources()->size(), scene.sources.size());
-  EXPECT_EQ(m.sources()->Get(0)->xxh3(), scene.sources[0].xxh3);
-  EXPECT_EQ(m.sources()->Get(0)->size(), scene.sources[0].size);
-  const auto* b = m.scene()->bounds();
-  EXPECT_EQ(b->min().x(), scene.bounds.min.x);
-  EXPECT_EQ(b->max().z(), scene.bounds.max.z);
+  const auto sources = blob.sources();
+  ASSERT_EQ(sources.size(), scene.sources.size());
+  EXPECT_EQ(sources[0].xxh3, scene.sources[0].xxh3);
+  EXPECT_EQ(sources[0].size, scene.sources[0].size);
+  EXPECT_EQ(input.bounds.min.x, scene.bounds.min.x);
+  EXPECT_EQ(input.bounds.max.z, scene.bounds.max.z);
 }
 
 class CorpusTest : public ::testing::TestWithParam<CorpusMesh> {};
@@ -147,11 +148,7 @@ TEST_P(CorpusTest, ImportCountsMatchManifestAndRoundTrip) {
 AlignedBuffer compile_with(const Scene& scene, const std::vector<std::string>& kinds) {
   BuildOptions options;
   options.inputs = {"corpus"};
-  for (const auto& kind : kinds) {
-    AccelRequest request;
-    request.kind = kind;
-    options.accels.push_back(request);
-  }
+  for (const auto& kind : kinds) options.structures.push_back(resolve_structure_request(kind, {}));
   return test::aligned_copy(compile_blob(scene, options));
 }
 

@@ -132,6 +132,18 @@ TEST(Corruption, ForgedVersionsAreRefused) {
   auto newer_minor = blob;
   forge(newer_minor, h);
   EXPECT_NE(test::open_only(newer_minor).find("newer"), std::string::npos);
+
+  // A format 1.x blob (before the structure registry) is refused with the way out, in one line.
+  ASSERT_EQ(format::kVersionMajor, 2);
+  h = header_of(blob);
+  h.version_major = 1;
+  h.version_minor = 3;
+  auto older_major = blob;
+  forge(older_major, h);
+  const std::string error = test::open_only(older_major);
+  EXPECT_NE(error.find("format 1.3 blob"), std::string::npos) << error;
+  EXPECT_NE(error.find("rebuild it with kiln build"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos) << error;
 }
 
 TEST(Corruption, AbsurdCountsWithValidChecksumsAreRefused) {

@@ -43,10 +43,8 @@ TEST(Determinism, BvhBuildsAreByteIdenticalAcrossThreadCounts) {
     BuildOptions options;
     options.inputs = inputs;
     options.threads = threads;
-    BvhBuildOptions sweep, sbvh;
-    sweep.builder = BvhBuilder::kSweep;
-    sbvh.builder = BvhBuilder::kSpatial;
-    options.accels = {{"bvh", sweep, {}}, {"sbvh", sbvh, {}}};
+    options.structures = {resolve_structure_request("bvh:builder=sweep", {}),
+                          resolve_structure_request("sbvh", {})};
     return compile_blob(scene, options);
   };
   const auto one = blob(1);

@@ -16,7 +16,7 @@
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/esvo.hpp"
-#include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
 #include "kiln/tools/ray_generator.hpp"
 #include "test_support.hpp"
@@ -85,7 +85,7 @@ TEST(Esvo, WithoutContoursHitsAreTheDags) {
     const EsvoView view = view_of(esvo);
     std::size_t hits = 0, hit_miss = 0, other_voxel = 0, other_t = 0, other_face = 0;
     for (const Ray& ray : test_rays(f.bvh(), f.scene, 10000, 7)) {
-      const VoxelHit a = view.intersect(ray).hit, b = dag_view.intersect(ray);
+      const VoxelHit a = view.intersect(ray), b = dag_view.intersect(ray);
       if (a.hit() != b.hit()) {
         ++hit_miss;
         continue;
@@ -135,9 +135,9 @@ TEST(Esvo, ContourHitsLieWithinTheBoundAndBeatCubes) {
     for (const Ray& ray : test_rays(bvh, f.scene, 10000, 11)) {
       ++rays_cast;
       const bool mesh_hit = bvh.intersect(ray).prim != kNoHit;
-      const VoxelHit a = with.intersect(ray).hit;
+      const VoxelHit a = with.intersect(ray);
       wrong_with += a.hit() != mesh_hit;
-      wrong_without += without.intersect(ray).hit.hit() != mesh_hit;
+      wrong_without += without.intersect(ray).hit() != mesh_hit;
       if (!a.hit()) continue;
       ++hits;
       const Float3 p{ray.org.x + a.t * ray.dir.x, ray.org.y + a.t * ray.dir.y,
@@ -162,11 +162,10 @@ TEST(Esvo, ContourHitsLieWithinTheBoundAndBeatCubes) {
 
 std::vector<std::byte> esvo_blob(const Scene& scene, std::uint32_t resolution, bool contours,
                                  unsigned threads, bool compress = false) {
-  AccelRequest request;
-  request.kind = "esvo";
-  request.esvo.resolution = resolution;
-  request.esvo.contours = contours;
-  return blob_with(scene, request, threads, compress);
+  return blob_with(scene,
+                   "esvo:resolution=" + std::to_string(resolution) +
+                       ",no-contours=" + (contours ? "false" : "true"),
+                   threads, compress);
 }
 
 TEST(Esvo, BlobsAreByteIdenticalAndRoundTrip) {
@@ -186,7 +185,7 @@ TEST(Esvo, BlobsAreByteIdenticalAndRoundTrip) {
     const EsvoView mapped = EsvoView::from_blob(blob), direct = view_of(flat);
     EXPECT_EQ(mapped.counts().descriptors, flat.descriptor_count);
     for (const Ray& ray : test_rays(f.bvh(), f.scene, 2000, 3)) {
-      const VoxelHit a = mapped.intersect(ray).hit, b = direct.intersect(ray).hit;
+      const VoxelHit a = mapped.intersect(ray), b = direct.intersect(ray);
       ASSERT_EQ(std::memcmp(&a, &b, sizeof a), 0);
     }
   }
@@ -198,8 +197,9 @@ TEST(Esvo, CorruptedDescriptorsAreRefused) {
   const auto blob = esvo_blob(f.scene, 64, true, 2);
   const AlignedBuffer aligned = aligned_copy(blob);
   const Blob original = Blob::open_memory(aligned.bytes());
-  const auto* desc = original.manifest().accelerations()->Get(0)->esvo();
-  ASSERT_NE(desc, nullptr);
+  const StructureInfo* esvo = original.structure("esvo");
+  ASSERT_NE(esvo, nullptr);
+  const auto* desc = &desc_of<schema::EsvoDesc>(original, *esvo);
   const auto words = original.section_view<std::uint32_t>(desc->words());
   auto expect_refused = [&](std::uint32_t section, std::size_t offset, std::uint32_t value,
                             const char* what) {
@@ -264,7 +264,7 @@ TEST(Esvo, ContourLeavesHoldTheirHits) {
   const EsvoView view = view_of(esvo);
   std::size_t hits = 0, inside = 0;
   for (const Ray& ray : test_rays(f.bvh(), f.scene, 4000, 5)) {
-    const VoxelHit h = view.intersect(ray).hit;
+    const VoxelHit h = view.intersect(ray);
     if (!h.hit()) continue;
     ++hits;
     const float length =
@@ -287,12 +287,12 @@ TEST(Esvo, LevelOfDetailStopsEarlier) {
   const EsvoLod lod{float(esvo.grid.voxel_size * 1024), 0};
   std::size_t hits = 0, coarser = 0;
   for (const Ray& ray : test_rays(f.bvh(), f.scene, 2000, 13)) {
-    const EsvoHit fine = view.intersect(ray), coarse = view.intersect(ray, lod);
-    if (!fine.hit.hit()) continue;
+    const VoxelHit fine = view.intersect(ray), coarse = view.intersect(ray, lod);
+    if (!fine.hit()) continue;
     ++hits;
     // The coarse voxel encloses the fine hit's region, so it is hit, no later.
-    ASSERT_TRUE(coarse.hit.hit());
-    EXPECT_LE(coarse.hit.t, fine.hit.t + 1e-4f);
+    ASSERT_TRUE(coarse.hit());
+    EXPECT_LE(coarse.t, fine.t + 1e-4f);
     EXPECT_LE(coarse.level, fine.level);
     coarser += coarse.level < fine.level;
   }
@@ -332,13 +332,12 @@ TEST(Esvo, ColourAttachmentIsTheTouchingTrianglesMean) {
   const VoxelGrid& g = esvo.grid;
   std::size_t hits = 0;
   for (const Ray& ray : test_rays(f.bvh(), f.scene, 1000, 17)) {
-    const EsvoHit h = view.intersect(ray);
-    if (!h.hit.hit()) continue;
+    const VoxelHit h = view.intersect(ray);
+    if (!h.hit()) continue;
     ++hits;
     // The leaf's cube, then every triangle touching it, by brute force.
     const std::uint32_t side = g.resolution >> h.level;
-    const Vec3d lo{double(h.hit.x / side * side), double(h.hit.y / side * side),
-                   double(h.hit.z / side * side)};
+    const Vec3d lo{double(h.x / side * side), double(h.y / side * side), double(h.z / side * side)};
     const Vec3d hi{lo.x + side, lo.y + side, lo.z + side};
     double sum[4] = {0, 0, 0, 0};
     std::size_t count = 0;
@@ -381,18 +380,19 @@ TEST(Esvo, CommandLineBuildDumpTrace) {
             0);
   // The file holds what the library answers on the same blob and rays.
   const auto bytes = read_file(hits), ray_bytes = read_file(rays);
-  ASSERT_EQ(bytes.size(), 3000 * sizeof(VoxelHit));
+  ASSERT_EQ(bytes.size(), 3000 * sizeof(VoxelHitRecord));
   const AlignedBuffer aligned = aligned_copy(read_file(blob));
   const Blob opened = Blob::open_memory(aligned.bytes());
   const EsvoView view = EsvoView::from_blob(opened);
   std::size_t wrong = 0, hit_count = 0;
   for (std::size_t i = 0; i < 3000; ++i) {
     Ray ray;
-    VoxelHit from_file;
+    VoxelHitRecord from_file;
     std::memcpy(&ray, ray_bytes.data() + i * sizeof ray, sizeof ray);
     std::memcpy(&from_file, bytes.data() + i * sizeof from_file, sizeof from_file);
-    const VoxelHit expected = view.intersect(ray).hit;
-    wrong += std::memcmp(&from_file, &expected, sizeof expected) != 0;
+    const VoxelHit expected = view.intersect(ray);
+    const VoxelHitRecord record = to_record(expected);
+    wrong += std::memcmp(&from_file, &record, sizeof record) != 0;
     hit_count += expected.hit();
   }
   EXPECT_EQ(wrong, 0u);
@@ -405,7 +405,7 @@ TEST(Esvo, CommandLineBuildDumpTrace) {
   for (std::size_t i = 0; i < 3000 && points.size() < 2000; ++i) {
     Ray ray;
     std::memcpy(&ray, ray_bytes.data() + i * sizeof ray, sizeof ray);
-    const VoxelHit h = view.intersect(ray).hit;
+    const VoxelHit h = view.intersect(ray);
     if (!h.hit()) continue;
     const float t = h.t * (1.0f + jitter(rng));
     points.push_back(

@@ -9,7 +9,8 @@
 #include "kiln/compiler/kdtree_builder.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"
 #include "kiln/runtime/blob.hpp"
-#include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/kdtree.hpp"
 #include "proximity_fixtures.hpp"
 #include "ray_fixtures.hpp"
 #include "test_support.hpp"
@@ -218,7 +219,7 @@ TEST(KdTreeProximity, AnswersFromABlobWithOnlyAKdTree) {
   BuildOptions options;
   options.inputs = {"generated"};
   options.threads = 2;
-  options.accels.push_back({"kdtree", {}, {}});
+  options.structures = {resolve_structure_request("kdtree", {})};
   const auto bytes = compile_blob(scene, options);
   AlignedBuffer aligned(bytes.size(), 64);
   std::memcpy(aligned.data(), bytes.data(), bytes.size());

@@ -12,6 +12,8 @@
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/kdtree.hpp"
+#include "kiln/runtime/manifest.hpp"
+#include "kiln/runtime/ray_structure.hpp"
 #include "kiln/tools/ray_generator.hpp"
 #include "ray_fixtures.hpp"
 #include "test_support.hpp"
@@ -208,7 +210,7 @@ std::vector<std::byte> kdtree_blob(const Scene& scene, unsigned threads) {
   BuildOptions options;
   options.inputs = {"generated"};
   options.threads = threads;
-  options.accels.push_back({"kdtree", {}, {}});
+  options.structures = {resolve_structure_request("kdtree", {})};
   return compile_blob(scene, options);
 }
 
@@ -227,8 +229,8 @@ TEST(KdTree, CorruptedNodeArraysAreRefused) {
   const auto blob = kdtree_blob(scene, 2);
   const AlignedBuffer aligned = aligned_copy(blob);
   const Blob original = Blob::open_memory(aligned.bytes());
-  const auto* desc = original.manifest().accelerations()->Get(0)->kdtree();
-  ASSERT_NE(desc, nullptr);
+  ASSERT_EQ(original.structures()[0].kind, "kdtree");
+  const auto* desc = &desc_of<schema::KdTreeDesc>(original, original.structures()[0]);
   const auto nodes = original.section_view<format::KdNode>(desc->nodes());
   ASSERT_FALSE(nodes[0].is_leaf());
   std::uint32_t leaf = 0;

@@ -11,6 +11,7 @@
 #include "kiln/runtime/aligned_buffer.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/point_tree.hpp"
 #include "kiln/runtime/ray.hpp"
 #include "test_support.hpp"
@@ -223,9 +224,7 @@ std::vector<std::byte> points_blob(const Scene& scene, unsigned threads, bool co
   options.inputs = {"generated"};
   options.threads = threads;
   options.compression.enabled = compress;
-  AccelRequest request;
-  request.kind = "points";
-  options.accels.push_back(request);
+  options.structures.push_back(resolve_structure_request("points", {}));
   return compile_blob(scene, options);
 }
 
@@ -256,8 +255,9 @@ TEST(PointTree, CorruptedArraysAreRefused) {
   const auto blob = points_blob(scene, 2);
   const AlignedBuffer aligned = aligned_copy(blob);
   const Blob original = Blob::open_memory(aligned.bytes());
-  const auto* desc = original.manifest().accelerations()->Get(0)->points();
-  ASSERT_NE(desc, nullptr);
+  const StructureInfo* points = original.structure("points");
+  ASSERT_NE(points, nullptr);
+  const auto* desc = &desc_of<schema::PointTreeDesc>(original, *points);
   const auto nodes = original.section_view<format::PointNode>(desc->nodes());
   ASSERT_FALSE(nodes[0].is_leaf());
   std::uint32_t leaf = 0;
@@ -388,7 +388,11 @@ TEST(PointTree, CommandLineKnnAndRadius) {
   result = run_kiln("query " + quoted(dir.file("bvh.kiln")) + " --op radius --radius 1 --in " +
                     quoted(in) + " --out " + quoted(dir.file("x.bin")));
   EXPECT_EQ(result.exit_code, 1);
-  EXPECT_NE(result.err.find("--accel points"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("holds no structure that can answer nearest-neighbour queries"),
+            std::string::npos)
+      << result.err;
+  EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("x.bin")));
   result = run_kiln("build " + quoted(mesh_path("classic/teapot.obj")) +
                     " --accel points --points-leaf-size 0 -o " + quoted(dir.file("y.kiln")));
   EXPECT_NE(result.exit_code, 0);

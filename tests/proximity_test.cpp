@@ -4,7 +4,7 @@
 
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
-#include "kiln/runtime/proximity.hpp"
+#include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/triangle_geometry.hpp"
 #include "proximity_fixtures.hpp"
 #include "test_support.hpp"

@@ -6,10 +6,13 @@
 #include <random>
 
 #include "kiln/compiler/build.hpp"
+#include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/compiler/voxel_dag_builder.hpp"
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/bvh.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
 #include "kiln/tools/ray_generator.hpp"
 #include "proximity_fixtures.hpp"
@@ -62,6 +65,7 @@ VoxelHit dda(const BuiltDag& b, const Ray& ray) {
     if (std::binary_search(b.voxels.codes.begin(), b.voxels.codes.end(), code)) {
       VoxelHit hit;
       hit.t = float(t_enter);
+      hit.prim = 0;
       hit.x = std::uint32_t(v[0]), hit.y = std::uint32_t(v[1]), hit.z = std::uint32_t(v[2]);
       if (axis >= 0) hit.face_normal[axis] = d[axis] > 0 ? -1.0f : 1.0f;
       return hit;
@@ -156,11 +160,10 @@ TEST(VoxelCast, OccupancyMatchesTheVoxelSet) {
 
 std::vector<std::byte> dag_blob(const Scene& scene, std::uint32_t resolution, bool normals,
                                 unsigned threads, bool compress = false) {
-  AccelRequest request;
-  request.kind = "dag";
-  request.voxels.resolution = resolution;
-  request.voxels.normals = normals;
-  return blob_with(scene, request, threads, compress);
+  return blob_with(
+      scene,
+      "dag:resolution=" + std::to_string(resolution) + ",normals=" + (normals ? "true" : "false"),
+      threads, compress);
 }
 
 TEST(VoxelCast, BlobsAreByteIdenticalAndRoundTrip) {
@@ -191,8 +194,9 @@ TEST(VoxelCast, CorruptedWordsAreRefused) {
   const auto blob = dag_blob(scene, 64, false, 2);
   const AlignedBuffer aligned = aligned_copy(blob);
   const Blob original = Blob::open_memory(aligned.bytes());
-  const auto* desc = original.manifest().accelerations()->Get(0)->dag();
-  ASSERT_NE(desc, nullptr);
+  const StructureInfo* dag = original.structure("dag");
+  ASSERT_NE(dag, nullptr);
+  const auto* desc = &desc_of<schema::VoxelDagDesc>(original, *dag);
   auto expect_refused = [&](std::size_t word, std::uint32_t value, const char* what) {
     const AlignedBuffer bad = forged_copy(blob, desc->words(), 4 * word, value);
     const Blob b = Blob::open_memory(bad.bytes());  // open is O(sections)
@@ -227,17 +231,17 @@ TEST(VoxelCast, CommandLineBuildDumpTrace) {
                 .exit_code,
             0);
   const auto bytes = read_file(hits);
-  ASSERT_EQ(bytes.size(), 3000 * sizeof(VoxelHit));
+  ASSERT_EQ(bytes.size(), 3000 * sizeof(VoxelHitRecord));
   const Scene scene = import_scene({mesh_path("classic/teapot.obj")}, 2);
   const BuiltDag built = build_dag(scene, 128);
   const auto ray_bytes = read_file(rays);
   std::size_t wrong = 0;
   for (std::size_t i = 0; i < 3000; ++i) {
     Ray ray;
-    VoxelHit from_file;
+    VoxelHitRecord from_file;
     std::memcpy(&ray, ray_bytes.data() + i * sizeof ray, sizeof ray);
     std::memcpy(&from_file, bytes.data() + i * sizeof from_file, sizeof from_file);
-    const VoxelHit expected = built.view().intersect(ray);
+    const VoxelHitRecord expected = to_record(built.view().intersect(ray));
     wrong += std::memcmp(&from_file, &expected, sizeof expected) != 0;
   }
   EXPECT_EQ(wrong, 0u);
@@ -290,12 +294,9 @@ TEST(VoxelSolid, ByteIdenticalAcrossThreadCounts) {
   const Scene scene = import_scene({mesh_path("classic/spot.obj")}, 2);
   BuildOptions options;
   options.inputs = {"spot"};
-  AccelRequest request;
-  request.kind = "dag";
-  request.voxels.resolution = 256;  // two bricks per axis
-  request.voxels.solid = true;
-  request.voxels.normals = true;
-  options.accels.push_back(request);
+  // 256: two bricks per axis.
+  options.structures.push_back(
+      resolve_structure_request("dag:resolution=256,solid=true,normals=true", {}));
   options.threads = 1;
   const auto one = compile_blob(scene, options);
   options.threads = 3;

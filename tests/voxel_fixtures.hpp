@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string_view>
 #include <vector>
 
 #include "kiln/compiler/build.hpp"
@@ -30,14 +31,15 @@ inline BuiltDag build_dag(const Scene& scene, std::uint32_t resolution) {
   return b;
 }
 
-// compile_blob of `scene` with the one structure `request` asks for.
-inline std::vector<std::byte> blob_with(const Scene& scene, const AccelRequest& request,
-                                        unsigned threads, bool compress = false) {
+// compile_blob of `scene` with the one structure `spec` asks for ("KIND[:key=value,...]", as
+// `--accel` takes it).
+inline std::vector<std::byte> blob_with(const Scene& scene, std::string_view spec, unsigned threads,
+                                        bool compress = false) {
   BuildOptions options;
   options.inputs = {"generated"};
   options.threads = threads;
   options.compression.enabled = compress;
-  options.accels.push_back(request);
+  options.structures.push_back(resolve_structure_request(spec, {}));
   return compile_blob(scene, options);
 }
 

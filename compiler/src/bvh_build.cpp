@@ -1,7 +1,6 @@
 // Top-down SAH construction shared by the three builders; they differ only in split finding.
 #include <cmath>
 #include <stdexcept>
-#include <thread>
 
 #include "bvh_splits.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
@@ -103,25 +102,13 @@ std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, std::vector<Pr
   auto node = std::make_unique<BvhBuildNode>();
   node->box = box;
   node->axis = axis;
-  if (depth < ctx.parallel_depth && left.size() >= kParallelSubtree &&
-      right.size() >= kParallelSubtree) {
-    std::unique_ptr<BvhBuildNode> left_node;
-    std::exception_ptr error;
-    std::jthread worker([&] {
-      try {
-        left_node = build_node(ctx, std::move(left), depth + 1, left_budget);
-      } catch (...) {
-        error = std::current_exception();
-      }
-    });
-    node->child[1] = build_node(ctx, std::move(right), depth + 1, right_budget);
-    worker.join();
-    if (error) std::rethrow_exception(error);
-    node->child[0] = std::move(left_node);
-  } else {
-    node->child[0] = build_node(ctx, std::move(left), depth + 1, left_budget);
-    node->child[1] = build_node(ctx, std::move(right), depth + 1, right_budget);
-  }
+  // Left and right subtrees are built apart and only then attached: the tree is the same
+  // whether or not the right one ran on its own thread.
+  fork_join(
+      depth < ctx.parallel_depth && left.size() >= kParallelSubtree &&
+          right.size() >= kParallelSubtree,
+      [&] { node->child[0] = build_node(ctx, std::move(left), depth + 1, left_budget); },
+      [&] { node->child[1] = build_node(ctx, std::move(right), depth + 1, right_budget); });
   return node;
 }
 
@@ -147,10 +134,7 @@ std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildO
     refs[i].prim = i;
   }
   const Aabb root = bounds_of(refs);
-  const unsigned threads = resolve_thread_count(options.threads);
-  const unsigned parallel_depth =
-      threads <= 1 ? 0 : unsigned(std::ceil(std::log2(double(threads)))) + 1;
-  const BuildContext ctx{scene, options, root.half_area(), parallel_depth};
+  const BuildContext ctx{scene, options, root.half_area(), fork_depth(options.threads)};
   const std::size_t budget = options.builder == BvhBuilder::kSpatial
                                  ? std::size_t(double(scene.triangles.size()) *
                                                std::max(0.0, double(options.sbvh_max_duplication)))

@@ -6,7 +6,6 @@
 #include <array>
 #include <cmath>
 #include <stdexcept>
-#include <thread>
 
 #include "kiln/compiler/kdtree_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
@@ -213,19 +212,14 @@ void build_node(const Context& ctx, const Aabb& cell, EventLists events, std::ui
   const bool spawn = depth < ctx.parallel_depth && left[0].size() >= kParallelEvents &&
                      right[0].size() >= kParallelEvents;
   if (spawn) {
+    // The above side builds into its own subtree (with its own side marks), appended after.
     Subtree above;
-    std::exception_ptr error;
-    std::jthread worker([&, right = std::move(right)]() mutable {
-      try {
-        std::vector<std::uint8_t> own_side(side.size(), kBoth);
-        build_node(ctx, right_cell, std::move(right), depth + 1, above, own_side);
-      } catch (...) {
-        error = std::current_exception();
-      }
-    });
-    build_node(ctx, left_cell, std::move(left), depth + 1, out, side);
-    worker.join();
-    if (error) std::rethrow_exception(error);
+    fork_join(
+        true, [&] { build_node(ctx, left_cell, std::move(left), depth + 1, out, side); },
+        [&] {
+          std::vector<std::uint8_t> own_side(side.size(), kBoth);
+          build_node(ctx, right_cell, std::move(right), depth + 1, above, own_side);
+        });
     const auto above_index = std::uint32_t(out.nodes.size());
     append(out, above);
     out.nodes[index] = format::KdNode::interior(axis, p, above_index);
@@ -296,9 +290,8 @@ FlatKdTree build_kdtree(const Scene& scene, const KdTreeBuildOptions& options) {
   }
   for (auto& list : events) std::sort(list.begin(), list.end());
 
-  const unsigned threads = resolve_thread_count(options.threads);
   const Context ctx{scene, options, kd_depth_limit(scene.triangles.size()),
-                    threads <= 1 ? 0u : std::uint32_t(std::ceil(std::log2(double(threads)))) + 1};
+                    fork_depth(options.threads)};
   Subtree root;
   std::vector<std::uint8_t> side(scene.triangles.size(), kBoth);
   build_node(ctx, tree.bounds, std::move(events), 1, root, side);

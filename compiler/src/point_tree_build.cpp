@@ -2,7 +2,6 @@
 // midpoint cut, leaves of at most `max_leaf_size` points (or any number of identical points).
 #include <algorithm>
 #include <stdexcept>
-#include <thread>
 
 #include "kiln/compiler/point_tree_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
@@ -109,18 +108,10 @@ void build_subtree(const Context& ctx, std::span<std::uint32_t> ids, std::size_t
   below_cell.hi[cut.axis] = cut.plane;
   above_cell.lo[cut.axis] = cut.plane;
   if (depth < ctx.parallel_depth && end - begin >= kParallelPoints) {
-    std::vector<format::PointNode> above;
-    std::exception_ptr error;
-    std::thread worker([&] {
-      try {
-        build_subtree(ctx, ids, cut.middle, end, depth + 1, above_cell, above);
-      } catch (...) {
-        error = std::current_exception();
-      }
-    });
-    build_subtree(ctx, ids, begin, cut.middle, depth + 1, below_cell, nodes);
-    worker.join();
-    if (error) std::rethrow_exception(error);
+    std::vector<format::PointNode> above;  // built apart, appended after the below side
+    fork_join(
+        true, [&] { build_subtree(ctx, ids, begin, cut.middle, depth + 1, below_cell, nodes); },
+        [&] { build_subtree(ctx, ids, cut.middle, end, depth + 1, above_cell, above); });
     const std::size_t shift = nodes.size();
     for (auto n : above) {
       if (!n.is_leaf())
@@ -176,9 +167,7 @@ FlatPointTree build_point_tree(std::span<const format::Float3> points,
   tree.ids.resize(points.size());
   for (std::uint32_t i = 0; i < tree.ids.size(); ++i) tree.ids[i] = i;
   for (const auto& p : points) tree.bounds.grow(p);
-  std::uint32_t parallel_depth = 0;
-  while ((1u << parallel_depth) < resolve_thread_count(options.threads)) ++parallel_depth;
-  const Context ctx{points, options, parallel_depth};
+  const Context ctx{points, options, fork_depth(options.threads)};
   build_subtree(ctx, tree.ids, 0, tree.ids.size(), 1, tree.bounds, tree.nodes);
   // Every child index is below the node count, so this one check covers the 30-bit fields.
   if (tree.nodes.size() > format::kPointMaxIndex)

@@ -63,8 +63,7 @@ inline bool to_octree_ray(const Ray& ray, const VoxelGridFrame& frame, double to
     if (!std::isfinite(s.o[a]) || !std::isfinite(s.d[a])) return false;
   }
   if (std::isnan(ray.tmin) || std::isnan(ray.tmax)) return false;
-  const float d_max =
-      std::fmax(std::fabs(s.d[0]), std::fmax(std::fabs(s.d[1]), std::fabs(s.d[2])));
+  const float d_max = std::fmax(std::fabs(s.d[0]), std::fmax(std::fabs(s.d[1]), std::fabs(s.d[2])));
   if (!(d_max > 0)) return false;
   const float eps = d_max * 0x1p-23f;
   for (float& c : s.d)
@@ -83,9 +82,10 @@ inline bool enter_root(const Ray& ray, CastState& s) {
   s.entry_axis = 0;
   s.t_min = 2.0f * s.coef[0] - s.bias[0];
   for (int a = 1; a < 3; ++a)
-    if (2.0f * s.coef[a] - s.bias[a] > s.t_min) s.t_min = 2.0f * s.coef[a] - s.bias[a], s.entry_axis = a;
-  s.t_max = std::fmin(s.coef[0] - s.bias[0],
-                      std::fmin(s.coef[1] - s.bias[1], s.coef[2] - s.bias[2]));
+    if (2.0f * s.coef[a] - s.bias[a] > s.t_min)
+      s.t_min = 2.0f * s.coef[a] - s.bias[a], s.entry_axis = a;
+  s.t_max =
+      std::fmin(s.coef[0] - s.bias[0], std::fmin(s.coef[1] - s.bias[1], s.coef[2] - s.bias[2]));
   if (!(s.t_min > ray.tmin)) s.t_min = ray.tmin, s.entry_axis = -1;
   s.t_max = std::fmin(s.t_max, ray.tmax);
   if (!(s.t_min <= s.t_max)) return false;
@@ -158,8 +158,7 @@ inline void leaf_hit(const CastState& s, float tv_min, std::uint32_t resolution,
 
 // PUSH: descend into the current voxel, the descriptor at word `child`, whose subtree is
 // searched within [tv_min, tv_max]; tc are the current voxel's exits per axis.
-inline void push(CastState& s, std::uint64_t child, const float tc[3], float tv_min,
-                 float tv_max) {
+inline void push(CastState& s, std::uint64_t child, const float tc[3], float tv_min, float tv_max) {
   const float half = s.scale_exp2 * 0.5f;
   s.stack[s.scale] = {s.parent, s.t_max};
   s.parent = child;

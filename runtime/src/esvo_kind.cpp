@@ -40,8 +40,7 @@ void check(const Blob& blob, const StructureInfo& info) {
     blob.fail_section(0, where + "has " + std::to_string(e.levels()) + " levels at resolution " +
                              std::to_string(e.resolution()));
   if (e.level_stats() == nullptr || e.level_stats()->size() != e.levels())
-    blob.fail_section(
-        0, where + "has no level table of " + std::to_string(e.levels()) + " levels");
+    blob.fail_section(0, where + "has no level table of " + std::to_string(e.levels()) + " levels");
 }
 
 std::unique_ptr<StructureView> open(const Blob& blob, const StructureInfo& info) {
@@ -73,11 +72,10 @@ void describe_levels(const schema::EsvoDesc& e, Description& out) {
     const auto* s = levels.Get(l);
     table.rows.push_back({s->descriptors(), s->voxels(), s->leaves(), s->contours()});
     if (s->descriptors() == 0) continue;
-    out.lines.push_back(printf_string("%5u %14llu %14llu %14llu %14llu", l,
-                                      (unsigned long long)s->descriptors(),
-                                      (unsigned long long)s->voxels(),
-                                      (unsigned long long)s->leaves(),
-                                      (unsigned long long)s->contours()));
+    out.lines.push_back(
+        printf_string("%5u %14llu %14llu %14llu %14llu", l, (unsigned long long)s->descriptors(),
+                      (unsigned long long)s->voxels(), (unsigned long long)s->leaves(),
+                      (unsigned long long)s->contours()));
   }
   out.tables.push_back(std::move(table));
 }
@@ -97,9 +95,8 @@ void describe_lines(const schema::EsvoDesc& e, Description& out) {
       (unsigned long long)e.far_pointer_count(), (unsigned long long)e.block_count()));
   out.lines.push_back(printf_string(
       "%.2f bytes/leaf: hierarchy %.2f, contours %.2f, attachments %.2f (normals%s)",
-      e.bytes_per_leaf(), double(e.hierarchy_bytes()) / leaves,
-      double(e.contour_bytes()) / leaves, double(e.attachment_bytes()) / leaves,
-      e.colors() != kNoSection ? ", colours" : ""));
+      e.bytes_per_leaf(), double(e.hierarchy_bytes()) / leaves, double(e.contour_bytes()) / leaves,
+      double(e.attachment_bytes()) / leaves, e.colors() != kNoSection ? ", colours" : ""));
 }
 
 Description describe(const Blob& blob, const StructureInfo& info) {

@@ -3,11 +3,11 @@
 #include <string>
 #include <vector>
 
-#include "voxel_grid_frame.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
-#include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/esvo.hpp"
+#include "kiln/runtime/manifest.hpp"
+#include "voxel_grid_frame.hpp"
 
 namespace kiln {
 
@@ -102,7 +102,7 @@ void EsvoView::check_descriptors(const std::string& name) {
     const std::uint64_t child = w + offset;
     const std::uint64_t count = std::popcount(d.non_leaf);
     if (offset < 2 || offset % 2 != 0 || child + 2 * count > words_.size())
-      fail(where + " points at word " + std::to_string(child) + ", out of range");
+      fail(where + " has its children at word " + std::to_string(child) + ", out of range");
     for (std::uint64_t i = 0; i < count; ++i) {
       const std::uint64_t c = child + 2 * i;
       if (seen[c / 2] != 0) fail(where + " shares a child with another descriptor");
@@ -120,8 +120,8 @@ EsvoView EsvoView::from_blob(const Blob& blob, const std::string& name) {
   return EsvoView(
       blob.section_view<std::uint32_t>(e->words()), blob.section_view<std::uint32_t>(e->pages()),
       blob.section_view<format::EsvoBlockInfo>(e->blocks()),
-      blob.section_view<std::uint32_t>(e->normals()),
-      blob.section_view<std::uint32_t>(e->colors()), grid_frame_of(*e), blob.name() + ": " + name);
+      blob.section_view<std::uint32_t>(e->normals()), blob.section_view<std::uint32_t>(e->colors()),
+      grid_frame_of(*e), blob.name() + ": " + name);
 }
 
 std::size_t EsvoView::block_of(std::uint64_t w) const {

@@ -13,6 +13,14 @@ unsigned resolve_thread_count(unsigned requested) {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
+unsigned fork_depth(unsigned threads) {
+  const unsigned workers = resolve_thread_count(threads);
+  if (workers <= 1) return 0;
+  unsigned depth = 0;
+  while ((1u << depth) < workers) ++depth;
+  return depth + 1;
+}
+
 void parallel_for(std::size_t count, unsigned threads,
                   const std::function<void(std::size_t)>& body) {
   std::vector<std::exception_ptr> errors(count);

@@ -142,8 +142,8 @@ VoxelHit VoxelDagView::cast(const Ray& ray, Cost* cost) const {
     for (int i = count; i-- > 0;) {
       const std::uint32_t octant = order[i].index;
       const std::uint32_t child = words_[c.word + 1 + std::popcount(mask & ((1u << octant) - 1))];
-      stack[top++] = {child, c.level + 1, c.x + (octant & 1) * half,
-                      c.y + (octant >> 1 & 1) * half, c.z + (octant >> 2 & 1) * half};
+      stack[top++] = {child, c.level + 1, c.x + (octant & 1) * half, c.y + (octant >> 1 & 1) * half,
+                      c.z + (octant >> 2 & 1) * half};
     }
   }
   return hit;

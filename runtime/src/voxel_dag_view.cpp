@@ -3,11 +3,11 @@
 #include <string>
 #include <vector>
 
-#include "voxel_grid_frame.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
+#include "voxel_grid_frame.hpp"
 
 namespace kiln {
 
@@ -56,7 +56,9 @@ VoxelDagView::VoxelDagView(std::span<const std::uint32_t> words, const VoxelGrid
             l + 1 < leaf_level
                 ? p >= level_first_words[l + 1] && p < level_first_words[l + 2] && starts[p]
                 : p >= leaf_first_word && (p - leaf_first_word) % 2 == 0 && p + 1 < words.size();
-        if (!ok) fail("node at word " + std::to_string(w) + " points at " + std::to_string(p));
+        if (!ok)
+          fail("node at word " + std::to_string(w) + " has a child pointer to word " +
+               std::to_string(p));
       }
       w += 1 + count;
     }
@@ -64,8 +66,7 @@ VoxelDagView::VoxelDagView(std::span<const std::uint32_t> words, const VoxelGrid
 
 VoxelDagView VoxelDagView::from_blob(const Blob& blob, const std::string& name) {
   const StructureInfo* info = blob.structure(name);
-  const auto* d =
-      info ? structure_table(blob, *info).desc_as<schema::VoxelDagDesc>() : nullptr;
+  const auto* d = info ? structure_table(blob, *info).desc_as<schema::VoxelDagDesc>() : nullptr;
   if (d == nullptr) blob.fail("has no voxel DAG '" + name + "'");
   // Blob::open checked kinds, sizes and counts of these sections, and the level table's presence.
   std::vector<std::uint64_t> firsts;

@@ -27,8 +27,9 @@ inline format::Float3 voxel_normal(const VoxelHit& h) {
   return {h.face_normal[0], h.face_normal[1], h.face_normal[2]};
 }
 
+/// A voxel structure's view seen through the capabilities: RayQueries and OccupancyQueries.
 template <RayStructure V>
-  requires std::same_as<typename V::HitType, VoxelHit>
+requires std::same_as<typename V::HitType, VoxelHit>
 class VoxelStructure final : public StructureView, public RayQueries, public OccupancyQueries {
  public:
   explicit VoxelStructure(V view) : view_(std::move(view)) {}

@@ -121,7 +121,8 @@ void write_structures(const Blob& blob, std::ostream& out) {
     out << "  " << info.name << " (" << info.kind << ")\n";
     const Description d = describe(blob, info);
     for (const auto& line : d.lines) out << "    " << line << "\n";
-    for (const auto& table : d.tables) write_table(table, out);
+    for (const auto& table : d.tables)
+      if (table.human) write_table(table, out);
   }
 }
 
@@ -136,7 +137,7 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
   write_sections(blob, out);
   write_options_and_sources(blob, out);
   write_input(blob, out);
-  write_meshes(blob, options, out);
+  if (blob.input().kind == InputKind::kTriangles) write_meshes(blob, options, out);
   write_structures(blob, out);
 }
 

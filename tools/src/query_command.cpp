@@ -60,10 +60,8 @@ std::vector<std::byte> answer_all(std::size_t count, unsigned threads, Answer an
 }
 
 // closest: distance, triangle, point; inside: one byte; box: a count, then the triangle ids.
-std::vector<std::byte> surface_answers(const Blob& blob, const QueryArgs& args, const Queries& q) {
-  const auto chosen =
-      choose_structure(blob, args.accel, &StructureView::surface, "answer surface queries");
-  const SurfaceQueries& s = *chosen.view->surface();
+std::vector<std::byte> surface_answers(const SurfaceQueries& s, const Blob& blob,
+                                       const QueryArgs& args, const Queries& q) {
   if (args.op == "closest")
     return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
       const ClosestPoint c = s.closest_point(q.at(i), args.max_distance);
@@ -89,10 +87,8 @@ std::vector<std::byte> surface_answers(const Blob& blob, const QueryArgs& args, 
 
 // knn: K records per query, padded with (0xFFFFFFFF, +inf) when there are fewer; radius: a
 // count, then the ids by distance.
-std::vector<std::byte> neighbor_answers(const Blob& blob, const QueryArgs& args, const Queries& q) {
-  const auto chosen = choose_structure(blob, args.accel, &StructureView::neighbors,
-                                       "answer nearest-neighbour queries");
-  const NeighborQueries& n = *chosen.view->neighbors();
+std::vector<std::byte> neighbor_answers(const NeighborQueries& n, const QueryArgs& args,
+                                        const Queries& q) {
   if (args.op == "knn")
     return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
       std::vector<Neighbor> found(args.k, Neighbor{kNoHit, INFINITY});
@@ -108,19 +104,32 @@ std::vector<std::byte> neighbor_answers(const Blob& blob, const QueryArgs& args,
 }
 
 // occupied: 1 when the point lies in the structure's solid.
-std::vector<std::byte> occupancy_answers(const Blob& blob, const QueryArgs& args,
+std::vector<std::byte> occupancy_answers(const OccupancyQueries& o, const QueryArgs& args,
                                          const Queries& q) {
-  const auto chosen =
-      choose_structure(blob, args.accel, &StructureView::occupancy, "answer occupancy queries");
-  const OccupancyQueries& o = *chosen.view->occupancy();
   return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
     append_pod(bytes, std::uint8_t(o.occupied(q.at(i)) ? 1 : 0));
   });
 }
 
+bool neighbor_op(const std::string& op) {
+  return op == "knn" || op == "radius";
+}
+
+// The structure --op runs on: the one --accel names, else the first with the capability.
+ChosenStructure choose_for(const Blob& blob, const QueryArgs& args) {
+  if (neighbor_op(args.op))
+    return choose_structure(blob, args.accel, &StructureView::neighbors,
+                            "answer nearest-neighbour queries");
+  if (args.op == "occupied")
+    return choose_structure(blob, args.accel, &StructureView::occupancy,
+                            "answer occupancy queries");
+  return choose_structure(blob, args.accel, &StructureView::surface, "answer surface queries");
+}
+
 int run_query(const QueryArgs& args) {
   try {
     const Blob blob = Blob::open_file(args.blob);
+    const ChosenStructure chosen = choose_for(blob, args);
     const MappedFile input(args.in);
     const std::size_t stride = args.op == "box" ? 6 : 3;
     const std::size_t bytes = input.bytes().size();
@@ -132,10 +141,11 @@ int run_query(const QueryArgs& args) {
     // A mapping is page-aligned, so the floats are aligned too.
     const Queries queries{reinterpret_cast<const float*>(input.bytes().data()), stride,
                           bytes / (stride * sizeof(float))};
+    const StructureView& view = *chosen.view;
     const std::vector<std::byte> out =
-        args.op == "knn" || args.op == "radius" ? neighbor_answers(blob, args, queries)
-        : args.op == "occupied"                 ? occupancy_answers(blob, args, queries)
-                                                : surface_answers(blob, args, queries);
+        neighbor_op(args.op)    ? neighbor_answers(*view.neighbors(), args, queries)
+        : args.op == "occupied" ? occupancy_answers(*view.occupancy(), args, queries)
+                                : surface_answers(*view.surface(), blob, args, queries);
     write_file_atomically(args.out, out);
     return 0;
   } catch (const std::exception& e) {

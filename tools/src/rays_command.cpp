@@ -96,7 +96,7 @@ Scene scene_of(const Blob& blob) {
 std::vector<Ray> generate_from_blob(const RaysArgs& args) {
   const Blob blob = Blob::open_file(args.input);
   if (blob.input().kind != InputKind::kTriangles)
-    blob.fail("holds no triangles to aim rays at (it was built from " +
+    blob.fail("holds no triangles to aim rays at (its input is a " +
               std::string(input_kind_name(blob.input().kind)) + ")");
   for (const StructureInfo& info : blob.structures()) {
     const auto view = open_structure(blob, info.name);

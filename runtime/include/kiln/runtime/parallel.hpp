@@ -1,7 +1,9 @@
 #pragma once
 
 #include <cstddef>
+#include <exception>
 #include <functional>
+#include <thread>
 
 namespace kiln {
 
@@ -22,6 +24,34 @@ void parallel_for_batched(std::size_t count, std::size_t batch, unsigned threads
     const std::size_t end = count < (b + 1) * batch ? count : (b + 1) * batch;
     for (std::size_t i = b * batch; i < end; ++i) body(i);
   });
+}
+
+/// How deep recursive builders fork: enough subtrees for `threads` workers (0 = all cores) with
+/// one level of slack for uneven halves; 0 (never fork) for one thread.
+unsigned fork_depth(unsigned threads);
+
+/// The one fork-join of the recursive builders: when `fork`, runs `forked` on a new thread while
+/// `here` runs on this one, joins, and rethrows `here`'s exception, else `forked`'s; otherwise
+/// runs `here` then `forked`. Each must write only its own output, so the result never depends
+/// on whether it forked (blobs are byte-identical on any thread count).
+template <class Here, class Forked>
+void fork_join(bool fork, Here&& here, Forked&& forked) {
+  if (!fork) {
+    here();
+    forked();
+    return;
+  }
+  std::exception_ptr forked_error;
+  std::jthread worker([&] {
+    try {
+      forked();
+    } catch (...) {
+      forked_error = std::current_exception();
+    }
+  });
+  here();  // if it throws, the jthread joins on unwinding
+  worker.join();
+  if (forked_error) std::rethrow_exception(forked_error);
 }
 
 }  // namespace kiln

@@ -15,24 +15,24 @@ namespace kiln {
 
 class Blob;
 
-// A validated view of one point k-d tree. Creating it walks the nodes once (O(nodes)): nodes in
-// depth-first order, no deeper than format::kPointMaxDepth, leaf ranges consecutive and covering
-// every point exactly once; so a search cannot read out of range, loop or recurse too deep,
-// whatever the bytes. Throws BlobError otherwise.
+/// A validated view of one point k-d tree. Creating it walks the nodes once (O(nodes)): nodes in
+/// depth-first order, no deeper than format::kPointMaxDepth, leaf ranges consecutive and covering
+/// every point exactly once; so a search cannot read out of range, loop or recurse too deep,
+/// whatever the bytes. Throws BlobError otherwise.
 class PointTreeView {
  public:
   PointTreeView(std::span<const format::PointNode> nodes, std::span<const format::Float3> points,
                 std::span<const std::uint32_t> ids, const float bounds_min[3],
                 const float bounds_max[3], const std::string& name = "points");
-  // The structure named `name` of a blob; throws BlobError when the blob has no structure of
-  // that name or it is not a point k-d tree.
+  /// The structure named `name` of a blob; throws BlobError when the blob has no structure of
+  /// that name or it is not a point k-d tree.
   static PointTreeView from_blob(const Blob& blob, const std::string& name = "points");
 
-  // The min(k, point count) nearest points, k = out.size(), written to `out` sorted by
-  // (distance, id); returns how many were written. No allocation.
+  /// The min(k, point count) nearest points, k = out.size(), written to `out` sorted by
+  /// (distance, id); returns how many were written. No allocation.
   std::size_t nearest(const format::Float3& query, std::span<Neighbor> out) const;
-  // Every point with squared distance <= radius * radius (in float), sorted by (distance, id),
-  // into `out` (cleared first).
+  /// Every point with squared distance <= radius * radius (in float), sorted by (distance, id),
+  /// into `out` (cleared first).
   void within_radius(const format::Float3& query, float radius, std::vector<Neighbor>& out) const;
 
   std::span<const format::PointNode> nodes() const { return nodes_; }
