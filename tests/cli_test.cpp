@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "kiln/formats/container.hpp"
+#include "kiln/runtime/checksum.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
@@ -131,9 +133,9 @@ TEST(Cli, BuildRaysTraceWithBothBvhs) {
       test::run_kiln("build --accel bvh --accel sbvh " + mesh + " -o " + quoted(blob)).exit_code,
       0);
   const auto dump = nlohmann::json::parse(test::run_kiln("dump --json " + quoted(blob)).out);
-  ASSERT_EQ(dump["manifest"]["accelerations"].size(), 2u);
-  EXPECT_EQ(dump["manifest"]["accelerations"][1]["kind"], "sbvh");
-  EXPECT_GE(dump["manifest"]["accelerations"][1]["bvh"]["reference_count"].get<std::uint64_t>(),
+  ASSERT_EQ(dump["manifest"]["structures"].size(), 2u);
+  EXPECT_EQ(dump["manifest"]["structures"][1]["kind"], "sbvh");
+  EXPECT_GE(dump["manifest"]["structures"][1]["sbvh"]["reference_count"].get<std::uint64_t>(),
             100000u);
   EXPECT_EQ(test::run_kiln("verify " + quoted(blob)).exit_code, 0);
 
@@ -210,11 +212,81 @@ TEST(Cli, TraceRefusesBadInputs) {
   result = test::run_kiln("trace " + quoted(plain) + " --rays " + quoted(rays) + " --out " +
                           quoted(dir.file("h")));
   EXPECT_EQ(result.exit_code, 1);
-  EXPECT_NE(result.err.find("no acceleration structure"), std::string::npos) << result.err;
+  EXPECT_NE(result.err.find("holds no structure that can trace rays"), std::string::npos)
+      << result.err;
   EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
-  result =
-      test::run_kiln("build --accel bvh --accel bvh " + mesh + " -o " + quoted(dir.file("y.kiln")));
-  EXPECT_NE(result.exit_code, 0);
+  // Two structures of one name, an unknown kind, a bad option value: one line each, no blob.
+  for (const char* accels : {"--accel bvh --accel bvh", "--accel bogus", "--accel bvh:max-leaf=0",
+                             "--accel bvh:bogus=1"}) {
+    result = test::run_kiln("build " + std::string(accels) + " " + mesh + " -o " +
+                            quoted(dir.file("y.kiln")));
+    EXPECT_EQ(result.exit_code, 1) << accels;
+    EXPECT_EQ(result.err.rfind("kiln build: ", 0), 0u) << accels << ": " << result.err;
+    EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+    EXPECT_FALSE(fs::exists(dir.file("y.kiln"))) << accels;
+  }
+}
+
+// A tetrahedron as OBJ text: a mesh for the tests that need no corpus.
+std::string write_tetrahedron(const test::TempDir& dir) {
+  const std::string path = dir.file("tetrahedron.obj");
+  test::write_text(path,
+                   "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+  return path;
+}
+
+TEST(Cli, StructuresOfOneKindAreNamedApart) {
+  test::TempDir dir;
+  const std::string mesh = quoted(write_tetrahedron(dir)), blob = dir.file("x.kiln");
+  const auto build =
+      test::run_kiln("build --stats --accel bvh:name=a --accel bvh:name=b,max-leaf=2 " + mesh +
+                     " -o " + quoted(blob));
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  EXPECT_NE(build.err.find("kiln build: a (bvh): built in "), std::string::npos) << build.err;
+  EXPECT_NE(build.err.find("kiln build: b (bvh): built in "), std::string::npos) << build.err;
+  const auto human = test::run_kiln("dump " + quoted(blob));
+  ASSERT_EQ(human.exit_code, 0) << human.err;
+  EXPECT_NE(human.out.find("\nstructures\n  a (bvh)\n"), std::string::npos) << human.out;
+  EXPECT_NE(human.out.find("\n  b (bvh)\n"), std::string::npos) << human.out;
+  const auto dump = test::run_kiln("dump --json " + quoted(blob));
+  ASSERT_EQ(dump.exit_code, 0) << dump.err;
+  const auto structures = nlohmann::json::parse(dump.out)["manifest"]["structures"];
+  ASSERT_EQ(structures.size(), 2u);
+  EXPECT_EQ(structures[0]["name"], "a");
+  EXPECT_EQ(structures[1]["name"], "b");
+  EXPECT_EQ(structures[0]["kind"], "bvh");
+  EXPECT_EQ(structures[1]["kind"], "bvh");
+  EXPECT_EQ(structures[0]["bvh"]["max_leaf_size"], 8);
+  EXPECT_EQ(structures[1]["bvh"]["max_leaf_size"], 2);
+
+  const std::string rays = dir.file("r.rays"), hits = dir.file("b.hits");
+  ASSERT_EQ(test::run_kiln("rays " + mesh + " --count 100 -o " + quoted(rays)).exit_code, 0);
+  const auto trace = test::run_kiln("trace " + quoted(blob) + " --accel b --rays " + quoted(rays) +
+                                    " --out " + quoted(hits));
+  ASSERT_EQ(trace.exit_code, 0) << trace.err;
+  EXPECT_NE(trace.err.find(" on b,"), std::string::npos) << trace.err;
+  EXPECT_EQ(fs::file_size(hits), 100u * 16u);
+}
+
+// A format 1.x header (with valid checksums) is refused with the advice to rebuild.
+TEST(Cli, FormatOneBlobAsksForARebuild) {
+  test::TempDir dir;
+  const std::string blob = dir.file("old.kiln");
+  ASSERT_EQ(
+      test::run_kiln("build " + quoted(write_tetrahedron(dir)) + " -o " + quoted(blob)).exit_code,
+      0);
+  auto bytes = test::read_file(blob);
+  format::FileHeader h;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  h.version_major = 1;
+  std::memcpy(bytes.data(), &h, sizeof h);
+  h.header_checksum = xxh3_64(std::span<const std::byte>(bytes).first(56));
+  std::memcpy(bytes.data(), &h, sizeof h);
+  test::write_file(blob, bytes);
+  const auto result = test::run_kiln("dump " + quoted(blob));
+  EXPECT_EQ(result.exit_code, 1);
+  EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
+  EXPECT_NE(result.err.find("rebuild"), std::string::npos) << result.err;
 }
 
 TEST(Cli, QueryClosestInsideBox) {
