@@ -292,7 +292,7 @@ const kiln::FlatKdTree& kdtree_for(MeshCase& mesh) {
 }
 
 kiln::KdTreeView kdtree_view(const kiln::FlatKdTree& t) {
-  return kiln::KdTreeView(t.nodes, t.prim_ids, t.triangles, t.bounds.lo, t.bounds.hi);
+  return kiln::KdTreeView(t.nodes, t.prim_ids, t.triangles, t.bounds);
 }
 
 // The same rays for every structure: generated once from the binned BVH (any correct BVH gives

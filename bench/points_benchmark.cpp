@@ -69,7 +69,7 @@ std::vector<std::unique_ptr<Case>> g_cases;
 std::vector<Float3> make_queries(const std::vector<Float3>& points, std::size_t count,
                                  std::uint32_t seed) {
   std::mt19937 rng(seed);
-  const kiln::Bounds3 b = kiln::bounds_of(points);
+  const kiln::format::Box3f b = kiln::bounds_of(points);
   const float diagonal = std::hypot(b.max.x - b.min.x, b.max.y - b.min.y, b.max.z - b.min.z);
   std::uniform_real_distribution<float> unit(0, 1), jitter(-0.01f * diagonal, 0.01f * diagonal);
   std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
@@ -122,7 +122,7 @@ struct Trees {
   kiln::PointTreeView kiln_view() {
     if (!kiln_tree) kiln_tree.emplace(kiln::build_point_tree(*points, options()));
     const auto& t = *kiln_tree;
-    return kiln::PointTreeView(t.nodes, t.points, t.ids, t.bounds.lo, t.bounds.hi);
+    return kiln::PointTreeView(t.nodes, t.points, t.ids, t.bounds);
   }
   const NanoTree& nano() {
     if (!nano_tree)
@@ -282,7 +282,7 @@ void register_case(Case* c) {
                                [=](benchmark::State& state) {
                                  const kiln::FlatKdTree kd = kiln::build_kdtree(c->scene, {});
                                  const kiln::KdTreeView view(kd.nodes, kd.prim_ids, kd.triangles,
-                                                             kd.bounds.lo, kd.bounds.hi);
+                                                             kd.bounds);
                                  double sum = 0;
                                  timed(state, *c, "closest/kdtree", [&] {
                                    for (const Float3& q : few)

@@ -25,6 +25,7 @@
 namespace kiln {
 namespace {
 
+using format::Double3;
 using format::Float3;
 using namespace kiln::test;
 
@@ -337,8 +338,9 @@ TEST(Esvo, ColourAttachmentIsTheTouchingTrianglesMean) {
     ++hits;
     // The leaf's cube, then every triangle touching it, by brute force.
     const std::uint32_t side = g.resolution >> h.level;
-    const Vec3d lo{double(h.x / side * side), double(h.y / side * side), double(h.z / side * side)};
-    const Vec3d hi{lo.x + side, lo.y + side, lo.z + side};
+    const Double3 lo{double(h.x / side * side), double(h.y / side * side),
+                     double(h.z / side * side)};
+    const Double3 hi{lo.x + side, lo.y + side, lo.z + side};
     double sum[4] = {0, 0, 0, 0};
     std::size_t count = 0;
     for (const auto& tri : f.scene.triangles) {

@@ -18,15 +18,14 @@
 namespace kiln {
 namespace {
 
+using format::Double3;
 using format::Float3;
 using namespace kiln::test;
 
 struct Built {
   FlatKdTree kd;
   FlatBvh bvh;
-  KdTreeView tree() const {
-    return KdTreeView(kd.nodes, kd.prim_ids, kd.triangles, kd.bounds.lo, kd.bounds.hi);
-  }
+  KdTreeView tree() const { return KdTreeView(kd.nodes, kd.prim_ids, kd.triangles, kd.bounds); }
   BvhView bvh_view() const { return BvhView(bvh.nodes, bvh.triangles, bvh.prim_ids); }
 };
 
@@ -39,12 +38,12 @@ std::vector<Float3> far_points(const Scene& s, std::size_t count, std::uint32_t 
   std::mt19937 rng(seed);
   std::normal_distribution<double> normal;
   std::uniform_real_distribution<double> scale(2, 20);
-  const Vec3d lo = to_d(s.bounds.min), size = to_d(s.bounds.max) - lo;
-  const Vec3d centre = lo + size * 0.5;
+  const Double3 lo = to_d(s.bounds.min), size = to_d(s.bounds.max) - lo;
+  const Double3 centre = lo + size * 0.5;
   const double diagonal = std::sqrt(dot(size, size));
   std::vector<Float3> points;
   for (std::size_t i = 0; i < count; ++i) {
-    Vec3d d{normal(rng), normal(rng), normal(rng)};
+    Double3 d{normal(rng), normal(rng), normal(rng)};
     d = d * (diagonal * scale(rng) / std::sqrt(dot(d, d)));
     points.push_back(to_f(centre + d));
   }
@@ -68,7 +67,7 @@ void expect_closest_agrees(const Scene& scene, const Built& b, const std::vector
       ok = std::fabs(double(got.distance) - expected) <= 1e-6 * expected + 1e-30 &&
            got.distance == other.distance;
       double v, w;
-      const Vec3d q =
+      const Double3 q =
           closest_on_triangle(to_d(points[i]), corner(scene, got.prim, 0),
                               corner(scene, got.prim, 1), corner(scene, got.prim, 2), v, w);
       ok = ok && std::fabs(q.x - got.point.x) <= 1e-5 * (1 + std::fabs(q.x)) &&

@@ -27,7 +27,7 @@ using namespace kiln::test;
 struct BuiltKdTree {
   FlatKdTree flat;
   KdTreeView view() const {
-    return KdTreeView(flat.nodes, flat.prim_ids, flat.triangles, flat.bounds.lo, flat.bounds.hi);
+    return KdTreeView(flat.nodes, flat.prim_ids, flat.triangles, flat.bounds);
   }
 };
 
@@ -168,18 +168,16 @@ TEST(KdTree, EveryTriangleIsReferencedAndTheDepthIsCapped) {
 TEST(KdTree, ClippedTriangleBoundsAreTight) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> unit(-1.0f, 2.0f), w(0.0f, 1.0f);
-  Aabb cell;
-  cell.lo[0] = 0, cell.lo[1] = 0, cell.lo[2] = 0;
-  cell.hi[0] = 1, cell.hi[1] = 0.5f, cell.hi[2] = 1;
+  const format::Box3f cell{{0, 0, 0}, {1, 0.5f, 1}};
   int empty = 0;
   for (int i = 0; i < 2000; ++i) {
     const Float3 a{unit(rng), unit(rng), unit(rng)}, b{unit(rng), unit(rng), unit(rng)},
         c{unit(rng), unit(rng), unit(rng)};
-    const Aabb box = clip_triangle_to_box(a, b, c, cell);
+    const format::Box3f box = clip_triangle_to_box(a, b, c, cell);
     empty += box.empty();
     for (int k = 0; k < 3 && !box.empty(); ++k) {
-      EXPECT_GE(box.lo[k], cell.lo[k]);
-      EXPECT_LE(box.hi[k], cell.hi[k]);
+      EXPECT_GE(format::at(box.min, k), format::at(cell.min, k));
+      EXPECT_LE(format::at(box.max, k), format::at(cell.max, k));
     }
     for (int s = 0; s < 200; ++s) {
       float u = w(rng), v = w(rng);
@@ -190,12 +188,13 @@ TEST(KdTree, ClippedTriangleBoundsAreTight) {
       const float q[3] = {p.x, p.y, p.z};
       bool inside_cell = true;
       for (int k = 0; k < 3; ++k)
-        inside_cell = inside_cell && q[k] > cell.lo[k] && q[k] < cell.hi[k];
+        inside_cell =
+            inside_cell && q[k] > format::at(cell.min, k) && q[k] < format::at(cell.max, k);
       if (!inside_cell) continue;
       ASSERT_FALSE(box.empty()) << "triangle " << i << " has a point inside the cell";
       for (int k = 0; k < 3; ++k) {
-        EXPECT_GE(q[k], box.lo[k] - 1e-6f);
-        EXPECT_LE(q[k], box.hi[k] + 1e-6f);
+        EXPECT_GE(q[k], format::at(box.min, k) - 1e-6f);
+        EXPECT_LE(q[k], format::at(box.max, k) + 1e-6f);
       }
     }
   }

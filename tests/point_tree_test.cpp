@@ -25,7 +25,7 @@ using namespace kiln::test;
 struct BuiltPointTree {
   FlatPointTree flat;
   PointTreeView view() const {
-    return PointTreeView(flat.nodes, flat.points, flat.ids, flat.bounds.lo, flat.bounds.hi);
+    return PointTreeView(flat.nodes, flat.points, flat.ids, flat.bounds);
   }
 };
 
@@ -52,7 +52,7 @@ std::vector<Neighbor> brute_force(std::span<const Float3> points, const Float3& 
 std::vector<Float3> sample_queries(std::span<const Float3> points, std::size_t count,
                                    std::uint32_t seed) {
   std::mt19937 rng(seed);
-  const Bounds3 b = bounds_of(points);
+  const format::Box3f b = bounds_of(points);
   const float size = std::max({b.max.x - b.min.x, b.max.y - b.min.y, b.max.z - b.min.z, 1e-3f});
   std::uniform_real_distribution<float> unit(0, 1), jitter(-0.01f * size, 0.01f * size);
   std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
@@ -77,7 +77,7 @@ std::vector<Float3> sample_queries(std::span<const Float3> points, std::size_t c
 // kNN for k = 1, 8, 32 and radius searches at two radii: the same lists as brute force.
 void expect_matches_brute_force(std::span<const Float3> points, const PointTreeView& tree,
                                 std::size_t query_count, const std::string& what) {
-  const Bounds3 b = bounds_of(points);
+  const format::Box3f b = bounds_of(points);
   const float diagonal = std::hypot(b.max.x - b.min.x, b.max.y - b.min.y, b.max.z - b.min.z);
   std::size_t mismatches = 0;
   std::vector<Neighbor> found, within;

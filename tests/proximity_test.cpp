@@ -12,6 +12,7 @@
 namespace kiln {
 namespace {
 
+using format::Double3;
 using format::Float3;
 using namespace kiln::test;
 
@@ -46,7 +47,7 @@ TEST(Proximity, ClosestPointMatchesBruteForce) {
         if (std::fabs(double(c.distance) - expected[i]) > 1e-6 * expected[i] + 1e-30) ++wrong;
         // The reported point is on the reported triangle at the reported distance.
         double v, w;
-        const Vec3d q =
+        const Double3 q =
             closest_on_triangle(to_d(points[i]), corner(scene, c.prim, 0), corner(scene, c.prim, 1),
                                 corner(scene, c.prim, 2), v, w);
         EXPECT_NEAR(q.x, c.point.x, 1e-5 * (1 + std::fabs(q.x)));
@@ -114,7 +115,7 @@ TEST(Proximity, BoxQueryMatchesBruteForce) {
 }
 
 TEST(Proximity, TriangleBoxTestKnownCases) {
-  const Vec3d lo{0, 0, 0}, hi{1, 1, 1};
+  const Double3 lo{0, 0, 0}, hi{1, 1, 1};
   EXPECT_TRUE(triangle_overlaps_box({0.5, 0.5, 0.5}, {5, 0.5, 0.5}, {0.5, 5, 0.5}, lo,
                                     hi));  // corner inside
   EXPECT_TRUE(triangle_overlaps_box({-1, -1, 0.5}, {3, -1, 0.5}, {-1, 3, 0.5}, lo,

@@ -30,6 +30,7 @@
 namespace kiln {
 namespace {
 
+using format::Double3;
 using format::Float3;
 using Tri = std::array<Float3, 3>;
 
@@ -58,10 +59,6 @@ GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::size_
                  scene.positions[tri.v[2]]);
 }
 
-double component(const Vec3d& v, int axis) {
-  return axis == 0 ? v.x : axis == 1 ? v.y : v.z;
-}
-
 std::string voxel_name(std::uint64_t code) {
   return "(" + std::to_string(format::compact_bits(code)) + ", " +
          std::to_string(format::compact_bits(code >> 1)) + ", " +
@@ -88,9 +85,9 @@ std::vector<std::pair<std::uint64_t, std::uint32_t>> brute_force_hits(const Scen
     if (sweep == Sweep::kBoxPlus2)
       for (int a = 0; a < 3; ++a) {
         const double mn =
-            std::min({component(t.v[0], a), component(t.v[1], a), component(t.v[2], a)});
+            std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
         const double mx =
-            std::max({component(t.v[0], a), component(t.v[1], a), component(t.v[2], a)});
+            std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
         lo[a] = std::max<std::int64_t>(0, std::int64_t(std::floor(mn)) - 2);
         hi[a] = std::min<std::int64_t>(n - 1, std::int64_t(std::floor(mx)) + 2);
       }
@@ -126,11 +123,11 @@ std::vector<std::uint32_t> brute_force_normals(
     std::size_t end = k;
     for (; end < hits.size() && hits[end].first == hits[k].first; ++end) {
       const auto& tri = scene.triangles[hits[end].second];
-      const Vec3d a = to_d(scene.positions[tri.v[0]]), b = to_d(scene.positions[tri.v[1]]),
-                  c = to_d(scene.positions[tri.v[2]]);
-      const Vec3d nrm = cross(b - a, c - a);
+      const Double3 a = to_d(scene.positions[tri.v[0]]), b = to_d(scene.positions[tri.v[1]]),
+                    c = to_d(scene.positions[tri.v[2]]);
+      const Double3 nrm = cross(b - a, c - a);
       const double length = std::sqrt(dot(nrm, nrm));
-      for (int axis = 0; axis < 3; ++axis) sum[axis] += component(nrm, axis) / length;
+      for (int axis = 0; axis < 3; ++axis) sum[axis] += format::at(nrm, axis) / length;
     }
     normals.push_back(format::encode_octahedral(float(sum[0]), float(sum[1]), float(sum[2])));
     k = end;
@@ -210,11 +207,11 @@ void expect_holds_surface_samples(const Scene& scene, const Voxels& voxels, int 
       weights.push_back({1 - r1, r1 * (1 - r2), r1 * r2});
     }
     for (const auto& w : weights) {
-      const Vec3d p = t.v[0] * w[0] + t.v[1] * w[1] + t.v[2] * w[2];
+      const Double3 p = t.v[0] * w[0] + t.v[1] * w[1] + t.v[2] * w[2];
       std::uint32_t cell[3];
       bool usable = true;
       for (int a = 0; a < 3; ++a) {
-        const double c = component(p, a);
+        const double c = format::at(p, a);
         if (!(c > 1e-6 && c < n - 1e-6) || std::fabs(c - std::round(c)) < 1e-6) usable = false;
         cell[a] = usable ? std::uint32_t(std::floor(c)) : 0;
       }
@@ -319,7 +316,7 @@ std::vector<std::pair<std::string, std::vector<Tri>>> worst_cases() {
     while (random.size() < 30) {
       const Tri t = {
           {{pick(), pick(), pick()}, {pick(), pick(), pick()}, {pick(), pick(), pick()}}};
-      const Vec3d nrm = cross(to_d(t[1]) - to_d(t[0]), to_d(t[2]) - to_d(t[0]));
+      const Double3 nrm = cross(to_d(t[1]) - to_d(t[0]), to_d(t[2]) - to_d(t[0]));
       if (dot(nrm, nrm) > 1e-6) random.push_back(t);  // the importer drops degenerate ones
     }
     cases.push_back({"random, snapped to " + std::to_string(step), random});
@@ -407,7 +404,7 @@ TEST(Voxelizer, ByteIdenticalAcrossThreadCountsAndNormals) {
     return Float3{0.25f * i, 0.2f * j - 1.0f, 0.15f * j + 2.0f};
   });
   for (const auto& [scene, expected] :
-       {std::pair<const Scene*, Vec3d>{&flat, {0, 0, 1}}, {&tilted, {0, -0.6, 0.8}}}) {
+       {std::pair<const Scene*, Double3>{&flat, {0, 0, 1}}, {&tilted, {0, -0.6, 0.8}}}) {
     for (const std::uint32_t n : {8u, 32u, 128u}) {
       const Voxels v = voxelize_surface(*scene, {n, true, 2});
       ASSERT_EQ(v.normals.size(), v.codes.size());
@@ -472,7 +469,7 @@ TEST(Voxelizer, RefusesResolutionsOutsidePowersOfTwo8To16384) {
 
 // Random scene bounds of six kinds (0 ordinary, 1 far from the origin and small, 2 flat or a
 // line, 3 a point, 4 min and max of very different magnitudes, 5 negative with uneven extents).
-Bounds3 random_bounds(std::mt19937& rng, int kind) {
+format::Box3f random_bounds(std::mt19937& rng, int kind) {
   std::uniform_real_distribution<float> unit(0, 1);
   float lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
@@ -500,12 +497,12 @@ Bounds3 random_bounds(std::mt19937& rng, int kind) {
     }
     lo[a] = l, hi[a] = h;
   }
-  Bounds3 b;
+  format::Box3f b;
   b.min = {lo[0], lo[1], lo[2]}, b.max = {hi[0], hi[1], hi[2]};
   return b;
 }
 
-std::string bounds_name(const Bounds3& b) {
+std::string bounds_name(const format::Box3f& b) {
   std::ostringstream s;
   s.precision(17);
   s << "bounds [" << b.min.x << ", " << b.min.y << ", " << b.min.z << "] .. [" << b.max.x << ", "
@@ -523,7 +520,7 @@ TEST(Voxelizer, FittedGridHoldsTheBounds) {
                                               {{-1e-9f, 0, 0}, {1000, 1, 1}},
                                               {{0, 0, 0}, {1, 1, 1}},
                                               {{-1, -2, -3}, {1, 2, 3}}}) {
-    const Bounds3 b{lo, hi};
+    const format::Box3f b{lo, hi};
     for (const std::uint32_t n : {64u}) {  // the origin does not depend on n
       const VoxelGrid g = fit_voxel_grid(b, n);
       const double side = n * g.voxel_size;
@@ -551,7 +548,7 @@ TEST(Voxelizer, FittedGridHoldsTheBounds) {
   std::string first[6];
   for (int i = 0; i < 3000; ++i) {
     const int k = kind(rng);
-    const Bounds3 b = random_bounds(rng, k);
+    const format::Box3f b = random_bounds(rng, k);
     const float lo[3] = {b.min.x, b.min.y, b.min.z}, hi[3] = {b.max.x, b.max.y, b.max.z};
     double extent = 0;
     for (int a = 0; a < 3; ++a) extent = std::max(extent, double(hi[a]) - double(lo[a]));
@@ -569,8 +566,8 @@ TEST(Voxelizer, FittedGridHoldsTheBounds) {
       for (int a = 0; a < 3; ++a) {
         ok[1] = ok[1] && g.origin[a] <= lo[a];
         ok[2] = ok[2] && g.origin[a] + side >= hi[a];
-        ok[3] = ok[3] && component(t.v[0], a) >= 0;
-        ok[4] = ok[4] && component(t.v[1], a) <= n;
+        ok[3] = ok[3] && format::at(t.v[0], a) >= 0;
+        ok[4] = ok[4] && format::at(t.v[1], a) <= n;
         ok[5] = ok[5] && std::fabs(g.origin[a] + 0.5 * side - 0.5 * (double(lo[a]) + hi[a])) <=
                              1e-12 * (std::fabs(lo[a]) + std::fabs(hi[a]) + side);
       }
@@ -631,7 +628,7 @@ TEST(Voxelizer, KeepsTrianglesOnTheBoundsFaces) {
   std::string first;
   for (int i = 0; i < 3000; ++i) {
     const int k = i % 6;
-    const Bounds3 b = random_bounds(rng, k);
+    const format::Box3f b = random_bounds(rng, k);
     const float lo[3] = {b.min.x, b.min.y, b.min.z}, hi[3] = {b.max.x, b.max.y, b.max.z};
     std::vector<Tri> faces;
     for (int a = 0; a < 3; ++a)
@@ -646,7 +643,7 @@ TEST(Voxelizer, KeepsTrianglesOnTheBoundsFaces) {
       }
     std::vector<Tri> kept;
     for (const Tri& t : faces) {
-      const Vec3d nrm = cross(to_d(t[1]) - to_d(t[0]), to_d(t[2]) - to_d(t[0]));
+      const Double3 nrm = cross(to_d(t[1]) - to_d(t[0]), to_d(t[2]) - to_d(t[0]));
       if (dot(nrm, nrm) > 0) kept.push_back(t);  // flat bounds: degenerate faces dropped
     }
     if (kept.empty()) continue;
@@ -657,10 +654,10 @@ TEST(Voxelizer, KeepsTrianglesOnTheBoundsFaces) {
       const Voxels voxels = voxelize_surface(scene, {n, false, 1});
       for (std::size_t f = 0; f < kept.size(); ++f) {
         const GridTriangle t = grid_triangle(scene, voxels.grid, f);
-        const Vec3d centroid = (t.v[0] + t.v[1] + t.v[2]) * (1.0 / 3);
+        const Double3 centroid = (t.v[0] + t.v[1] + t.v[2]) * (1.0 / 3);
         std::uint32_t cell[3];
         for (int a = 0; a < 3; ++a)
-          cell[a] = std::uint32_t(std::clamp(std::floor(component(centroid, a)), 0.0, n - 1.0));
+          cell[a] = std::uint32_t(std::clamp(std::floor(format::at(centroid, a)), 0.0, n - 1.0));
         const std::uint64_t code = format::morton_code(cell[0], cell[1], cell[2]);
         if (std::binary_search(voxels.codes.begin(), voxels.codes.end(), code)) continue;
         if (failures[k]++ == 0 && first.empty()) {

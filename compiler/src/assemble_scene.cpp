@@ -39,10 +39,96 @@ bool is_finite(const format::Float3& p) {
   return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
 }
 
+constexpr std::uint32_t kWhite = 0xFFFFFFFF;
+constexpr auto kUnused = std::numeric_limits<std::uint32_t>::max();
+
+// Normals are kept only when every kept mesh has them (and there is at least one mesh).
+bool every_mesh_has_normals(const std::vector<ImportedFile>& files) {
+  bool every = true;
+  std::size_t kept_meshes = 0;
+  for (const auto& file : files)
+    for (const auto& mesh : file.meshes) {
+      every &= !mesh.normals.empty();
+      kept_meshes += 1;
+    }
+  return every && kept_meshes > 0;
+}
+
+// First pass: returns the mesh's non-degenerate triangles (counting the others in `scene`) and
+// sets `remap` to 0 for the vertices they use (and, in a point cloud, for every finite vertex).
+std::vector<format::Triangle> keep_triangles(const ImportedMesh& mesh,
+                                             const std::vector<Double3>& world,
+                                             std::vector<std::uint32_t>& remap, Scene& scene) {
+  remap.assign(mesh.positions.size(), kUnused);
+  std::vector<format::Triangle> kept;
+  kept.reserve(mesh.triangles.size());
+  for (const auto& t : mesh.triangles) {
+    const auto &a = world[t.v[0]], &b = world[t.v[1]], &c = world[t.v[2]];
+    if (is_degenerate(a, b, c) || !is_finite(to_float(a)) || !is_finite(to_float(b)) ||
+        !is_finite(to_float(c))) {
+      scene.degenerate_triangles_dropped += 1;
+      continue;
+    }
+    kept.push_back(t);
+    for (const auto v : t.v) remap[v] = 0;
+  }
+  if (mesh.point_cloud)
+    for (std::size_t v = 0; v < world.size(); ++v)
+      if (is_finite(world[v]) && is_finite(to_float(world[v]))) remap[v] = 0;
+  return kept;
+}
+
+// Second pass: appends the used vertices in their original order and sets `remap` to their scene
+// ids. Colours start at the first kept vertex of a coloured mesh (the vertices before it get
+// white, as do those of later meshes without colours), so a coloured mesh that keeps nothing adds
+// none; `any_colors` tracks whether they started.
+void append_vertices(const ImportedMesh& mesh, const std::vector<Double3>& world, bool normals,
+                     std::vector<std::uint32_t>& remap, bool& any_colors, Scene& scene) {
+  for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+    if (remap[v] == kUnused) continue;
+    if (scene.positions.size() >= kUnused)
+      throw ImportError(scene.sources.back().path + ": scene exceeds 2^32-1 vertices");
+    if (!mesh.colors.empty() && !any_colors) {
+      scene.colors.assign(scene.positions.size(), kWhite);
+      any_colors = true;
+    }
+    if (any_colors) scene.colors.push_back(mesh.colors.empty() ? kWhite : mesh.colors[v]);
+    remap[v] = std::uint32_t(scene.positions.size());
+    scene.positions.push_back(to_float(world[v]));
+    if (normals) scene.normals.push_back(transform_normal(mesh.transform, mesh.normals[v]));
+  }
+}
+
+// Adds one mesh of file `file` to `scene`: its world-space vertices, kept triangles and entry.
+void append_mesh(const ImportedMesh& mesh, std::uint32_t file, bool normals,
+                 std::vector<std::uint32_t>& remap, bool& any_colors, Scene& scene) {
+  SceneMesh out{mesh.name, file, scene.triangles.size(), 0, scene.positions.size(), 0};
+  if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
+    throw ImportError(scene.sources.back().path + ": mesh '" + mesh.name + "' has " +
+                      std::to_string(mesh.colors.size()) + " colours for " +
+                      std::to_string(mesh.positions.size()) + " vertices");
+  scene.input_triangle_count += mesh.triangles.size();
+  const bool mirrored = determinant3(mesh.transform) < 0.0;
+  std::vector<Double3> world(mesh.positions.size());
+  for (std::size_t v = 0; v < world.size(); ++v)
+    world[v] = transform_point(mesh.transform, mesh.positions[v]);
+  const std::vector<format::Triangle> kept = keep_triangles(mesh, world, remap, scene);
+  append_vertices(mesh, world, normals, remap, any_colors, scene);
+  for (auto t : kept) {
+    for (auto& v : t.v) v = remap[v];
+    if (mirrored) std::swap(t.v[1], t.v[2]);  // keep the front face facing out
+    scene.triangles.push_back(t);
+    scene.triangle_mesh.push_back(std::uint32_t(scene.meshes.size()));
+  }
+  out.triangle_count = scene.triangles.size() - out.first_triangle;
+  out.vertex_count = scene.positions.size() - out.first_vertex;
+  scene.meshes.push_back(std::move(out));
+}
+
 }  // namespace
 
-Bounds3 bounds_of(std::span<const format::Float3> positions) {
-  Bounds3 b;
+format::Box3f bounds_of(std::span<const format::Float3> positions) {
+  format::Box3f b{{0, 0, 0}, {0, 0, 0}};
   if (positions.empty()) return b;
   b.min = b.max = positions.front();
   for (const auto& p : positions) {
@@ -94,80 +180,17 @@ EdgeTopology edge_topology(const Scene& scene) {
 
 Scene assemble_scene(std::vector<ImportedFile> files) {
   Scene scene;
-  bool every_mesh_has_normals = true;
-  std::size_t kept_meshes = 0;
-  for (const auto& file : files)
-    for (const auto& mesh : file.meshes) {
-      every_mesh_has_normals &= !mesh.normals.empty();
-      kept_meshes += 1;
-    }
-  every_mesh_has_normals &= kept_meshes > 0;
-  // Colours start at the first kept vertex of a coloured mesh (the vertices before it get white,
-  // as do those of later meshes without colours), so a coloured mesh that keeps nothing adds none.
-  constexpr std::uint32_t kWhite = 0xFFFFFFFF;
+  const bool normals = every_mesh_has_normals(files);
   bool any_colors = false;
-
   std::vector<std::uint32_t> remap;
   for (std::uint32_t f = 0; f < files.size(); ++f) {
     ImportedFile& file = files[f];
     scene.sources.push_back(file.source);
     for (ImportedMesh& mesh : file.meshes) {
-      SceneMesh out{mesh.name, f, scene.triangles.size(), 0, scene.positions.size(), 0};
-      if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
-        throw ImportError(scene.sources.back().path + ": mesh '" + mesh.name + "' has " +
-                          std::to_string(mesh.colors.size()) + " colours for " +
-                          std::to_string(mesh.positions.size()) + " vertices");
-      scene.input_triangle_count += mesh.triangles.size();
-      // First pass: keep triangles, mark the vertices they use.
-      constexpr auto kUnused = std::numeric_limits<std::uint32_t>::max();
-      remap.assign(mesh.positions.size(), kUnused);
-      std::vector<format::Triangle> kept;
-      kept.reserve(mesh.triangles.size());
-      const bool mirrored = determinant3(mesh.transform) < 0.0;
-      std::vector<Double3> world(mesh.positions.size());
-      for (std::size_t v = 0; v < world.size(); ++v)
-        world[v] = transform_point(mesh.transform, mesh.positions[v]);
-      for (const auto& t : mesh.triangles) {
-        const auto &a = world[t.v[0]], &b = world[t.v[1]], &c = world[t.v[2]];
-        if (is_degenerate(a, b, c) || !is_finite(to_float(a)) || !is_finite(to_float(b)) ||
-            !is_finite(to_float(c))) {
-          scene.degenerate_triangles_dropped += 1;
-          continue;
-        }
-        kept.push_back(t);
-        for (const auto v : t.v) remap[v] = 0;
-      }
-      if (mesh.point_cloud)
-        for (std::size_t v = 0; v < world.size(); ++v)
-          if (is_finite(world[v]) && is_finite(to_float(world[v]))) remap[v] = 0;
-      // Second pass: number used vertices in their original order.
-      for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
-        if (remap[v] == kUnused) continue;
-        if (scene.positions.size() >= kUnused)
-          throw ImportError(scene.sources.back().path + ": scene exceeds 2^32-1 vertices");
-        if (!mesh.colors.empty() && !any_colors) {
-          scene.colors.assign(scene.positions.size(), kWhite);
-          any_colors = true;
-        }
-        if (any_colors) scene.colors.push_back(mesh.colors.empty() ? kWhite : mesh.colors[v]);
-        remap[v] = std::uint32_t(scene.positions.size());
-        scene.positions.push_back(to_float(world[v]));
-        if (every_mesh_has_normals)
-          scene.normals.push_back(transform_normal(mesh.transform, mesh.normals[v]));
-      }
-      for (auto t : kept) {
-        for (auto& v : t.v) v = remap[v];
-        if (mirrored) std::swap(t.v[1], t.v[2]);  // keep the front face facing out
-        scene.triangles.push_back(t);
-        scene.triangle_mesh.push_back(std::uint32_t(scene.meshes.size()));
-      }
-      out.triangle_count = scene.triangles.size() - out.first_triangle;
-      out.vertex_count = scene.positions.size() - out.first_vertex;
-      scene.meshes.push_back(std::move(out));
+      append_mesh(mesh, f, normals, remap, any_colors, scene);
       mesh = {};  // release memory early: scenes can be large
     }
   }
-
   scene.bounds = bounds_of(scene.positions);
   return scene;
 }

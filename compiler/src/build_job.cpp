@@ -90,6 +90,60 @@ class HashMemo {
   std::map<std::string, std::optional<Hash128>> known_;
 };
 
+// Restores the output (and depfile) from the first entry of `previous` whose recorded files
+// still hash the same; false when none matches, or when the matching one is damaged (a warning
+// says so, and the rebuild stores a fresh entry for these files).
+bool restore_from_cache(const BuildJob& job, const std::vector<CacheEntry>& previous,
+                        HashMemo& memo, BuildJobReport& report) {
+  for (const CacheEntry& entry : previous) {
+    if (!entry_matches(entry, [&](const std::string& path) { return memo(path); })) continue;
+    std::vector<std::string> read_files;
+    for (const CachedFile& file : entry.read) read_files.push_back(file.path);
+    const std::string depfile = depfile_text(job, read_files);
+    std::string trouble = "is missing its blob or it is damaged";
+    try {
+      if (restore_blob(job.cache_dir, entry, job.output)) {
+        write_depfile_text(job, depfile);
+        report.cache_hit = true;
+        report.read_files = std::move(read_files);
+        return true;
+      }
+    } catch (const std::exception& e) {
+      trouble = std::string("is unreadable (") + e.what() + ")";
+    }
+    report.warnings.push_back("cache entry " + report.cache_key + " " + trouble + "; rebuilding");
+    return false;
+  }
+  return false;
+}
+
+// Stores a fresh build under `key`, unless a file it read changed since `start` or cannot be
+// hashed (then a warning says why it is not cached).
+void store_result(const BuildJob& job, const Hash128& key, const BuiltBlob& built,
+                  const timespec& start, const std::vector<CacheEntry>& previous, HashMemo& memo,
+                  BuildJobReport& report) {
+  const std::vector<std::byte>& blob = built.bytes;
+  const FileAccesses& accessed = built.accessed;
+  if (const auto changed = changed_since(accessed.read, start)) {
+    report.warnings.push_back(*changed + " changed during the build; the result is not cached");
+    return;
+  }
+  CacheEntry entry{hash_bytes(blob), blob.size(), {}, accessed.missing};
+  for (const std::string& path : accessed.read) {
+    const auto hash = memo(path);
+    if (!hash) {
+      report.warnings.push_back(path + " cannot be read back; the result is not cached");
+      return;
+    }
+    entry.read.push_back({path, *hash});
+  }
+  try {
+    store_entry(job.cache_dir, key, blob, entry, previous);
+  } catch (const std::exception& e) {
+    report.warnings.push_back(std::string("result not cached: ") + e.what());
+  }
+}
+
 BuildJobReport run_cached(const BuildJob& job, const BuildProgress& progress) {
   BuildJobReport report;
   const timespec start = precise_now();
@@ -115,49 +169,10 @@ BuildJobReport run_cached(const BuildJob& job, const BuildProgress& progress) {
   }
   const Hash128 key = direct_key(job.options, input_hashes, fingerprint);
   report.cache_key = to_hex(key);
-
   const std::vector<CacheEntry> previous = read_manifest(job.cache_dir, key);
-  for (const CacheEntry& entry : previous) {
-    if (!entry_matches(entry, [&](const std::string& path) { return memo(path); })) continue;
-    std::vector<std::string> read_files;
-    for (const CachedFile& file : entry.read) read_files.push_back(file.path);
-    const std::string depfile = depfile_text(job, read_files);
-    std::string trouble = "is missing its blob or it is damaged";
-    try {
-      if (restore_blob(job.cache_dir, entry, job.output)) {
-        write_depfile_text(job, depfile);
-        report.cache_hit = true;
-        report.read_files = std::move(read_files);
-        return report;
-      }
-    } catch (const std::exception& e) {
-      trouble = std::string("is unreadable (") + e.what() + ")";
-    }
-    report.warnings.push_back("cache entry " + report.cache_key + " " + trouble + "; rebuilding");
-    break;  // the rebuild stores a fresh entry for these files
-  }
-
+  if (restore_from_cache(job, previous, memo, report)) return report;
   const BuiltBlob built = build_and_write(job, progress, report);
-  const std::vector<std::byte>& blob = built.bytes;
-  const FileAccesses& accessed = built.accessed;
-  if (const auto changed = changed_since(accessed.read, start)) {
-    report.warnings.push_back(*changed + " changed during the build; the result is not cached");
-    return report;
-  }
-  CacheEntry entry{hash_bytes(blob), blob.size(), {}, accessed.missing};
-  for (const std::string& path : accessed.read) {
-    const auto hash = memo(path);
-    if (!hash) {
-      report.warnings.push_back(path + " cannot be read back; the result is not cached");
-      return report;
-    }
-    entry.read.push_back({path, *hash});
-  }
-  try {
-    store_entry(job.cache_dir, key, blob, entry, previous);
-  } catch (const std::exception& e) {
-    report.warnings.push_back(std::string("result not cached: ") + e.what());
-  }
+  store_result(job, key, built, start, previous, memo, report);
   return report;
 }
 

@@ -21,13 +21,13 @@ struct BuildContext {
   unsigned parallel_depth;  // spawn threads above this depth
 };
 
-Aabb bounds_of(std::span<const PrimRef> refs) {
-  Aabb box;
+format::Box3f bounds_of(std::span<const PrimRef> refs) {
+  format::Box3f box;
   for (const auto& r : refs) box.grow(r.box);
   return box;
 }
 
-std::unique_ptr<BvhBuildNode> make_leaf(const Aabb& box, std::span<const PrimRef> refs) {
+std::unique_ptr<BvhBuildNode> make_leaf(const format::Box3f& box, std::span<const PrimRef> refs) {
   auto leaf = std::make_unique<BvhBuildNode>();
   leaf->box = box;
   leaf->prims.reserve(refs.size());
@@ -38,7 +38,7 @@ std::unique_ptr<BvhBuildNode> make_leaf(const Aabb& box, std::span<const PrimRef
 std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, std::vector<PrimRef> refs,
                                          std::uint32_t depth, std::size_t budget) {
   const auto& o = ctx.options;
-  const Aabb box = bounds_of(refs);
+  const format::Box3f box = bounds_of(refs);
   const std::size_t n = refs.size();
   const float leaf_cost = o.intersection_cost * float(n);
   const bool must_stop = depth + 1 >= format::kBvhMaxDepth;
@@ -57,9 +57,9 @@ std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, std::vector<Pr
   }
   SpatialSplit spatial;
   if (o.builder == BvhBuilder::kSpatial && budget > 0) {
-    const float overlap = object.valid()
-                              ? Aabb::intersection(object.left_box, object.right_box).half_area()
-                              : box.half_area();
+    const float overlap =
+        object.valid() ? format::Box3f::intersection(object.left_box, object.right_box).half_area()
+                       : box.half_area();
     if (!object.valid() || overlap > o.sbvh_alpha * ctx.root_area) {
       spatial = find_spatial_split(refs, box, ctx.scene, o);
     }
@@ -133,7 +133,7 @@ std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildO
     for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
     refs[i].prim = i;
   }
-  const Aabb root = bounds_of(refs);
+  const format::Box3f root = bounds_of(refs);
   const BuildContext ctx{scene, options, root.half_area(), fork_depth(options.threads)};
   const std::size_t budget = options.builder == BvhBuilder::kSpatial
                                  ? std::size_t(double(scene.triangles.size()) *

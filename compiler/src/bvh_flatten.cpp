@@ -17,7 +17,8 @@ struct Flattener {
     auto& stats = out.stats;
     stats.max_depth = std::max(stats.max_depth, depth);
     format::BvhNode node{};
-    for (int a = 0; a < 3; ++a) node.min[a] = n.box.lo[a], node.max[a] = n.box.hi[a];
+    for (int a = 0; a < 3; ++a)
+      node.min[a] = format::at(n.box.min, a), node.max[a] = format::at(n.box.max, a);
     if (n.is_leaf()) {
       node.offset = std::uint32_t(out.triangles.size());
       node.count = std::uint16_t(n.prims.size());

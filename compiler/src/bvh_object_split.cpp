@@ -7,43 +7,43 @@ namespace kiln {
 
 namespace {
 
-float split_cost(const BvhBuildOptions& o, float node_area, const Aabb& l, std::size_t nl,
-                 const Aabb& r, std::size_t nr) {
+float split_cost(const BvhBuildOptions& o, float node_area, const format::Box3f& l, std::size_t nl,
+                 const format::Box3f& r, std::size_t nr) {
   return o.traversal_cost +
          o.intersection_cost * (l.half_area() * float(nl) + r.half_area() * float(nr)) / node_area;
 }
 
 }  // namespace
 
-ObjectSplit find_binned_split(std::span<const PrimRef> refs, const Aabb& node_box,
+ObjectSplit find_binned_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
                               const BvhBuildOptions& options) {
-  Aabb centroids;
+  format::Box3f centroids;
   for (const auto& r : refs)
     centroids.grow(format::Float3{r.box.centroid(0), r.box.centroid(1), r.box.centroid(2)});
   const float node_area = node_box.half_area();
   const std::uint32_t k = std::max<std::uint32_t>(2, options.bins);
   ObjectSplit best;
   if (node_area <= 0.0f) return best;
-  std::vector<Aabb> bin_box(k), right_box(k);
+  std::vector<format::Box3f> bin_box(k), right_box(k);
   std::vector<std::size_t> bin_count(k);
   for (int axis = 0; axis < 3; ++axis) {
-    const float extent = centroids.hi[axis] - centroids.lo[axis];
+    const float extent = format::at(centroids.max, axis) - format::at(centroids.min, axis);
     if (!(extent > 0.0f)) continue;
     const float scale = float(k) / extent;
-    std::fill(bin_box.begin(), bin_box.end(), Aabb{});
+    std::fill(bin_box.begin(), bin_box.end(), format::Box3f{});
     std::fill(bin_count.begin(), bin_count.end(), 0);
     for (const auto& r : refs) {
       const auto b = std::min<std::uint32_t>(
-          k - 1, std::uint32_t((r.box.centroid(axis) - centroids.lo[axis]) * scale));
+          k - 1, std::uint32_t((r.box.centroid(axis) - format::at(centroids.min, axis)) * scale));
       bin_box[b].grow(r.box);
       bin_count[b] += 1;
     }
-    Aabb acc;
+    format::Box3f acc;
     for (std::uint32_t b = k; b-- > 1;) {
       acc.grow(bin_box[b]);
       right_box[b] = acc;
     }
-    Aabb left;
+    format::Box3f left;
     std::size_t left_count = 0;
     for (std::uint32_t b = 0; b + 1 < k; ++b) {
       left.grow(bin_box[b]);
@@ -57,7 +57,7 @@ ObjectSplit find_binned_split(std::span<const PrimRef> refs, const Aabb& node_bo
         best.axis = axis;
         best.bin = b;
         best.bin_scale = scale;
-        best.bin_origin = centroids.lo[axis];
+        best.bin_origin = format::at(centroids.min, axis);
         best.left_count = left_count;
         best.left_box = left;
         best.right_box = right_box[b + 1];
@@ -79,14 +79,14 @@ void apply_binned_split(const ObjectSplit& split, std::vector<PrimRef>& refs,
   }
 }
 
-ObjectSplit find_sweep_split(std::vector<PrimRef>& refs, const Aabb& node_box,
+ObjectSplit find_sweep_split(std::vector<PrimRef>& refs, const format::Box3f& node_box,
                              const BvhBuildOptions& options) {
   const float node_area = node_box.half_area();
   ObjectSplit best;
   if (node_area <= 0.0f || refs.size() < 2) return best;
   const std::size_t n = refs.size();
   std::vector<PrimRef> sorted[3];
-  std::vector<Aabb> right_box(n);
+  std::vector<format::Box3f> right_box(n);
   for (int axis = 0; axis < 3; ++axis) {
     sorted[axis] = refs;
     std::stable_sort(sorted[axis].begin(), sorted[axis].end(),
@@ -95,12 +95,12 @@ ObjectSplit find_sweep_split(std::vector<PrimRef>& refs, const Aabb& node_box,
                        return ca < cb || (ca == cb && a.prim < b.prim);
                      });
     const auto& s = sorted[axis];
-    Aabb acc;
+    format::Box3f acc;
     for (std::size_t i = n; i-- > 1;) {
       acc.grow(s[i].box);
       right_box[i] = acc;
     }
-    Aabb left;
+    format::Box3f left;
     for (std::size_t i = 0; i + 1 < n; ++i) {
       left.grow(s[i].box);
       const float cost = split_cost(options, node_area, left, i + 1, right_box[i + 1], n - i - 1);

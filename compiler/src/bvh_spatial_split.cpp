@@ -14,10 +14,10 @@ float coord(const format::Float3& p, int axis) {
 
 }  // namespace
 
-void split_reference(const PrimRef& ref, int axis, float position, const Scene& scene, Aabb& left,
-                     Aabb& right) {
-  left = Aabb{};
-  right = Aabb{};
+void split_reference(const PrimRef& ref, int axis, float position, const Scene& scene,
+                     format::Box3f& left, format::Box3f& right) {
+  left = format::Box3f{};
+  right = format::Box3f{};
   const auto& t = scene.triangles[ref.prim];
   const format::Float3 v[3] = {scene.positions[t.v[0]], scene.positions[t.v[1]],
                                scene.positions[t.v[2]]};
@@ -38,23 +38,23 @@ void split_reference(const PrimRef& ref, int axis, float position, const Scene& 
     }
   }
   // The reference may already be clipped: stay inside its box and on the plane's sides.
-  left.hi[axis] = std::min(left.hi[axis], position);
-  right.lo[axis] = std::max(right.lo[axis], position);
-  left = Aabb::intersection(left, ref.box);
-  right = Aabb::intersection(right, ref.box);
+  format::at(left.max, axis) = std::min(format::at(left.max, axis), position);
+  format::at(right.min, axis) = std::max(format::at(right.min, axis), position);
+  left = format::Box3f::intersection(left, ref.box);
+  right = format::Box3f::intersection(right, ref.box);
 }
 
-SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const Aabb& node_box,
+SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
                                 const Scene& scene, const BvhBuildOptions& options) {
   const float node_area = node_box.half_area();
   const std::uint32_t k = std::max<std::uint32_t>(2, options.bins);
   SpatialSplit best;
   if (node_area <= 0.0f) return best;
-  std::vector<Aabb> bin_box(k), right_box(k);
+  std::vector<format::Box3f> bin_box(k), right_box(k);
   std::vector<std::size_t> enter(k), exit(k);
   for (int axis = 0; axis < 3; ++axis) {
-    const float origin = node_box.lo[axis];
-    const float extent = node_box.hi[axis] - origin;
+    const float origin = format::at(node_box.min, axis);
+    const float extent = format::at(node_box.max, axis) - origin;
     if (!(extent > 0.0f)) continue;
     const float width = extent / float(k);
     const float inv_width = float(k) / extent;
@@ -63,15 +63,15 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const Aabb& node_
                                      std::uint32_t(std::max(0.0f, (x - origin) * inv_width)));
     };
     auto plane = [&](std::uint32_t b) { return origin + width * float(b); };
-    std::fill(bin_box.begin(), bin_box.end(), Aabb{});
+    std::fill(bin_box.begin(), bin_box.end(), format::Box3f{});
     std::fill(enter.begin(), enter.end(), 0);
     std::fill(exit.begin(), exit.end(), 0);
     for (const auto& r : refs) {
-      const std::uint32_t first = bin_of(r.box.lo[axis]);
-      const std::uint32_t last = std::max(first, bin_of(r.box.hi[axis]));
+      const std::uint32_t first = bin_of(format::at(r.box.min, axis));
+      const std::uint32_t last = std::max(first, bin_of(format::at(r.box.max, axis)));
       PrimRef rest = r;
       for (std::uint32_t b = first; b < last; ++b) {
-        Aabb l, rr;
+        format::Box3f l, rr;
         split_reference(rest, axis, plane(b + 1), scene, l, rr);
         bin_box[b].grow(l);
         rest.box = rr;
@@ -80,7 +80,7 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const Aabb& node_
       enter[first] += 1;
       exit[last] += 1;
     }
-    Aabb acc;
+    format::Box3f acc;
     std::size_t right_count = 0;
     std::vector<std::size_t> right_counts(k);
     for (std::uint32_t b = k; b-- > 1;) {
@@ -89,7 +89,7 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const Aabb& node_
       right_count += exit[b];
       right_counts[b] = right_count;
     }
-    Aabb left;
+    format::Box3f left;
     std::size_t left_count = 0;
     for (std::uint32_t b = 0; b + 1 < k; ++b) {
       left.grow(bin_box[b]);
@@ -115,13 +115,13 @@ std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimR
                                 std::vector<PrimRef>& right) {
   const int axis = split.axis;
   const float pos = split.position;
-  Aabb left_box, right_box;
+  format::Box3f left_box, right_box;
   std::vector<const PrimRef*> straddling;
   for (const auto& r : refs) {
-    if (r.box.hi[axis] <= pos) {
+    if (format::at(r.box.max, axis) <= pos) {
       left.push_back(r);
       left_box.grow(r.box);
-    } else if (r.box.lo[axis] >= pos) {
+    } else if (format::at(r.box.min, axis) >= pos) {
       right.push_back(r);
       right_box.grow(r.box);
     } else {
@@ -132,7 +132,7 @@ std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimR
   std::size_t right_count = right.size() + straddling.size();
   std::size_t added = 0;
   for (const PrimRef* r : straddling) {
-    Aabb l, rr;
+    format::Box3f l, rr;
     split_reference(*r, axis, pos, scene, l, rr);
     if (l.empty()) {  // clipping left nothing on one side: no duplicate needed
       right.push_back(*r);
@@ -147,10 +147,10 @@ std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimR
       continue;
     }
     // Reference unsplitting: keep the whole reference on one side when that is cheaper.
-    Aabb split_l = left_box, split_r = right_box;
+    format::Box3f split_l = left_box, split_r = right_box;
     split_l.grow(l);
     split_r.grow(rr);
-    Aabb whole_l = left_box, whole_r = right_box;
+    format::Box3f whole_l = left_box, whole_r = right_box;
     whole_l.grow(r->box);
     whole_r.grow(r->box);
     const float c_split =

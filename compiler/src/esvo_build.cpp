@@ -39,7 +39,7 @@ struct Context {
   bool contours = true;
   std::span<const std::uint64_t> codes;
   std::vector<GridTriangle> triangles;        // in grid units
-  std::vector<Vec3d> unit_normals;            // as the voxelizer sums them
+  std::vector<format::Double3> unit_normals;  // as the voxelizer sums them
   std::vector<std::array<double, 4>> colors;  // per triangle: its corners' mean RGBA, 0..255
 };
 
@@ -65,9 +65,89 @@ std::uint32_t mean_rgba8(const std::array<double, 4>& sum, std::size_t count) {
 }
 
 bool touches(const GridTriangle& t, const Cube& c) {
-  const Vec3d lo{double(c.corner[0]), double(c.corner[1]), double(c.corner[2])};
-  const Vec3d hi{lo.x + c.side, lo.y + c.side, lo.z + c.side};
+  const format::Double3 lo{double(c.corner[0]), double(c.corner[1]), double(c.corner[2])};
+  const format::Double3 hi{lo.x + c.side, lo.y + c.side, lo.z + c.side};
   return triangle_overlaps_box(t.v[0], t.v[1], t.v[2], lo, hi);
+}
+
+// Child `octant` of `w` with its range of surface cells, or nothing when it holds none.
+std::optional<Work> child_work(const Context& ctx, const Work& w, std::uint32_t octant) {
+  Work child;
+  child.level = w.level + 1;
+  child.cube.side = w.cube.side / 2;
+  for (int a = 0; a < 3; ++a)
+    child.cube.corner[a] = w.cube.corner[a] + (octant >> a & 1) * child.cube.side;
+  const std::uint64_t codes_per_child = std::uint64_t(1) << (3 * (ctx.levels - child.level));
+  const std::uint64_t base = cube_code(child.cube);
+  const auto first = ctx.codes.begin() + std::ptrdiff_t(w.code_lo);
+  const auto last = ctx.codes.begin() + std::ptrdiff_t(w.code_hi);
+  const auto lo = std::lower_bound(first, last, base);
+  const auto hi = std::lower_bound(lo, last, base + codes_per_child);
+  if (lo == hi) return std::nullopt;
+  child.code_lo = std::size_t(lo - ctx.codes.begin());
+  child.code_hi = std::size_t(hi - ctx.codes.begin());
+  return child;
+}
+
+// Narrows the parent's triangles to those touching `child`, and appends the child's normal (the
+// sum of their unit normals) and, when the scene has colours, its mean colour to `block`.
+void gather_triangles(const Context& ctx, const Work& parent, Work& child, TempBlock& block) {
+  double sum[3] = {0, 0, 0};
+  std::array<double, 4> color{0, 0, 0, 0};
+  for (const std::uint32_t t : parent.triangles)
+    if (touches(ctx.triangles[t], child.cube)) {
+      child.triangles.push_back(t);
+      sum[0] += ctx.unit_normals[t].x, sum[1] += ctx.unit_normals[t].y;
+      sum[2] += ctx.unit_normals[t].z;
+      if (!ctx.colors.empty())
+        for (int k = 0; k < 4; ++k) color[k] += ctx.colors[t][k];
+    }
+  block.normals.push_back(format::encode_octahedral(float(sum[0]), float(sum[1]), float(sum[2])));
+  if (!ctx.colors.empty()) block.colors.push_back(mean_rgba8(color, child.triangles.size()));
+}
+
+struct ContourOutcome {
+  bool fitted = false;   // a contour word was appended to the block
+  bool covered = false;  // its slab stays within reach of the surface cells: the child is a leaf
+};
+
+// Fits `child`'s contour to its triangles clipped to its cube (`pieces` is scratch space); a
+// fitted contour is appended to `block` and becomes `child.slab`. Coverage is tested only above
+// the finest level, as the finest voxels are leaves anyway.
+ContourOutcome fit_child_contour(const Context& ctx, const Work& parent, Work& child,
+                                 std::vector<ClipPolygon>& pieces, TempBlock& block) {
+  const std::uint32_t side = child.cube.side;
+  if (!ctx.contours || side > esvo::kMaxCoveredSide) return {};
+  pieces.clear();
+  const double box_lo[3] = {double(child.cube.corner[0]), double(child.cube.corner[1]),
+                            double(child.cube.corner[2])};
+  const double box_hi[3] = {box_lo[0] + side, box_lo[1] + side, box_lo[2] + side};
+  for (const std::uint32_t t : child.triangles) {
+    const GridTriangle& g = ctx.triangles[t];
+    const ClipPolygon p =
+        clip_triangle({{g.v[0].x, g.v[0].y, g.v[0].z}}, {{g.v[1].x, g.v[1].y, g.v[1].z}},
+                      {{g.v[2].x, g.v[2].y, g.v[2].z}}, box_lo, box_hi);
+    if (p.n >= 3) pieces.push_back(p);
+  }
+  const Slab* parent_slab = parent.slab ? &*parent.slab : nullptr;
+  const auto fit = esvo::fit_contour(pieces, child.cube, parent_slab);
+  if (!fit) return {};
+  block.contours.push_back(fit->word);
+  child.slab = fit->slab;
+  ContourOutcome outcome{true, false};
+  if (child.level != ctx.levels)
+    outcome.covered =
+        esvo::slab_covered(fit->slab, parent_slab, child.cube,
+                           ctx.codes.subspan(child.code_lo, child.code_hi - child.code_lo),
+                           cube_code(child.cube), ctx.reach);
+  return outcome;
+}
+
+void count_node(const TempNode& node, EsvoLevelStats& stats) {
+  stats.descriptors += 1;
+  stats.voxels += std::popcount(node.valid);
+  stats.leaves += std::popcount(std::uint8_t(node.valid & ~node.non_leaf));
+  stats.contours += std::popcount(node.contour_mask);
 }
 
 // Decides node `index`'s children (valid, leaf, contour, normal) and returns the non-leaf ones.
@@ -76,72 +156,21 @@ std::vector<Work> expand(const Context& ctx, TempBlock& block, std::uint32_t ind
   node.level = w.level;
   node.first_contour = std::uint32_t(block.contours.size());
   node.first_normal = std::uint32_t(block.normals.size());
-  const std::uint32_t half = w.cube.side / 2, child_level = w.level + 1;
-  const std::uint64_t codes_per_child = std::uint64_t(1) << (3 * (ctx.levels - child_level));
   std::vector<Work> children;
   std::vector<ClipPolygon> pieces;
   for (std::uint32_t octant = 0; octant < 8; ++octant) {
-    Work child;
-    child.level = child_level;
-    child.cube.side = half;
-    for (int a = 0; a < 3; ++a) child.cube.corner[a] = w.cube.corner[a] + (octant >> a & 1) * half;
-    const std::uint64_t base = cube_code(child.cube);
-    const auto first = ctx.codes.begin() + std::ptrdiff_t(w.code_lo);
-    const auto last = ctx.codes.begin() + std::ptrdiff_t(w.code_hi);
-    const auto lo = std::lower_bound(first, last, base);
-    const auto hi = std::lower_bound(lo, last, base + codes_per_child);
-    if (lo == hi) continue;
-    child.code_lo = std::size_t(lo - ctx.codes.begin());
-    child.code_hi = std::size_t(hi - ctx.codes.begin());
+    std::optional<Work> child = child_work(ctx, w, octant);
+    if (!child) continue;
     node.valid |= std::uint8_t(1u << octant);
-
-    double sum[3] = {0, 0, 0};
-    std::array<double, 4> color{0, 0, 0, 0};
-    for (const std::uint32_t t : w.triangles)
-      if (touches(ctx.triangles[t], child.cube)) {
-        child.triangles.push_back(t);
-        sum[0] += ctx.unit_normals[t].x, sum[1] += ctx.unit_normals[t].y;
-        sum[2] += ctx.unit_normals[t].z;
-        if (!ctx.colors.empty())
-          for (int k = 0; k < 4; ++k) color[k] += ctx.colors[t][k];
-      }
-    block.normals.push_back(format::encode_octahedral(float(sum[0]), float(sum[1]), float(sum[2])));
-    if (!ctx.colors.empty()) block.colors.push_back(mean_rgba8(color, child.triangles.size()));
-
-    bool leaf = child_level == ctx.levels;
-    if (ctx.contours && half <= esvo::kMaxCoveredSide) {
-      pieces.clear();
-      const double box_lo[3] = {double(child.cube.corner[0]), double(child.cube.corner[1]),
-                                double(child.cube.corner[2])};
-      const double box_hi[3] = {box_lo[0] + half, box_lo[1] + half, box_lo[2] + half};
-      for (const std::uint32_t t : child.triangles) {
-        const GridTriangle& g = ctx.triangles[t];
-        const ClipPolygon p =
-            clip_triangle({{g.v[0].x, g.v[0].y, g.v[0].z}}, {{g.v[1].x, g.v[1].y, g.v[1].z}},
-                          {{g.v[2].x, g.v[2].y, g.v[2].z}}, box_lo, box_hi);
-        if (p.n >= 3) pieces.push_back(p);
-      }
-      const Slab* parent = w.slab ? &*w.slab : nullptr;
-      if (const auto fit = esvo::fit_contour(pieces, child.cube, parent)) {
-        node.contour_mask |= std::uint8_t(1u << octant);
-        block.contours.push_back(fit->word);
-        child.slab = fit->slab;
-        if (!leaf)
-          leaf = esvo::slab_covered(fit->slab, parent, child.cube,
-                                    ctx.codes.subspan(child.code_lo, child.code_hi - child.code_lo),
-                                    base, ctx.reach);
-      }
-    }
-    if (!leaf) {
+    gather_triangles(ctx, w, *child, block);
+    const ContourOutcome contour = fit_child_contour(ctx, w, *child, pieces, block);
+    if (contour.fitted) node.contour_mask |= std::uint8_t(1u << octant);
+    if (child->level != ctx.levels && !contour.covered) {
       node.non_leaf |= std::uint8_t(1u << octant);
-      children.push_back(std::move(child));
+      children.push_back(std::move(*child));
     }
   }
-  EsvoLevelStats& stats = block.levels[w.level];
-  stats.descriptors += 1;
-  stats.voxels += std::popcount(node.valid);
-  stats.leaves += std::popcount(std::uint8_t(node.valid & ~node.non_leaf));
-  stats.contours += std::popcount(node.contour_mask);
+  count_node(node, block.levels[w.level]);
   block.nodes[index] = node;
   return children;
 }
@@ -189,6 +218,64 @@ std::uint32_t reach_for(double contour_error) {
   return r;
 }
 
+// The build's shared inputs: the surface cells of `voxels` (which must outlive it) and, per
+// triangle, its grid-space corners, unit normal and mean colour.
+Context make_context(const Scene& scene, const EsvoBuildOptions& options, const Voxels& voxels) {
+  Context ctx;
+  ctx.scene = &scene;
+  ctx.grid = voxels.grid;
+  ctx.levels = std::uint32_t(std::bit_width(options.resolution) - 1);
+  ctx.block_level = std::min(kMaxBlockLevel, ctx.levels - 1);
+  ctx.reach = reach_for(options.contour_error);
+  ctx.contours = options.contours;
+  ctx.codes = voxels.codes;
+  ctx.triangles.reserve(scene.triangles.size());
+  ctx.unit_normals.reserve(scene.triangles.size());
+  for (const auto& tri : scene.triangles) {
+    ctx.triangles.push_back(to_grid(ctx.grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
+                                    scene.positions[tri.v[2]]));
+    const format::Double3 a = to_d(scene.positions[tri.v[0]]), b = to_d(scene.positions[tri.v[1]]),
+                          c = to_d(scene.positions[tri.v[2]]);
+    const format::Double3 n = cross(b - a, c - a);
+    ctx.unit_normals.push_back(n * (1.0 / std::sqrt(dot(n, n))));
+    if (scene.colors.empty()) continue;
+    std::array<double, 4> mean{0, 0, 0, 0};
+    for (const std::uint32_t v : tri.v)
+      for (int k = 0; k < 4; ++k) mean[k] += double(scene.colors[v] >> (8 * k) & 0xFF) / 3.0;
+    ctx.colors.push_back(mean);
+  }
+  return ctx;
+}
+
+// Block 0 (the top levels), then one block per group of children at the block level, built in
+// parallel; each block depends only on its group, so the result is the same for any thread count.
+std::vector<TempBlock> build_blocks(const Context& ctx, std::uint32_t resolution,
+                                    unsigned threads) {
+  Work root;
+  root.cube = {{0, 0, 0}, resolution};
+  root.code_hi = ctx.codes.size();
+  root.triangles.resize(ctx.triangles.size());
+  for (std::uint32_t i = 0; i < root.triangles.size(); ++i) root.triangles[i] = i;
+
+  std::vector<TempBlock> blocks(1);
+  blocks[0].levels.resize(ctx.levels);
+  blocks[0].group_starts.push_back(0);
+  blocks[0].nodes.resize(1);
+  std::vector<std::vector<Work>> pending;
+  if (!ctx.codes.empty()) build_top(ctx, blocks[0], 0, std::move(root), pending);
+  blocks.resize(1 + pending.size());
+  parallel_for(pending.size(), threads, [&](std::size_t p) {
+    TempBlock& block = blocks[p + 1];
+    block.levels.resize(ctx.levels);
+    std::vector<Work>& group = pending[p];
+    const std::uint32_t first = add_group(block, group.size());
+    for (std::size_t i = 0; i < group.size(); ++i)
+      build_subtree(ctx, block, first + std::uint32_t(i), std::move(group[i]));
+    std::vector<Work>().swap(group);
+  });
+  return blocks;
+}
+
 }  // namespace
 
 double esvo_error_bound(const EsvoBuildOptions& options) {
@@ -211,54 +298,8 @@ FlatEsvo build_esvo(const Scene& scene, const EsvoBuildOptions& options) {
   voxel_options.resolution = options.resolution;
   voxel_options.threads = options.threads;
   const Voxels voxels = voxelize_surface(scene, voxel_options);  // validates the resolution
-
-  Context ctx;
-  ctx.scene = &scene;
-  ctx.grid = voxels.grid;
-  ctx.levels = std::uint32_t(std::bit_width(options.resolution) - 1);
-  ctx.block_level = std::min(kMaxBlockLevel, ctx.levels - 1);
-  ctx.reach = reach_for(options.contour_error);
-  ctx.contours = options.contours;
-  ctx.codes = voxels.codes;
-  ctx.triangles.reserve(scene.triangles.size());
-  ctx.unit_normals.reserve(scene.triangles.size());
-  for (const auto& tri : scene.triangles) {
-    ctx.triangles.push_back(to_grid(ctx.grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
-                                    scene.positions[tri.v[2]]));
-    const Vec3d a = to_d(scene.positions[tri.v[0]]), b = to_d(scene.positions[tri.v[1]]),
-                c = to_d(scene.positions[tri.v[2]]);
-    const Vec3d n = cross(b - a, c - a);
-    ctx.unit_normals.push_back(n * (1.0 / std::sqrt(dot(n, n))));
-    if (scene.colors.empty()) continue;
-    std::array<double, 4> mean{0, 0, 0, 0};
-    for (const std::uint32_t v : tri.v)
-      for (int k = 0; k < 4; ++k) mean[k] += double(scene.colors[v] >> (8 * k) & 0xFF) / 3.0;
-    ctx.colors.push_back(mean);
-  }
-
-  Work root;
-  root.cube = {{0, 0, 0}, options.resolution};
-  root.code_hi = ctx.codes.size();
-  root.triangles.resize(scene.triangles.size());
-  for (std::uint32_t i = 0; i < root.triangles.size(); ++i) root.triangles[i] = i;
-
-  std::vector<TempBlock> blocks(1);
-  blocks[0].levels.resize(ctx.levels);
-  blocks[0].group_starts.push_back(0);
-  blocks[0].nodes.resize(1);
-  std::vector<std::vector<Work>> pending;
-  if (!ctx.codes.empty()) build_top(ctx, blocks[0], 0, std::move(root), pending);
-  blocks.resize(1 + pending.size());
-  parallel_for(pending.size(), options.threads, [&](std::size_t p) {
-    TempBlock& block = blocks[p + 1];
-    block.levels.resize(ctx.levels);
-    std::vector<Work>& group = pending[p];
-    const std::uint32_t first = add_group(block, group.size());
-    for (std::size_t i = 0; i < group.size(); ++i)
-      build_subtree(ctx, block, first + std::uint32_t(i), std::move(group[i]));
-    std::vector<Work>().swap(group);
-  });
-
+  const Context ctx = make_context(scene, options, voxels);
+  std::vector<TempBlock> blocks = build_blocks(ctx, options.resolution, options.threads);
   FlatEsvo out;
   out.grid = ctx.grid;
   out.levels = ctx.levels;

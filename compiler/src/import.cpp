@@ -8,6 +8,7 @@
 #include <fstream>
 #include <memory>
 
+#include "import_ply.hpp"
 #include "kiln/runtime/checksum.hpp"
 
 namespace kiln {
@@ -129,6 +130,8 @@ ImportedFile import_file(const std::string& path) {
       file.meshes = import_gltf(inner_name, bytes, ext == ".glb", &file.accessed);
     else if (ext == ".drc")
       file.meshes = import_draco(inner_name, bytes);  // a single file, never a companion
+    else if (ext == ".ply")
+      file.meshes = import_ply(inner_name, bytes);  // Kiln's reader: Assimp misreads strips
     else if (auto utf8 = utf16_to_utf8(bytes); !utf8.empty())
       file.meshes = import_with_assimp(inner_name, utf8, ext, false, &file.accessed);
     else

@@ -57,13 +57,13 @@ struct Context {
   std::uint32_t parallel_depth;
 };
 
-void add_events(const Aabb& box, std::uint32_t prim, EventLists& out) {
+void add_events(const format::Box3f& box, std::uint32_t prim, EventLists& out) {
   for (int k = 0; k < 3; ++k) {
-    if (box.lo[k] == box.hi[k]) {
-      out[k].push_back({box.lo[k], prim, kPlanar});
+    if (format::at(box.min, k) == format::at(box.max, k)) {
+      out[k].push_back({format::at(box.min, k), prim, kPlanar});
     } else {
-      out[k].push_back({box.lo[k], prim, kStart});
-      out[k].push_back({box.hi[k], prim, kEnd});
+      out[k].push_back({format::at(box.min, k), prim, kStart});
+      out[k].push_back({format::at(box.max, k), prim, kEnd});
     }
   }
 }
@@ -75,7 +75,8 @@ std::size_t triangle_count(const EventLists& events) {
   return n;
 }
 
-Split find_split(const Context& ctx, const Aabb& cell, const EventLists& events, std::size_t n) {
+Split find_split(const Context& ctx, const format::Box3f& cell, const EventLists& events,
+                 std::size_t n) {
   const auto& o = ctx.options;
   const float inv_area = 1.0f / cell.half_area();
   auto cost = [&](float pl, float pr, std::size_t nl, std::size_t nr) {
@@ -94,10 +95,10 @@ Split find_split(const Context& ctx, const Aabb& cell, const EventLists& events,
       for (; i < list.size() && list[i].pos == p && list[i].type == kStart; ++i) ++starts;
       nr -= planars + ends;
       // Planes on the cell's faces cut nothing off; skipping them guarantees progress.
-      if (p > cell.lo[k] && p < cell.hi[k]) {
-        Aabb left = cell, right = cell;
-        left.hi[k] = p;
-        right.lo[k] = p;
+      if (p > format::at(cell.min, k) && p < format::at(cell.max, k)) {
+        format::Box3f left = cell, right = cell;
+        format::at(left.max, k) = p;
+        format::at(right.min, k) = p;
         const float pl = left.half_area() * inv_area, pr = right.half_area() * inv_area;
         const float planar_left = cost(pl, pr, nl + planars, nr);
         const float planar_right = cost(pl, pr, nl, nr + planars);
@@ -110,8 +111,8 @@ Split find_split(const Context& ctx, const Aabb& cell, const EventLists& events,
   return best;
 }
 
-void build_node(const Context& ctx, const Aabb& cell, EventLists events, std::uint32_t depth,
-                Subtree& out, std::vector<std::uint8_t>& side);
+void build_node(const Context& ctx, const format::Box3f& cell, EventLists events,
+                std::uint32_t depth, Subtree& out, std::vector<std::uint8_t>& side);
 
 void emit_leaf(const EventLists& events, Subtree& out) {
   const auto first = std::uint32_t(out.prims.size());
@@ -139,8 +140,8 @@ void append(Subtree& out, const Subtree& sub) {
   out.prims.insert(out.prims.end(), sub.prims.begin(), sub.prims.end());
 }
 
-void build_node(const Context& ctx, const Aabb& cell, EventLists events, std::uint32_t depth,
-                Subtree& out, std::vector<std::uint8_t>& side) {
+void build_node(const Context& ctx, const format::Box3f& cell, EventLists events,
+                std::uint32_t depth, Subtree& out, std::vector<std::uint8_t>& side) {
   const std::size_t n = triangle_count(events);
   const Split split =
       n == 0 || depth >= ctx.depth_limit ? Split{} : find_split(ctx, cell, events, n);
@@ -168,9 +169,9 @@ void build_node(const Context& ctx, const Aabb& cell, EventLists events, std::ui
   for (const Event& e : events[axis])
     if (e.type == kStart && side[e.prim] == kBoth) straddling.push_back(e.prim);
 
-  Aabb left_cell = cell, right_cell = cell;
-  left_cell.hi[axis] = p;
-  right_cell.lo[axis] = p;
+  format::Box3f left_cell = cell, right_cell = cell;
+  format::at(left_cell.max, axis) = p;
+  format::at(right_cell.min, axis) = p;
   EventLists left, right;
   for (int k = 0; k < 3; ++k) {
     for (const Event& e : events[k]) {
@@ -189,8 +190,8 @@ void build_node(const Context& ctx, const Aabb& cell, EventLists events, std::ui
   for (const std::uint32_t prim : straddling) {
     const format::Triangle& t = ctx.scene.triangles[prim];
     const auto& v = ctx.scene.positions;
-    const Aabb lb = clip_triangle_to_box(v[t.v[0]], v[t.v[1]], v[t.v[2]], left_cell);
-    const Aabb rb = clip_triangle_to_box(v[t.v[0]], v[t.v[1]], v[t.v[2]], right_cell);
+    const format::Box3f lb = clip_triangle_to_box(v[t.v[0]], v[t.v[1]], v[t.v[2]], left_cell);
+    const format::Box3f rb = clip_triangle_to_box(v[t.v[0]], v[t.v[1]], v[t.v[2]], right_cell);
     if (!lb.empty()) add_events(lb, prim, left_new);
     if (!rb.empty()) add_events(rb, prim, right_new);
   }
@@ -238,7 +239,7 @@ void measure(const FlatKdTree& tree, const KdTreeBuildOptions& o, KdTreeStatisti
   const double root_area = tree.bounds.half_area();
   struct Pending {
     std::uint32_t node, depth;
-    Aabb cell;
+    format::Box3f cell;
   };
   std::vector<Pending> stack{{0, 1, tree.bounds}};
   double cost = 0;
@@ -256,9 +257,9 @@ void measure(const FlatKdTree& tree, const KdTreeBuildOptions& o, KdTreeStatisti
       continue;
     }
     cost += o.traversal_cost * area;
-    Aabb below = p.cell, above = p.cell;
-    below.hi[n.axis()] = n.split();
-    above.lo[n.axis()] = n.split();
+    format::Box3f below = p.cell, above = p.cell;
+    format::at(below.max, n.axis()) = n.split();
+    format::at(above.min, n.axis()) = n.split();
     stack.push_back({n.above_child(), p.depth + 1, above});
     stack.push_back({p.node + 1, p.depth + 1, below});
   }
@@ -284,7 +285,7 @@ FlatKdTree build_kdtree(const Scene& scene, const KdTreeBuildOptions& options) {
     const format::Triangle& t = scene.triangles[i];
     const auto& v = scene.positions;
     tree.triangles.push_back({v[t.v[0]], v[t.v[1]], v[t.v[2]]});
-    Aabb box;
+    format::Box3f box;
     for (const auto corner : t.v) box.grow(v[corner]);
     add_events(box, i, events);
   }

@@ -47,11 +47,11 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
                     raw_section(format::kSectionKdPrimIds, tree->prim_ids),
                     raw_section(format::kSectionKdTriangles, tree->triangles)};
   const KdTreeStatistics s = tree->stats;
-  const Aabb b = tree->bounds;
+  const format::Box3f b = tree->bounds;
   built.describe = [o = options, s, b](flatbuffers::FlatBufferBuilder& fbb,
                                        std::span<const std::uint32_t> index) {
-    const schema::Bounds bounds(schema::Vec3(b.lo[0], b.lo[1], b.lo[2]),
-                                schema::Vec3(b.hi[0], b.hi[1], b.hi[2]));
+    const schema::Bounds bounds(schema::Vec3(b.min.x, b.min.y, b.min.z),
+                                schema::Vec3(b.max.x, b.max.y, b.max.z));
     const auto desc = schema::CreateKdTreeDesc(
         fbb, o.traversal_cost, o.intersection_cost, o.empty_bonus, s.depth_limit, &bounds, index[0],
         index[1], index[2], s.node_count, s.leaf_count, s.empty_leaf_count, s.reference_count,

@@ -42,12 +42,12 @@ struct Cut {
 
 // Chooses the cut of ids[begin, end), whose points lie in `cell`, and partitions the range.
 Cut cut_range(const Context& ctx, std::span<std::uint32_t> ids, std::size_t begin, std::size_t end,
-              std::uint32_t depth, const Aabb& cell) {
+              std::uint32_t depth, const format::Box3f& cell) {
   Cut cut;
   if (end - begin <= ctx.options.max_leaf_size) return cut;
-  Aabb box;
+  format::Box3f box;
   for (std::size_t i = begin; i < end; ++i) box.grow(ctx.points[ids[i]]);
-  auto spread = [&](int a) { return box.hi[a] - box.lo[a]; };
+  auto spread = [&](int a) { return format::at(box.max, a) - format::at(box.min, a); };
   int axis = 0;
   for (int a = 1; a < 3; ++a)
     if (spread(a) > spread(axis)) axis = a;
@@ -60,14 +60,15 @@ Cut cut_range(const Context& ctx, std::span<std::uint32_t> ids, std::size_t begi
     // points spread along most), sliding the plane onto the points when they all lie on one
     // side. Cells stay fat, so few cells lie near any query.
     float longest = 0.0f;
-    for (int a = 0; a < 3; ++a) longest = std::max(longest, cell.hi[a] - cell.lo[a]);
+    for (int a = 0; a < 3; ++a)
+      longest = std::max(longest, format::at(cell.max, a) - format::at(cell.min, a));
     for (int a = 0, best = -1; a < 3; ++a)
-      if (cell.hi[a] - cell.lo[a] >= (1.0f - 1e-5f) * longest &&
+      if (format::at(cell.max, a) - format::at(cell.min, a) >= (1.0f - 1e-5f) * longest &&
           (best < 0 || spread(a) > spread(best)) && spread(a) > 0.0f)
         best = axis = a;
     // Halves written separately so huge coordinates cannot overflow to infinity.
-    const float half = 0.5f * cell.lo[axis] + 0.5f * cell.hi[axis];
-    const float split = std::clamp(half, box.lo[axis], box.hi[axis]);
+    const float half = 0.5f * format::at(cell.min, axis) + 0.5f * format::at(cell.max, axis);
+    const float split = std::clamp(half, format::at(box.min, axis), format::at(box.max, axis));
     middle = std::partition(first, last, [&](std::uint32_t id) { return at(id) < split; });
     if (middle == first)  // slid onto the lowest points: they go below
       middle = std::partition(first, last, [&](std::uint32_t id) { return at(id) <= split; });
@@ -93,7 +94,7 @@ Cut cut_range(const Context& ctx, std::span<std::uint32_t> ids, std::size_t begi
 // Appends the subtree over ids[begin, end) to `nodes` in pre-order (indices relative to `base`,
 // the position `nodes[0]` will have in the final array).
 void build_subtree(const Context& ctx, std::span<std::uint32_t> ids, std::size_t begin,
-                   std::size_t end, std::uint32_t depth, const Aabb& cell,
+                   std::size_t end, std::uint32_t depth, const format::Box3f& cell,
                    std::vector<format::PointNode>& nodes) {
   const Cut cut = cut_range(ctx, ids, begin, end, depth, cell);
   if (cut.axis < 0) {
@@ -104,9 +105,9 @@ void build_subtree(const Context& ctx, std::span<std::uint32_t> ids, std::size_t
   }
   const std::size_t self = nodes.size();
   nodes.push_back({});
-  Aabb below_cell = cell, above_cell = cell;
-  below_cell.hi[cut.axis] = cut.plane;
-  above_cell.lo[cut.axis] = cut.plane;
+  format::Box3f below_cell = cell, above_cell = cell;
+  format::at(below_cell.max, cut.axis) = cut.plane;
+  format::at(above_cell.min, cut.axis) = cut.plane;
   if (depth < ctx.parallel_depth && end - begin >= kParallelPoints) {
     std::vector<format::PointNode> above;  // built apart, appended after the below side
     fork_join(

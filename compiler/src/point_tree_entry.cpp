@@ -46,11 +46,11 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
                     raw_section(format::kSectionPointPositions, tree->points),
                     raw_section(format::kSectionPointIds, tree->ids)};
   const PointTreeStatistics s = tree->stats;
-  const Aabb b = tree->bounds;
+  const format::Box3f b = tree->bounds;
   built.describe = [o = options, s, b](flatbuffers::FlatBufferBuilder& fbb,
                                        std::span<const std::uint32_t> index) {
-    const schema::Bounds bounds(schema::Vec3(b.lo[0], b.lo[1], b.lo[2]),
-                                schema::Vec3(b.hi[0], b.hi[1], b.hi[2]));
+    const schema::Bounds bounds(schema::Vec3(b.min.x, b.min.y, b.min.z),
+                                schema::Vec3(b.max.x, b.max.y, b.max.z));
     const auto desc = schema::CreatePointTreeDescDirect(
         fbb, to_string(o.split).c_str(), o.max_leaf_size, &bounds, index[0], index[1], index[2],
         s.node_count, s.leaf_count, s.point_count, s.max_depth, s.largest_leaf, s.bytes_per_point);

@@ -20,21 +20,21 @@ float round_up(double x) {
 
 }  // namespace
 
-Aabb clip_triangle_to_box(const format::Float3& a, const format::Float3& b, const format::Float3& c,
-                          const Aabb& cell) {
-  const double cell_lo[3] = {cell.lo[0], cell.lo[1], cell.lo[2]};
-  const double cell_hi[3] = {cell.hi[0], cell.hi[1], cell.hi[2]};
+format::Box3f clip_triangle_to_box(const format::Float3& a, const format::Float3& b,
+                                   const format::Float3& c, const format::Box3f& cell) {
+  const double cell_lo[3] = {cell.min.x, cell.min.y, cell.min.z};
+  const double cell_hi[3] = {cell.max.x, cell.max.y, cell.max.z};
   const ClipPolygon poly =
       clip_triangle({{a.x, a.y, a.z}}, {{b.x, b.y, b.z}}, {{c.x, c.y, c.z}}, cell_lo, cell_hi);
-  Aabb box;
+  format::Box3f box;
   if (poly.n == 0) return box;
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (int i = 0; i < poly.n; ++i)
     for (int k = 0; k < 3; ++k)
       lo[k] = std::min(lo[k], poly.v[i].c[k]), hi[k] = std::max(hi[k], poly.v[i].c[k]);
   for (int k = 0; k < 3; ++k) {
-    box.lo[k] = std::max(round_down(lo[k]), cell.lo[k]);
-    box.hi[k] = std::min(round_up(hi[k]), cell.hi[k]);
+    format::at(box.min, k) = std::max(round_down(lo[k]), format::at(cell.min, k));
+    format::at(box.max, k) = std::min(round_up(hi[k]), format::at(cell.max, k));
   }
   return box;
 }

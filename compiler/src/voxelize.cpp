@@ -18,10 +18,6 @@ namespace {
 
 constexpr std::uint32_t kBrickSide = 128;
 
-double component(const Vec3d& v, int axis) {
-  return axis == 0 ? v.x : axis == 1 ? v.y : v.z;
-}
-
 struct VoxelRange {
   std::int64_t lo[3], hi[3];  // inclusive; empty when lo > hi on an axis
 };
@@ -30,8 +26,10 @@ struct VoxelRange {
 VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip) {
   VoxelRange r;
   for (int a = 0; a < 3; ++a) {
-    const double lo = std::min({component(t.v[0], a), component(t.v[1], a), component(t.v[2], a)});
-    const double hi = std::max({component(t.v[0], a), component(t.v[1], a), component(t.v[2], a)});
+    const double lo =
+        std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
+    const double hi =
+        std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
     // A box [k, k+1] touches a coordinate in [lo, hi] for k in [ceil(lo) - 1, floor(hi)].
     r.lo[a] = std::max(clip.lo[a], std::int64_t(std::ceil(lo)) - 1);
     r.hi[a] = std::min(clip.hi[a], std::int64_t(std::floor(hi)));
@@ -44,11 +42,12 @@ template <class Emit>
 void voxelize_triangle(const GridTriangle& t, const VoxelRange& clip, Emit emit) {
   const VoxelRange r = candidate_range(t, clip);
   if (r.lo[0] > r.hi[0] || r.lo[1] > r.hi[1] || r.lo[2] > r.hi[2]) return;
-  const Vec3d n = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
+  const format::Double3 n = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
   int a = 0;
   for (int i = 1; i < 3; ++i)
-    if (std::fabs(component(n, i)) > std::fabs(component(n, a))) a = i;
-  const double na = component(n, a), nu = component(n, (a + 1) % 3), nv = component(n, (a + 2) % 3);
+    if (std::fabs(format::at(n, i)) > std::fabs(format::at(n, a))) a = i;
+  const double na = format::at(n, a), nu = format::at(n, (a + 1) % 3),
+               nv = format::at(n, (a + 2) % 3);
   const int u = (a + 1) % 3, v = (a + 2) % 3;
   const double d = dot(n, t.v[0]);
   for (std::int64_t iu = r.lo[u]; iu <= r.hi[u]; ++iu)
@@ -78,9 +77,89 @@ struct BrickOutput {
   std::vector<std::uint32_t> normals;
 };
 
+GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::uint32_t i) {
+  const auto& tri = scene.triangles[i];
+  return to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
+                 scene.positions[tri.v[2]]);
+}
+
+// Every triangle's index, in triangle order, in the bin (Morton index) of each brick of side
+// `brick` its candidate voxels reach.
+std::vector<std::vector<std::uint32_t>> bin_triangles(const Scene& scene, const VoxelGrid& grid,
+                                                      std::uint32_t brick) {
+  const std::uint32_t n = grid.resolution, bricks_per_axis = n / brick;
+  const VoxelRange whole{{0, 0, 0}, {n - 1, n - 1, n - 1}};
+  std::vector<std::vector<std::uint32_t>> bins(std::size_t(bricks_per_axis) * bricks_per_axis *
+                                               bricks_per_axis);
+  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
+    const VoxelRange r = candidate_range(grid_triangle(scene, grid, i), whole);
+    if (r.lo[0] > r.hi[0] || r.lo[1] > r.hi[1] || r.lo[2] > r.hi[2]) continue;
+    for (std::int64_t bz = r.lo[2] / brick; bz <= r.hi[2] / brick; ++bz)
+      for (std::int64_t by = r.lo[1] / brick; by <= r.hi[1] / brick; ++by)
+        for (std::int64_t bx = r.lo[0] / brick; bx <= r.hi[0] / brick; ++bx)
+          bins[format::morton_code(std::uint32_t(bx), std::uint32_t(by), std::uint32_t(bz))]
+              .push_back(i);
+  }
+  return bins;
+}
+
+// The voxels of brick `b` (Morton index) that `triangles` touch, sorted, and with
+// `options.normals` the octahedral sum of their triangles' unit normals.
+BrickOutput voxelize_brick(const Scene& scene, const VoxelGrid& grid, std::uint32_t brick,
+                           std::size_t b, std::span<const std::uint32_t> triangles, bool normals) {
+  const std::uint32_t bx = format::compact_bits(b), by = format::compact_bits(b >> 1),
+                      bz = format::compact_bits(b >> 2);
+  const VoxelRange clip{
+      {std::int64_t(bx) * brick, std::int64_t(by) * brick, std::int64_t(bz) * brick},
+      {std::int64_t(bx + 1) * brick - 1, std::int64_t(by + 1) * brick - 1,
+       std::int64_t(bz + 1) * brick - 1}};
+  // (code, triangle) pairs: sorting them fixes the order normals are summed in.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
+  for (const std::uint32_t i : triangles)
+    voxelize_triangle(grid_triangle(scene, grid, i), clip,
+                      [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+                        hits.emplace_back(format::morton_code(x, y, z), i);
+                      });
+  std::sort(hits.begin(), hits.end());
+  BrickOutput result;
+  for (std::size_t k = 0; k < hits.size();) {
+    std::size_t end = k;
+    double sum[3] = {0, 0, 0};
+    for (; end < hits.size() && hits[end].first == hits[k].first; ++end) {
+      if (!normals) continue;
+      const auto& tri = scene.triangles[hits[end].second];
+      const format::Double3 a = to_d(scene.positions[tri.v[0]]),
+                            b2 = to_d(scene.positions[tri.v[1]]),
+                            c = to_d(scene.positions[tri.v[2]]);
+      const format::Double3 nrm = cross(b2 - a, c - a);
+      const double length = std::sqrt(dot(nrm, nrm));
+      for (int axis = 0; axis < 3; ++axis) sum[axis] += format::at(nrm, axis) / length;
+    }
+    result.codes.push_back(hits[k].first);
+    if (normals)
+      result.normals.push_back(
+          format::encode_octahedral(float(sum[0]), float(sum[1]), float(sum[2])));
+    k = end;
+  }
+  return result;
+}
+
+// Bricks in Morton order give the global Morton order; each brick is released once copied.
+void concatenate_bricks(std::vector<BrickOutput>& bricks, bool normals, Voxels& out) {
+  std::size_t total = 0;
+  for (const auto& b : bricks) total += b.codes.size();
+  out.codes.reserve(total);
+  if (normals) out.normals.reserve(total);
+  for (auto& b : bricks) {
+    out.codes.insert(out.codes.end(), b.codes.begin(), b.codes.end());
+    out.normals.insert(out.normals.end(), b.normals.begin(), b.normals.end());
+    b = {};
+  }
+}
+
 }  // namespace
 
-VoxelGrid fit_voxel_grid(const Bounds3& bounds, std::uint32_t resolution) {
+VoxelGrid fit_voxel_grid(const format::Box3f& bounds, std::uint32_t resolution) {
   const double lo[3] = {bounds.min.x, bounds.min.y, bounds.min.z};
   const double hi[3] = {bounds.max.x, bounds.max.y, bounds.max.z};
   double side = 0;
@@ -118,8 +197,8 @@ GridTriangle to_grid(const VoxelGrid& grid, const format::Float3& a, const forma
 
 bool triangle_touches_voxel(const GridTriangle& t, std::uint32_t x, std::uint32_t y,
                             std::uint32_t z) {
-  const Vec3d lo{double(x), double(y), double(z)};
-  const Vec3d hi{double(x) + 1, double(y) + 1, double(z) + 1};
+  const format::Double3 lo{double(x), double(y), double(z)};
+  const format::Double3 hi{double(x) + 1, double(y) + 1, double(z) + 1};
   return triangle_overlaps_box(t.v[0], t.v[1], t.v[2], lo, hi);
 }
 
@@ -133,75 +212,14 @@ Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
   Voxels out;
   out.grid = fit_voxel_grid(scene.bounds, n);
   const std::uint32_t brick = std::min(n, kBrickSide);
-  const std::uint32_t bricks_per_axis = n / brick;
-  const VoxelRange whole{{0, 0, 0}, {n - 1, n - 1, n - 1}};
-
-  // Bin every triangle to the bricks its candidate voxels reach, in triangle order.
-  std::vector<std::vector<std::uint32_t>> bins(std::size_t(bricks_per_axis) * bricks_per_axis *
-                                               bricks_per_axis);
-  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
-    const auto& tri = scene.triangles[i];
-    const GridTriangle t = to_grid(out.grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
-                                   scene.positions[tri.v[2]]);
-    const VoxelRange r = candidate_range(t, whole);
-    if (r.lo[0] > r.hi[0] || r.lo[1] > r.hi[1] || r.lo[2] > r.hi[2]) continue;
-    for (std::int64_t bz = r.lo[2] / brick; bz <= r.hi[2] / brick; ++bz)
-      for (std::int64_t by = r.lo[1] / brick; by <= r.hi[1] / brick; ++by)
-        for (std::int64_t bx = r.lo[0] / brick; bx <= r.hi[0] / brick; ++bx)
-          bins[format::morton_code(std::uint32_t(bx), std::uint32_t(by), std::uint32_t(bz))]
-              .push_back(i);
-  }
-
+  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(scene, out.grid, brick);
   std::vector<BrickOutput> bricks(bins.size());
   parallel_for(bins.size(), options.threads, [&](std::size_t b) {
     if (bins[b].empty()) return;
-    const std::uint32_t bx = format::compact_bits(b), by = format::compact_bits(b >> 1),
-                        bz = format::compact_bits(b >> 2);
-    const VoxelRange clip{
-        {std::int64_t(bx) * brick, std::int64_t(by) * brick, std::int64_t(bz) * brick},
-        {std::int64_t(bx + 1) * brick - 1, std::int64_t(by + 1) * brick - 1,
-         std::int64_t(bz + 1) * brick - 1}};
-    // (code, triangle) pairs: sorting them fixes the order normals are summed in.
-    std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
-    for (const std::uint32_t i : bins[b]) {
-      const auto& tri = scene.triangles[i];
-      const GridTriangle t = to_grid(out.grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
-                                     scene.positions[tri.v[2]]);
-      voxelize_triangle(t, clip, [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-        hits.emplace_back(format::morton_code(x, y, z), i);
-      });
-    }
-    std::sort(hits.begin(), hits.end());
-    BrickOutput& result = bricks[b];
-    for (std::size_t k = 0; k < hits.size();) {
-      std::size_t end = k;
-      double sum[3] = {0, 0, 0};
-      for (; end < hits.size() && hits[end].first == hits[k].first; ++end) {
-        if (!options.normals) continue;
-        const auto& tri = scene.triangles[hits[end].second];
-        const Vec3d a = to_d(scene.positions[tri.v[0]]), b2 = to_d(scene.positions[tri.v[1]]),
-                    c = to_d(scene.positions[tri.v[2]]);
-        const Vec3d nrm = cross(b2 - a, c - a);
-        const double length = std::sqrt(dot(nrm, nrm));
-        for (int axis = 0; axis < 3; ++axis) sum[axis] += component(nrm, axis) / length;
-      }
-      result.codes.push_back(hits[k].first);
-      if (options.normals)
-        result.normals.push_back(
-            format::encode_octahedral(float(sum[0]), float(sum[1]), float(sum[2])));
-      k = end;
-    }
+    bricks[b] = voxelize_brick(scene, out.grid, brick, b, bins[b], options.normals);
     std::vector<std::uint32_t>().swap(bins[b]);
   });
-  std::size_t total = 0;
-  for (const auto& b : bricks) total += b.codes.size();
-  out.codes.reserve(total);
-  if (options.normals) out.normals.reserve(total);
-  for (auto& b : bricks) {
-    out.codes.insert(out.codes.end(), b.codes.begin(), b.codes.end());
-    out.normals.insert(out.normals.end(), b.normals.begin(), b.normals.end());
-    b = {};
-  }
+  concatenate_bricks(bricks, options.normals, out);
   return out;
 }
 

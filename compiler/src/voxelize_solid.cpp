@@ -90,7 +90,7 @@ VoxelLeaves solid_leaves(const Scene& scene, const VoxelGrid& grid,
     std::vector<std::pair<std::uint32_t, double>> crossings;
     for (const std::uint32_t i : bins[column]) {
       const GridTriangle& t = grid_triangles[i];
-      const Vec3d nrm = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
+      const format::Double3 nrm = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
       if (nrm.z == 0) continue;
       const double d = dot(nrm, t.v[0]);
       const auto clamp = [&](double v, std::int64_t lo, std::int64_t hi) {

@@ -11,7 +11,7 @@ namespace kiln {
 namespace {
 
 format::Box3f to_box(const schema::Bounds* b) {
-  if (b == nullptr) return {};
+  if (b == nullptr) return {{0, 0, 0}, {0, 0, 0}};
   return {{b->min().x(), b->min().y(), b->min().z()}, {b->max().x(), b->max().y(), b->max().z()}};
 }
 

@@ -13,7 +13,7 @@ using namespace proximity_detail;
 ClosestPoint closest_point(const BvhView& bvh, const format::Float3& point, float max_distance) {
   const auto nodes = bvh.nodes();
   const auto triangles = bvh.triangles();
-  const Vec3d p = to_d(point);
+  const format::Double3 p = to_d(point);
   double best = double(max_distance) * double(max_distance);
   ClosestPoint result;
   struct Entry {
@@ -77,11 +77,11 @@ void collect_prims(const BvhView& bvh, Enter enter, Keep keep, std::vector<std::
 void triangles_in_box(const BvhView& bvh, const format::Float3& lo_f, const format::Float3& hi_f,
                       std::vector<std::uint32_t>& out) {
   out.clear();
-  Vec3d lo, hi;
-  if (!prepare_query_box(lo_f, hi_f, lo, hi)) return;  // empty or NaN box
+  format::Box3d box;
+  if (!prepare_query_box(lo_f, hi_f, box)) return;  // empty or NaN box
   collect_prims(
-      bvh, [&](const format::BvhNode& n) { return box_overlaps(n.min, n.max, lo, hi); },
-      [&](const format::RayTriangle& t) { return triangle_in_box(t, lo, hi); }, out);
+      bvh, [&](const format::BvhNode& n) { return box_overlaps(n.min, n.max, box); },
+      [&](const format::RayTriangle& t) { return triangle_in_box(t, box); }, out);
 }
 
 bool point_inside(const BvhView& bvh, const format::Float3& p) {

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "kiln/formats/vector.hpp"
+
 namespace kiln {
 
 // Walks `nodes` in pre-order from the root: the n-th node reached must be node n (no sharing,
@@ -52,23 +54,18 @@ void check_depth_first_layout(std::span<const Node> nodes, std::uint32_t max_dep
     fail(std::to_string(item_count - next_item) + " " + items + " are in no leaf");
 }
 
-/// An axis-aligned cell of space, as a walk narrows it.
-struct TreeCell {
-  float lo[3], hi[3];
-};
-
 // Depth-first walk of a tree that passed check_depth_first_layout, handing each node the cell
-// it owns: the root's box [lo, hi], cut on the way down by `split(index, node, below, above)`,
-// which receives two copies of the parent's cell to narrow; each leaf gets `leaf(node, cell)`.
+// it owns (a format::Box3f): the root's box `root`, cut on the way down by `split(index, node,
+// below, above)`, which receives two copies of the parent's cell to narrow; each leaf gets
+// `leaf(node, cell)`.
 template <class Node, class Split, class Leaf>
-void walk_tree_cells(std::span<const Node> nodes, const float lo[3], const float hi[3], Split split,
+void walk_tree_cells(std::span<const Node> nodes, const format::Box3f& root, Split split,
                      Leaf leaf) {
   struct Pending {
     std::uint32_t node;
-    TreeCell cell;
+    format::Box3f cell;
   };
-  std::vector<Pending> stack(1);
-  for (int a = 0; a < 3; ++a) stack[0].cell.lo[a] = lo[a], stack[0].cell.hi[a] = hi[a];
+  std::vector<Pending> stack{{0, root}};
   while (!stack.empty()) {
     const Pending p = stack.back();
     stack.pop_back();

@@ -60,15 +60,16 @@ void verify(const Blob& blob, const StructureInfo& info) {
     if (!referenced[i])
       blob.fail_section(d.prim_ids(), name + " triangle " + std::to_string(i) + " is in no leaf");
   walk_tree_cells<format::KdNode>(
-      tree.nodes(), tree.bounds_min(), tree.bounds_max(),
-      [&](std::uint32_t index, const format::KdNode& n, TreeCell& below, TreeCell& above) {
+      tree.nodes(), tree.bounds(),
+      [&](std::uint32_t index, const format::KdNode& n, format::Box3f& below,
+          format::Box3f& above) {
         const auto a = n.axis();
-        if (!(n.split() > below.lo[a] && n.split() < below.hi[a]))
+        if (!(n.split() > format::at(below.min, a) && n.split() < format::at(below.max, a)))
           blob.fail_section(d.nodes(),
                             name + " node " + std::to_string(index) + " splits outside its cell");
-        below.hi[a] = above.lo[a] = n.split();
+        format::at(below.max, a) = format::at(above.min, a) = n.split();
       },
-      [](const format::KdNode&, const TreeCell&) {});
+      [](const format::KdNode&, const format::Box3f&) {});
 }
 
 Description describe(const Blob& blob, const StructureInfo& info) {

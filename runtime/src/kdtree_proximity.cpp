@@ -37,7 +37,8 @@ struct Cell {
 
 Cell root_cell(const KdTreeView& tree) {
   Cell c;
-  for (int a = 0; a < 3; ++a) c.lo[a] = tree.bounds_min()[a], c.hi[a] = tree.bounds_max()[a];
+  for (int a = 0; a < 3; ++a)
+    c.lo[a] = format::at(tree.bounds().min, a), c.hi[a] = format::at(tree.bounds().max, a);
   return c;
 }
 
@@ -103,7 +104,7 @@ ClosestPoint closest_point(const KdTreeView& tree, const format::Float3& point,
   const auto nodes = tree.nodes();
   const auto prim_ids = tree.prim_ids();
   const auto triangles = tree.triangles();
-  const Vec3d p = to_d(point);
+  const format::Double3 p = to_d(point);
   double best = double(max_distance) * double(max_distance);
   ClosestPoint result;
   struct Entry {
@@ -142,11 +143,11 @@ ClosestPoint closest_point(const KdTreeView& tree, const format::Float3& point,
 void triangles_in_box(const KdTreeView& tree, const format::Float3& lo_f,
                       const format::Float3& hi_f, std::vector<std::uint32_t>& out) {
   out.clear();
-  Vec3d lo, hi;
-  if (!prepare_query_box(lo_f, hi_f, lo, hi)) return;  // empty or NaN box
+  format::Box3d box;
+  if (!prepare_query_box(lo_f, hi_f, box)) return;  // empty or NaN box
   collect_prims(
-      tree, [&](const Cell& c) { return box_overlaps(c.lo, c.hi, lo, hi); },
-      [&](const format::RayTriangle& t) { return triangle_in_box(t, lo, hi); }, out);
+      tree, [&](const Cell& c) { return box_overlaps(c.lo, c.hi, box); },
+      [&](const format::RayTriangle& t) { return triangle_in_box(t, box); }, out);
 }
 
 bool point_inside(const KdTreeView& tree, const format::Float3& p) {

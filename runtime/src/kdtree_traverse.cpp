@@ -23,7 +23,9 @@ Hit traverse(const KdTreeView& tree, const Ray& ray, Cost* cost) {
   const auto triangles = tree.triangles();
   const BoxRay box_ray = prepare_box_ray(ray);
   float tmin = ray.tmin, tmax = ray.tmax;
-  if (!clip_to_box(tree.bounds_min(), tree.bounds_max(), box_ray, tmin, tmax)) return Hit{};
+  const format::Box3f& b = tree.bounds();
+  const float lo[3] = {b.min.x, b.min.y, b.min.z}, hi[3] = {b.max.x, b.max.y, b.max.z};
+  if (!clip_to_box(lo, hi, box_ray, tmin, tmax)) return Hit{};
   const WatertightRay tri_ray = prepare_watertight(ray);
   const float dir[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
   Hit hit;

@@ -12,11 +12,10 @@ namespace kiln {
 
 KdTreeView::KdTreeView(std::span<const format::KdNode> nodes,
                        std::span<const std::uint32_t> prim_ids,
-                       std::span<const format::RayTriangle> triangles, const float bounds_min[3],
-                       const float bounds_max[3], const std::string& name)
-    : nodes_(nodes), prim_ids_(prim_ids), triangles_(triangles) {
+                       std::span<const format::RayTriangle> triangles, const format::Box3f& bounds,
+                       const std::string& name)
+    : nodes_(nodes), prim_ids_(prim_ids), triangles_(triangles), bounds_(bounds) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
-  for (int a = 0; a < 3; ++a) min_[a] = bounds_min[a], max_[a] = bounds_max[a];
   check_depth_first_layout<format::KdNode>(
       nodes, format::kKdMaxDepth, prim_ids.size(), "references",
       [](const format::KdNode& n) {
@@ -36,11 +35,11 @@ KdTreeView KdTreeView::from_blob(const Blob& blob, const std::string& name) {
   if (d == nullptr) blob.fail("structure '" + name + "' is a " + info->kind + ", not a k-d tree");
   // Blob::open checked kinds, sizes and counts of these sections, and that the bounds exist.
   const auto& b = *d->bounds();
-  const float lo[3] = {b.min().x(), b.min().y(), b.min().z()};
-  const float hi[3] = {b.max().x(), b.max().y(), b.max().z()};
+  const format::Box3f bounds{{b.min().x(), b.min().y(), b.min().z()},
+                             {b.max().x(), b.max().y(), b.max().z()}};
   return KdTreeView(blob.section_view<format::KdNode>(d->nodes()),
                     blob.section_view<std::uint32_t>(d->prim_ids()),
-                    blob.section_view<format::RayTriangle>(d->triangles()), lo, hi,
+                    blob.section_view<format::RayTriangle>(d->triangles()), bounds,
                     blob.name() + ": " + name);
 }
 

@@ -90,20 +90,21 @@ void verify(const Blob& blob, const StructureInfo& info) {
   const auto points = tree.points();
   // Walk with the box every point below must lie in: the bounds, narrowed by each gap.
   walk_tree_cells<format::PointNode>(
-      tree.nodes(), tree.bounds_min(), tree.bounds_max(),
-      [&](std::uint32_t index, const format::PointNode& n, TreeCell& below, TreeCell& above) {
+      tree.nodes(), tree.bounds(),
+      [&](std::uint32_t index, const format::PointNode& n, format::Box3f& below,
+          format::Box3f& above) {
         const auto a = n.axis();
         if (!(n.below_max() <= n.above_min()))
           blob.fail_section(d.nodes(),
                             name + " node " + std::to_string(index) + " has an inverted gap");
-        below.hi[a] = std::min(below.hi[a], n.below_max());
-        above.lo[a] = std::max(above.lo[a], n.above_min());
+        format::at(below.max, a) = std::min(format::at(below.max, a), n.below_max());
+        format::at(above.min, a) = std::max(format::at(above.min, a), n.above_min());
       },
-      [&](const format::PointNode& n, const TreeCell& c) {
+      [&](const format::PointNode& n, const format::Box3f& c) {
         for (std::uint32_t i = n.first_point(); i < n.first_point() + n.point_count(); ++i) {
-          const float p[3] = {points[i].x, points[i].y, points[i].z};
           for (int a = 0; a < 3; ++a)
-            if (!(p[a] >= c.lo[a] && p[a] <= c.hi[a]))
+            if (!(format::at(points[i], a) >= format::at(c.min, a) &&
+                  format::at(points[i], a) <= format::at(c.max, a)))
               blob.fail_section(d.nodes(), name + " point " + std::to_string(i) +
                                                " lies outside the bounds or gaps above it");
         }

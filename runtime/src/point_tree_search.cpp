@@ -115,8 +115,9 @@ void search(const PointTreeView& tree, const float q[3], const float root[3], Se
 void root_distances(const PointTreeView& tree, const float q[3], float dists[3]) {
   for (int a = 0; a < 3; ++a) {
     float d = 0.0f;
-    if (q[a] < tree.bounds_min()[a]) d = tree.bounds_min()[a] - q[a];
-    if (q[a] > tree.bounds_max()[a]) d = q[a] - tree.bounds_max()[a];
+    const float lo = format::at(tree.bounds().min, a), hi = format::at(tree.bounds().max, a);
+    if (q[a] < lo) d = lo - q[a];
+    if (q[a] > hi) d = q[a] - hi;
     dists[a] = d * d;
   }
 }

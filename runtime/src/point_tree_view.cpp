@@ -11,11 +11,10 @@ namespace kiln {
 
 PointTreeView::PointTreeView(std::span<const format::PointNode> nodes,
                              std::span<const format::Float3> points,
-                             std::span<const std::uint32_t> ids, const float bounds_min[3],
-                             const float bounds_max[3], const std::string& name)
-    : nodes_(nodes), points_(points), ids_(ids) {
+                             std::span<const std::uint32_t> ids, const format::Box3f& bounds,
+                             const std::string& name)
+    : nodes_(nodes), points_(points), ids_(ids), bounds_(bounds) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
-  for (int a = 0; a < 3; ++a) min_[a] = bounds_min[a], max_[a] = bounds_max[a];
   if (points.size() != ids.size())
     fail(std::to_string(points.size()) + " points but " + std::to_string(ids.size()) + " ids");
   check_depth_first_layout<format::PointNode>(
@@ -32,11 +31,11 @@ PointTreeView PointTreeView::from_blob(const Blob& blob, const std::string& name
   if (d == nullptr) blob.fail("has no point k-d tree '" + name + "'");
   // Blob::open checked kinds, sizes and counts of these sections, and the bounds' presence.
   const auto* b = d->bounds();
-  const float lo[3] = {b->min().x(), b->min().y(), b->min().z()};
-  const float hi[3] = {b->max().x(), b->max().y(), b->max().z()};
+  const format::Box3f bounds{{b->min().x(), b->min().y(), b->min().z()},
+                             {b->max().x(), b->max().y(), b->max().z()}};
   return PointTreeView(blob.section_view<format::PointNode>(d->nodes()),
                        blob.section_view<format::Float3>(d->points()),
-                       blob.section_view<std::uint32_t>(d->point_ids()), lo, hi,
+                       blob.section_view<std::uint32_t>(d->point_ids()), bounds,
                        blob.name() + ": " + name);
 }
 

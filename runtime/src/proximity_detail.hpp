@@ -17,7 +17,7 @@
 namespace kiln::proximity_detail {
 
 // Squared distance from p to the closed box [lo, hi]; 0 inside.
-inline double box_distance_squared(const float lo[3], const float hi[3], const Vec3d& p) {
+inline double box_distance_squared(const float lo[3], const float hi[3], const format::Double3& p) {
   const double q[3] = {p.x, p.y, p.z};
   double sum = 0;
   for (int a = 0; a < 3; ++a) {
@@ -27,19 +27,19 @@ inline double box_distance_squared(const float lo[3], const float hi[3], const V
   return sum;
 }
 
-// Whether the closed boxes [lo, hi] and [qlo, qhi] share a point.
-inline bool box_overlaps(const float lo[3], const float hi[3], const Vec3d& qlo, const Vec3d& qhi) {
-  return lo[0] <= qhi.x && hi[0] >= qlo.x && lo[1] <= qhi.y && hi[1] >= qlo.y && lo[2] <= qhi.z &&
-         hi[2] >= qlo.z;
+// Whether the closed boxes [lo, hi] and q share a point.
+inline bool box_overlaps(const float lo[3], const float hi[3], const format::Box3d& q) {
+  return lo[0] <= q.max.x && hi[0] >= q.min.x && lo[1] <= q.max.y && hi[1] >= q.min.y &&
+         lo[2] <= q.max.z && hi[2] >= q.min.z;
 }
 
 // Offers triangle `prim` to a closest-point search whose best squared distance so far is
 // `best`. Ties go to the lower primitive id, so duplicated references and traversal order never
 // change the answer.
-inline void consider_closest(const Vec3d& p, const format::RayTriangle& t, std::uint32_t prim,
-                             double& best, ClosestPoint& result) {
+inline void consider_closest(const format::Double3& p, const format::RayTriangle& t,
+                             std::uint32_t prim, double& best, ClosestPoint& result) {
   double v = 0, w = 0;
-  const Vec3d q = closest_on_triangle(p, to_d(t.v0), to_d(t.v1), to_d(t.v2), v, w);
+  const format::Double3 q = closest_on_triangle(p, to_d(t.v0), to_d(t.v1), to_d(t.v2), v, w);
   const double d2 = dot(q - p, q - p);
   if (d2 < best || (d2 == best && prim < result.prim)) {
     best = d2;
@@ -55,14 +55,14 @@ inline void finish_closest(double best, ClosestPoint& result) {
 }
 
 // The query box in double; false when it is empty or has a NaN corner.
-inline bool prepare_query_box(const format::Float3& lo_f, const format::Float3& hi_f, Vec3d& lo,
-                              Vec3d& hi) {
-  lo = to_d(lo_f), hi = to_d(hi_f);
-  return lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z;
+inline bool prepare_query_box(const format::Float3& lo, const format::Float3& hi,
+                              format::Box3d& box) {
+  box = {to_d(lo), to_d(hi)};
+  return box.min.x <= box.max.x && box.min.y <= box.max.y && box.min.z <= box.max.z;
 }
 
-inline bool triangle_in_box(const format::RayTriangle& t, const Vec3d& lo, const Vec3d& hi) {
-  return triangle_overlaps_box(to_d(t.v0), to_d(t.v1), to_d(t.v2), lo, hi);
+inline bool triangle_in_box(const format::RayTriangle& t, const format::Box3d& box) {
+  return triangle_overlaps_box(to_d(t.v0), to_d(t.v1), to_d(t.v2), box.min, box.max);
 }
 
 // Whether the ray crosses the triangle anywhere in (0, inf).

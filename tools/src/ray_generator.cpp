@@ -27,20 +27,20 @@ class SplitMix64 {
 };
 
 struct Camera {
-  Vec3d eye, forward, right, up;
+  format::Double3 eye, forward, right, up;
   double tan_half_fov;
 };
 
 Camera frame_bounds(const RayScene& s) {
-  const Vec3d lo = to_d(s.bounds_min), hi = to_d(s.bounds_max);
-  const Vec3d center = (lo + hi) * 0.5;
+  const format::Double3 lo = to_d(s.bounds_min), hi = to_d(s.bounds_max);
+  const format::Double3 center = (lo + hi) * 0.5;
   const double radius = std::max(1e-6, std::sqrt(dot(hi - lo, hi - lo)) * 0.5);
   Camera c;
   c.tan_half_fov = std::tan(0.5 * 50.0 * 3.14159265358979323846 / 180.0);
-  const Vec3d view = normalize(Vec3d{0.45, 0.35, 1.0});
+  const format::Double3 view = normalize(format::Double3{0.45, 0.35, 1.0});
   c.eye = center + view * (radius / std::sin(0.5 * 50.0 * 3.14159265358979323846 / 180.0));
   c.forward = normalize(center - c.eye);
-  c.right = normalize(cross(c.forward, Vec3d{0, 1, 0}));
+  c.right = normalize(cross(c.forward, format::Double3{0, 1, 0}));
   c.up = cross(c.right, c.forward);
   return c;
 }
@@ -48,7 +48,7 @@ Camera frame_bounds(const RayScene& s) {
 Ray primary_ray(const Camera& c, SplitMix64& rng) {
   const double sx = (2 * rng.uniform() - 1) * c.tan_half_fov;
   const double sy = (2 * rng.uniform() - 1) * c.tan_half_fov;
-  const Vec3d dir = normalize(c.forward + c.right * sx + c.up * sy);
+  const format::Double3 dir = normalize(c.forward + c.right * sx + c.up * sy);
   return {to_f(c.eye), 0.0f, to_f(dir), std::numeric_limits<float>::infinity()};
 }
 
@@ -64,9 +64,9 @@ std::vector<Ray> generate_rays(const RayScene& s, RayKind kind, std::size_t coun
     for (std::size_t i = 0; i < count; ++i) rays.push_back(primary_ray(camera, rng));
     return rays;
   }
-  const Vec3d lo = to_d(s.bounds_min), hi = to_d(s.bounds_max);
+  const format::Double3 lo = to_d(s.bounds_min), hi = to_d(s.bounds_max);
   const double radius = std::max(1e-6, std::sqrt(dot(hi - lo, hi - lo)) * 0.5);
-  const Vec3d light = (lo + hi) * 0.5 + Vec3d{0.3, 1.6, 0.2} * radius;
+  const format::Double3 light = (lo + hi) * 0.5 + format::Double3{0.3, 1.6, 0.2} * radius;
   const double offset = 1e-4 * radius;
   std::size_t attempts = 0;
   while (rays.size() < count) {
@@ -84,26 +84,28 @@ std::vector<Ray> generate_rays(const RayScene& s, RayKind kind, std::size_t coun
     for (std::size_t i = 0; i < batch && rays.size() < count; ++i) {
       if (hits[i].prim == kNoHit) continue;
       const auto& t = s.triangles[hits[i].prim];
-      const Vec3d a = to_d(s.positions[t.v[0]]), b = to_d(s.positions[t.v[1]]),
-                  c = to_d(s.positions[t.v[2]]);
-      Vec3d n = cross(b - a, c - a);
+      const format::Double3 a = to_d(s.positions[t.v[0]]), b = to_d(s.positions[t.v[1]]),
+                            c = to_d(s.positions[t.v[2]]);
+      format::Double3 n = cross(b - a, c - a);
       if (dot(n, n) == 0) continue;
       n = normalize(n);
-      const Vec3d dir = to_d(primaries[i].dir);
+      const format::Double3 dir = to_d(primaries[i].dir);
       if (dot(n, dir) > 0) n = n * -1.0;
-      const Vec3d p = to_d(primaries[i].org) + dir * double(hits[i].t) + n * offset;
+      const format::Double3 p = to_d(primaries[i].org) + dir * double(hits[i].t) + n * offset;
       if (kind == RayKind::kDiffuse) {
         // Cosine-weighted hemisphere around n (Malley's method).
         const double u1 = rng.uniform(), u2 = rng.uniform();
         const double r = std::sqrt(u1), phi = 2 * 3.14159265358979323846 * u2;
-        const Vec3d tangent =
-            normalize(std::fabs(n.x) > 0.9 ? cross(n, Vec3d{0, 1, 0}) : cross(n, Vec3d{1, 0, 0}));
-        const Vec3d bitangent = cross(n, tangent);
-        const Vec3d d = normalize(tangent * (r * std::cos(phi)) + bitangent * (r * std::sin(phi)) +
-                                  n * std::sqrt(std::max(0.0, 1 - u1)));
+        const format::Double3 tangent =
+            normalize(std::fabs(n.x) > 0.9 ? cross(n, format::Double3{0, 1, 0})
+                                           : cross(n, format::Double3{1, 0, 0}));
+        const format::Double3 bitangent = cross(n, tangent);
+        const format::Double3 d =
+            normalize(tangent * (r * std::cos(phi)) + bitangent * (r * std::sin(phi)) +
+                      n * std::sqrt(std::max(0.0, 1 - u1)));
         rays.push_back({to_f(p), 0.0f, to_f(d), std::numeric_limits<float>::infinity()});
       } else {
-        const Vec3d to_light = light - p;
+        const format::Double3 to_light = light - p;
         const double distance = std::sqrt(dot(to_light, to_light));
         rays.push_back(
             {to_f(p), 0.0f, to_f(to_light * (1.0 / distance)), float(distance * (1 - 1e-4))});

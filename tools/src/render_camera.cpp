@@ -63,7 +63,7 @@ std::optional<Camera> parse_camera(std::string_view text, std::string& error) {
   camera.eye = {float(v[0]), float(v[1]), float(v[2])};
   camera.target = {float(v[3]), float(v[4]), float(v[5])};
   camera.fov_degrees = float(v[6]);
-  const Vec3d d = to_d(camera.target) - to_d(camera.eye);
+  const format::Double3 d = to_d(camera.target) - to_d(camera.eye);
   if (!(dot(d, d) > 0) || !std::isfinite(dot(d, d))) {
     error = "--camera: the eye and the target must be distinct positions";
     return std::nullopt;
@@ -93,20 +93,20 @@ std::optional<Size> parse_size(std::string_view text, std::string& error) {
 }
 
 Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size size) {
-  Vec3d min = to_d(lo), max = to_d(hi);
+  format::Double3 min = to_d(lo), max = to_d(hi);
   // A forged blob may carry non-finite bounds: frame the unit box rather than aim at NaN.
   if (!std::isfinite(dot(min, min)) || !std::isfinite(dot(max, max)))
     min = {-1, -1, -1}, max = {1, 1, 1};
-  const Vec3d centre = (min + max) * 0.5;
+  const format::Double3 centre = (min + max) * 0.5;
   double radius = std::sqrt(dot(max - min, max - min)) * 0.5;
   if (!(radius > 0) || !std::isfinite(radius)) radius = 1;
   Camera camera;
   camera.fov_degrees = 40;
   // Front (+z), right and above: shows three sides of a box, the usual "hero" view of a
   // y-up model.
-  const Vec3d direction = normalize(Vec3d{0.55, 0.4, 1.0});
+  const format::Double3 direction = normalize(format::Double3{0.55, 0.4, 1.0});
   camera.target = {float(centre.x), float(centre.y), float(centre.z)};
-  const Vec3d probe = centre + direction * radius;
+  const format::Double3 probe = centre + direction * radius;
   camera.eye = {float(probe.x), float(probe.y), float(probe.z)};
   const PixelRays::Basis b = PixelRays(camera, size).basis();
   // Back off until all eight corners of the box project inside the frame (with a 5 % margin):
@@ -114,14 +114,15 @@ Camera frame_bounds(const format::Float3& lo, const format::Float3& hi, Size siz
   const double tan_v = b.tan_half * 0.95, tan_h = b.tan_half * b.aspect * 0.95;
   double distance = 0;
   for (int corner = 0; corner < 8; ++corner) {
-    const Vec3d p =
-        Vec3d{corner & 1 ? max.x : min.x, corner & 2 ? max.y : min.y, corner & 4 ? max.z : min.z} -
+    const format::Double3 p =
+        format::Double3{corner & 1 ? max.x : min.x, corner & 2 ? max.y : min.y,
+                        corner & 4 ? max.z : min.z} -
         centre;
     const double depth = dot(p, b.forward);  // along the view, from the centre
     distance = std::max({distance, std::fabs(dot(p, b.right)) / tan_h - depth,
                          std::fabs(dot(p, b.up)) / tan_v - depth, -depth + 1e-3 * radius});
   }
-  const Vec3d eye = centre + direction * distance;
+  const format::Double3 eye = centre + direction * distance;
   camera.eye = {float(eye.x), float(eye.y), float(eye.z)};
   return camera;
 }
@@ -134,7 +135,7 @@ Camera default_camera(const Blob& blob, Size size) {
 PixelRays::PixelRays(const Camera& camera, Size size) : eye_(camera.eye), size_(size) {
   Basis& b = basis_;
   b.forward = normalize(to_d(camera.target) - to_d(camera.eye));
-  Vec3d world_up{0, 1, 0};
+  format::Double3 world_up{0, 1, 0};
   if (std::fabs(b.forward.y) > 0.999) world_up = {0, 0, b.forward.y > 0 ? -1.0 : 1.0};
   b.right = normalize(cross(b.forward, world_up));
   b.up = cross(b.right, b.forward);
@@ -146,7 +147,7 @@ Ray PixelRays::operator()(std::uint32_t x, std::uint32_t y) const {
   const Basis& b = basis_;
   const double px = (2.0 * (double(x) + 0.5) / double(size_.width) - 1.0) * b.tan_half * b.aspect;
   const double py = (1.0 - 2.0 * (double(y) + 0.5) / double(size_.height)) * b.tan_half;
-  const Vec3d d = normalize(b.forward + b.right * px + b.up * py);
+  const format::Double3 d = normalize(b.forward + b.right * px + b.up * py);
   Ray ray;
   ray.org = eye_;
   ray.tmin = 0;

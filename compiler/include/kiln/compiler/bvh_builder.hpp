@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "kiln/compiler/aabb.hpp"
 #include "kiln/compiler/scene.hpp"
 #include "kiln/formats/bvh.hpp"
+#include "kiln/formats/geometry.hpp"
 
 namespace kiln {
 
@@ -31,12 +31,12 @@ struct BvhBuildOptions {
 
 // A reference to a triangle: its (possibly clipped) box and original triangle id.
 struct PrimRef {
-  Aabb box;
+  format::Box3f box;
   std::uint32_t prim;
 };
 
 struct BvhBuildNode {
-  Aabb box;
+  format::Box3f box;
   std::unique_ptr<BvhBuildNode> child[2];
   std::uint8_t axis = 0;
   std::vector<std::uint32_t> prims;  // leaf references (original triangle ids)

@@ -5,9 +5,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "kiln/compiler/aabb.hpp"
 #include "kiln/compiler/scene.hpp"
 #include "kiln/compiler/triangle_clip.hpp"  // clip_triangle_to_box: perfect splits
+#include "kiln/formats/geometry.hpp"
 #include "kiln/formats/kdtree.hpp"
 
 namespace kiln {
@@ -27,7 +27,7 @@ struct KdTreeStatistics {
 };
 
 struct FlatKdTree {
-  Aabb bounds;  // the root cell
+  format::Box3f bounds;  // the root cell
   std::vector<format::KdNode> nodes;
   std::vector<std::uint32_t> prim_ids;         // leaf references in leaf order
   std::vector<format::RayTriangle> triangles;  // every triangle's corners, by primitive id

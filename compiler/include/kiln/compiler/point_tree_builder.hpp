@@ -7,7 +7,6 @@
 #include <string>
 #include <vector>
 
-#include "kiln/compiler/aabb.hpp"
 #include "kiln/formats/geometry.hpp"
 #include "kiln/formats/point_tree.hpp"
 
@@ -35,7 +34,7 @@ struct PointTreeStatistics {
 };
 
 struct FlatPointTree {
-  Aabb bounds;  // of every point
+  format::Box3f bounds;  // of every point
   std::vector<format::PointNode> nodes;
   std::vector<format::Float3> points;  // leaf order
   std::vector<std::uint32_t> ids;      // index into the input per point, leaf order

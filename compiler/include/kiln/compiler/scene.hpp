@@ -48,11 +48,6 @@ struct SceneMesh {
   std::uint64_t vertex_count = 0;
 };
 
-struct Bounds3 {
-  format::Float3 min{0, 0, 0};
-  format::Float3 max{0, 0, 0};
-};
-
 // The flattened scene: every mesh's kept triangles, in input order, with global vertex indices.
 struct Scene {
   std::vector<format::Float3> positions;
@@ -64,8 +59,8 @@ struct Scene {
   std::vector<SourceFile> sources;
   std::uint64_t input_triangle_count = 0;
   std::uint64_t degenerate_triangles_dropped = 0;
-  Bounds3 bounds;
-  FileAccesses accessed;  // every input's, merged (import_scene fills it)
+  format::Box3f bounds{{0, 0, 0}, {0, 0, 0}};  // all zero when empty
+  FileAccesses accessed;                       // every input's, merged (import_scene fills it)
 };
 
 // Edge manifoldness over welded positions: what "closed" means for point-inside queries.
@@ -77,7 +72,7 @@ struct EdgeTopology {
 EdgeTopology edge_topology(const Scene& scene);
 
 // The box around `positions` (all zero when empty).
-Bounds3 bounds_of(std::span<const format::Float3> positions);
+format::Box3f bounds_of(std::span<const format::Float3> positions);
 
 // Concatenates imported files in order, drops degenerate triangles (zero area on the world-space
 // corners evaluated in double, or a non-finite corner), drops vertices no kept triangle uses (order

@@ -34,11 +34,11 @@ inline VoxelGridFrame frame_of(const VoxelGrid& g) {
 // on the bounds' faces sets the boundary voxels, whose closed boxes reach the faces). Rounding is
 // resolved outwards: the origin never exceeds the bounds' min and the voxel size grows by a few
 // ulps when needed, so every corner of the bounds lies in [0, resolution] in grid units.
-VoxelGrid fit_voxel_grid(const Bounds3& bounds, std::uint32_t resolution);
+VoxelGrid fit_voxel_grid(const format::Box3f& bounds, std::uint32_t resolution);
 
 // A triangle's corners in grid units (voxel (x, y, z) is the box [x, x+1] x [y, y+1] x [z, z+1]).
 struct GridTriangle {
-  Vec3d v[3];
+  format::Double3 v[3];
 };
 GridTriangle to_grid(const VoxelGrid& grid, const format::Float3& a, const format::Float3& b,
                      const format::Float3& c);

@@ -1,22 +1,11 @@
-// Element layouts of the input sections, and the float box the manifest's bounds use.
+// Element layouts of the input sections (positions are Float3, from the vector family).
 #pragma once
 
-#include <cstddef>
 #include <cstdint>
 
+#include "kiln/formats/vector.hpp"
+
 namespace kiln::format {
-
-struct Float3 {
-  float x, y, z;
-};
-static_assert(sizeof(Float3) == 12);
-static_assert(offsetof(Float3, z) == 8);
-
-// An axis-aligned box; all zero for an empty input.
-struct Box3f {
-  Float3 min, max;
-};
-static_assert(sizeof(Box3f) == 24);
 
 // Vertex indices of one triangle, counter-clockwise as imported.
 struct Triangle {

@@ -28,7 +28,7 @@ struct InputInfo {
   InputKind kind = InputKind::kTriangles;
   std::uint64_t vertex_count = 0;  ///< vertices; a point set's point count
   std::uint64_t triangle_count = 0;
-  format::Box3f bounds{};  ///< over every kept vertex or point
+  format::Box3f bounds{{0, 0, 0}, {0, 0, 0}};  ///< over every kept vertex or point (0 if none)
   std::uint64_t input_triangle_count = 0;
   std::uint64_t degenerate_triangles_dropped = 0;
   bool has_normals = false;

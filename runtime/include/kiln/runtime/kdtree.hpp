@@ -27,8 +27,8 @@ class KdTreeView {
   using HitType = Hit;
 
   KdTreeView(std::span<const format::KdNode> nodes, std::span<const std::uint32_t> prim_ids,
-             std::span<const format::RayTriangle> triangles, const float bounds_min[3],
-             const float bounds_max[3], const std::string& name = "kdtree");
+             std::span<const format::RayTriangle> triangles, const format::Box3f& bounds,
+             const std::string& name = "kdtree");
   /// The structure named `name` of a blob; throws BlobError when the blob has no structure of
   /// that name or it is not a k-d tree.
   static KdTreeView from_blob(const Blob& blob, const std::string& name);
@@ -45,14 +45,14 @@ class KdTreeView {
   std::span<const format::KdNode> nodes() const { return nodes_; }
   std::span<const std::uint32_t> prim_ids() const { return prim_ids_; }
   std::span<const format::RayTriangle> triangles() const { return triangles_; }
-  const float* bounds_min() const { return min_; }
-  const float* bounds_max() const { return max_; }
+  /// The root cell.
+  const format::Box3f& bounds() const { return bounds_; }
 
  private:
   std::span<const format::KdNode> nodes_;
   std::span<const std::uint32_t> prim_ids_;
   std::span<const format::RayTriangle> triangles_;
-  float min_[3], max_[3];
+  format::Box3f bounds_;
 };
 
 /// The proximity queries, with the same answers and tie rules as on any triangle structure:

@@ -22,8 +22,8 @@ class Blob;
 class PointTreeView {
  public:
   PointTreeView(std::span<const format::PointNode> nodes, std::span<const format::Float3> points,
-                std::span<const std::uint32_t> ids, const float bounds_min[3],
-                const float bounds_max[3], const std::string& name = "points");
+                std::span<const std::uint32_t> ids, const format::Box3f& bounds,
+                const std::string& name = "points");
   /// The structure named `name` of a blob; throws BlobError when the blob has no structure of
   /// that name or it is not a point k-d tree.
   static PointTreeView from_blob(const Blob& blob, const std::string& name = "points");
@@ -38,14 +38,14 @@ class PointTreeView {
   std::span<const format::PointNode> nodes() const { return nodes_; }
   std::span<const format::Float3> points() const { return points_; }
   std::span<const std::uint32_t> ids() const { return ids_; }
-  const float* bounds_min() const { return min_; }
-  const float* bounds_max() const { return max_; }
+  /// The box around every point.
+  const format::Box3f& bounds() const { return bounds_; }
 
  private:
   std::span<const format::PointNode> nodes_;
   std::span<const format::Float3> points_;
   std::span<const std::uint32_t> ids_;
-  float min_[3], max_[3];
+  format::Box3f bounds_;
 };
 
 }  // namespace kiln

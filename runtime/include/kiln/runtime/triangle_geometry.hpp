@@ -8,41 +8,14 @@
 
 namespace kiln {
 
-struct Vec3d {
-  double x, y, z;
-};
-inline Vec3d to_d(const format::Float3& p) {
-  return {p.x, p.y, p.z};
-}
-inline format::Float3 to_f(const Vec3d& p) {
-  return {float(p.x), float(p.y), float(p.z)};
-}
-inline Vec3d operator-(Vec3d a, Vec3d b) {
-  return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-inline Vec3d operator+(Vec3d a, Vec3d b) {
-  return {a.x + b.x, a.y + b.y, a.z + b.z};
-}
-inline Vec3d operator*(Vec3d a, double s) {
-  return {a.x * s, a.y * s, a.z * s};
-}
-inline double dot(Vec3d a, Vec3d b) {
-  return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-inline Vec3d cross(Vec3d a, Vec3d b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-inline Vec3d normalize(Vec3d a) {
-  return a * (1.0 / std::sqrt(dot(a, a)));
-}
-
 // Closest point on triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5), in double.
 // Returns the barycentric weights (v of b, w of c); handles degenerate triangles.
-inline Vec3d closest_on_triangle(Vec3d p, Vec3d a, Vec3d b, Vec3d c, double& v_out, double& w_out) {
-  const Vec3d ab = b - a, ac = c - a, ap = p - a;
+inline format::Double3 closest_on_triangle(format::Double3 p, format::Double3 a, format::Double3 b,
+                                           format::Double3 c, double& v_out, double& w_out) {
+  const format::Double3 ab = b - a, ac = c - a, ap = p - a;
   const double d1 = dot(ab, ap), d2 = dot(ac, ap);
   if (d1 <= 0 && d2 <= 0) return v_out = 0, w_out = 0, a;
-  const Vec3d bp = p - b;
+  const format::Double3 bp = p - b;
   const double d3 = dot(ab, bp), d4 = dot(ac, bp);
   if (d3 >= 0 && d4 <= d3) return v_out = 1, w_out = 0, b;
   const double vc = d1 * d4 - d3 * d2;
@@ -50,7 +23,7 @@ inline Vec3d closest_on_triangle(Vec3d p, Vec3d a, Vec3d b, Vec3d c, double& v_o
     const double v = d1 / (d1 - d3);
     return v_out = v, w_out = 0, a + ab * v;
   }
-  const Vec3d cp = p - c;
+  const format::Double3 cp = p - c;
   const double d5 = dot(ab, cp), d6 = dot(ac, cp);
   if (d6 >= 0 && d5 <= d6) return v_out = 0, w_out = 1, c;
   const double vb = d5 * d2 - d1 * d6;
@@ -66,13 +39,13 @@ inline Vec3d closest_on_triangle(Vec3d p, Vec3d a, Vec3d b, Vec3d c, double& v_o
   const double sum = va + vb + vc;
   if (!(sum > 0)) {  // degenerate (collinear) triangle: the nearest of its three edges
     double best = INFINITY;
-    Vec3d result = a;
-    const Vec3d corners[3] = {a, b, c};
+    format::Double3 result = a;
+    const format::Double3 corners[3] = {a, b, c};
     for (int e = 0; e < 3; ++e) {
-      const Vec3d s = corners[e], d = corners[(e + 1) % 3] - s;
+      const format::Double3 s = corners[e], d = corners[(e + 1) % 3] - s;
       const double len2 = dot(d, d);
       const double t = len2 > 0 ? std::clamp(dot(p - s, d) / len2, 0.0, 1.0) : 0.0;
-      const Vec3d q = s + d * t;
+      const format::Double3 q = s + d * t;
       const double dist = dot(p - q, p - q);
       if (dist < best) {
         best = dist, result = q;
@@ -97,27 +70,27 @@ inline Vec3d closest_on_triangle(Vec3d p, Vec3d a, Vec3d b, Vec3d c, double& v_o
 
 // Triangle-box overlap by the 13 separating axes (Akenine-Moller 2001), in double; touching
 // counts as overlapping.
-inline bool triangle_overlaps_box(Vec3d v0, Vec3d v1, Vec3d v2, Vec3d lo, Vec3d hi) {
-  const Vec3d center = (lo + hi) * 0.5, half = (hi - lo) * 0.5;
-  const Vec3d a = v0 - center, b = v1 - center, c = v2 - center;
+inline bool triangle_overlaps_box(format::Double3 v0, format::Double3 v1, format::Double3 v2,
+                                  format::Double3 lo, format::Double3 hi) {
+  const format::Double3 center = (lo + hi) * 0.5, half = (hi - lo) * 0.5;
+  const format::Double3 a = v0 - center, b = v1 - center, c = v2 - center;
   const double h[3] = {half.x, half.y, half.z};
-  auto comp = [](const Vec3d& v, int i) { return i == 0 ? v.x : i == 1 ? v.y : v.z; };
   // Box face normals.
   for (int i = 0; i < 3; ++i) {
-    const double mn = std::min({comp(a, i), comp(b, i), comp(c, i)});
-    const double mx = std::max({comp(a, i), comp(b, i), comp(c, i)});
+    const double mn = std::min({format::at(a, i), format::at(b, i), format::at(c, i)});
+    const double mx = std::max({format::at(a, i), format::at(b, i), format::at(c, i)});
     if (mn > h[i] || mx < -h[i]) return false;
   }
-  const Vec3d edges[3] = {b - a, c - b, a - c};
-  const Vec3d axes[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  auto separated = [&](Vec3d axis) {
+  const format::Double3 edges[3] = {b - a, c - b, a - c};
+  const format::Double3 axes[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  auto separated = [&](format::Double3 axis) {
     const double pa = dot(a, axis), pb = dot(b, axis), pc = dot(c, axis);
     const double r = h[0] * std::fabs(axis.x) + h[1] * std::fabs(axis.y) + h[2] * std::fabs(axis.z);
     return std::min({pa, pb, pc}) > r || std::max({pa, pb, pc}) < -r;
   };
   // Edge x box-axis cross products.
-  for (const Vec3d& e : edges)
-    for (const Vec3d& u : axes)
+  for (const format::Double3& e : edges)
+    for (const format::Double3& u : axes)
       if (separated(cross(u, e))) return false;
   // Triangle normal.
   return !separated(cross(edges[0], edges[1]));

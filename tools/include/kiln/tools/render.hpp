@@ -56,7 +56,7 @@ class PixelRays {
   // The view's unit axes in world space (+y is up unless the view is vertical), the tangent of
   // half the vertical field of view and the image's width / height.
   struct Basis {
-    Vec3d forward, right, up;
+    format::Double3 forward, right, up;
     double tan_half = 1, aspect = 1;
   };
 
