@@ -359,6 +359,7 @@ TEST_P(VoxelConformance, AgreesWithTheOtherVoxelStructures) {
     ASSERT_EQ(got[i].y, expected[i].y);
     ASSERT_EQ(got[i].z, expected[i].z);
     // The same entry face; t from each layout's own arithmetic.
+    if (expected[i].x == kNoHit) continue;
     ASSERT_NEAR(got[i].t, expected[i].t, 1e-5f * std::max(1.0f, std::fabs(expected[i].t)));
   }
 }
