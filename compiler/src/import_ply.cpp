@@ -10,10 +10,10 @@
 //   triangles (i0, ik, ik+1); faces of one or two vertices carry no surface.
 // - `tristrips`: the same list, -1 restarting the strip; triangle i of a run is (a, b, c) for
 //   even i and (b, a, c) for odd i; those naming a vertex twice (the strip's joints) are left out.
-// - ASCII entries are one per line (extra values on a line are ignored); other elements are
-//   skipped. No faces and no strips: a point cloud.
-// - Vertices that triangles use and that are identical in position, normal, texture coordinate
-//   and colour become the first of them, as Assimp's JoinIdenticalVertices did.
+// - ASCII entries are one per line (extra values on a line are ignored), reals parsed as Assimp
+//   parsed them; other elements are skipped. No faces and no strips: a point cloud.
+// - Used vertices at the same position whose normals and texture coordinates are within 1e-5
+//   (and whose colours are equal) are joined, as Assimp's JoinIdenticalVertices did.
 // Counts are bounded by the bytes that could hold them before anything is allocated.
 #include "import_ply.hpp"
 
@@ -25,10 +25,12 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
-#include <numeric>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string_view>
+#include <type_traits>
+#include <utility>
 
 #include "kiln/compiler/import.hpp"
 #include "rgba8.hpp"
@@ -328,7 +330,8 @@ double parse_number(std::string_view token, Type type) {
       value = double(integer);
   }
   if (!value)
-    throw Malformed("'" + printable(token) + "' is not a " + std::string(info(type).names[0]));
+    throw Malformed("'" + printable(token) + "' is not a valid " +
+                    std::string(info(type).names[0]));
   return *value;
 }
 
@@ -344,7 +347,10 @@ class AsciiBody {
   // Moves to the entry's line, the next one that is not blank.
   void start_entry() {
     do {
-      if (at_ >= text_.size()) throw Malformed("the file ends before this entry");
+      if (at_ >= text_.size()) {
+        line_number_ = next_line_;
+        throw Malformed("the file ends before this entry");
+      }
       const std::size_t end = std::min(text_.find('\n', at_), text_.size());
       line_ = text_.substr(at_, end - at_);
       at_ = end + 1;
@@ -384,12 +390,13 @@ template <class Body>
 void check_fits(const Element& element, const Body& body, bool ascii) {
   if (element.count == 0) return;
   if (element.properties.empty()) throw Malformed("has entries but no properties");
-  std::uint64_t least = 0;  // bytes per entry, lists empty
+  std::uint64_t least = 0;  // bytes per entry, lists empty; in ASCII, a value and a separator
   for (const Property& p : element.properties)
     least += ascii ? 2 : info(p.count_type.value_or(p.type)).size;
-  if (element.count > (body.bytes_left() + 1) / least)
+  const std::uint64_t room = body.bytes_left() + (ascii ? 1 : 0);  // the last line's end optional
+  if (element.count > room / least)
     throw Malformed("claims " + std::to_string(element.count) + " entries, more than the " +
-                    std::to_string(body.bytes_left()) + " bytes after the header can hold");
+                    std::to_string(body.bytes_left()) + " bytes left can hold");
 }
 
 // A list's length, checked against what is left to hold its items.
@@ -593,7 +600,9 @@ std::array<std::uint32_t, 3> position_key(const PlyData& data, std::uint32_t v) 
 }
 
 // Assimp's test for two vertices at the same position, in float: normals and texture
-// coordinates each within 1e-5. Kiln also keeps vertices of different colours apart.
+// coordinates each within 1e-5. Kiln also keeps vertices of different colours apart, and never
+// joins distinct positions (Assimp did when they were within 1e-5 and its hash table happened
+// to put them in one bucket).
 bool joinable(const PlyData& data, std::uint32_t a, std::uint32_t b) {
   constexpr float kEpsilon = 1e-5f;
   auto close = [&](float x, float y, float z) {
@@ -613,9 +622,9 @@ bool joinable(const PlyData& data, std::uint32_t a, std::uint32_t b) {
 // joinable with (the order Assimp's hash map found them in), else is kept. Only the newest
 // kKeptScanned are tried, so that a hostile file cannot make this quadratic.
 void join_at_position(const PlyData& data, std::span<const std::uint32_t> group,
-                      std::vector<std::uint32_t>& first) {
+                      std::vector<std::uint32_t>& first, std::vector<std::uint32_t>& kept) {
   constexpr std::size_t kKeptScanned = 1024;
-  std::vector<std::uint32_t> kept;
+  kept.clear();
   for (const std::uint32_t v : group) {
     first[v] = v;
     for (std::size_t k = kept.size(); k-- > 0 && kept.size() - k <= kKeptScanned;)
@@ -639,10 +648,11 @@ void join_identical_vertices(PlyData& data) {
   std::stable_sort(used.begin(), used.end(), [&](std::uint32_t a, std::uint32_t b) {
     return position_key(data, a) < position_key(data, b);
   });
+  std::vector<std::uint32_t> kept;
   for (std::size_t begin = 0, end = 0; begin < used.size(); begin = end) {
     const auto key = position_key(data, used[begin]);
     for (end = begin + 1; end < used.size() && position_key(data, used[end]) == key;) ++end;
-    join_at_position(data, std::span(used).subspan(begin, end - begin), first);
+    join_at_position(data, std::span(used).subspan(begin, end - begin), first, kept);
   }
   for (auto& t : data.mesh.triangles)
     for (auto& v : t.v) v = first[v];

@@ -1,4 +1,4 @@
-// Mesh import: Assimp for OBJ, PLY, STL, FBX, DAE, 3DS, OFF, 3MF...; tinygltf (+ Draco) for glTF
+// Mesh import: Kiln's own reader for PLY (strips included); Assimp for OBJ, STL, FBX, DAE, 3DS, OFF, 3MF...; tinygltf (+ Draco) for glTF
 // 2.0; Draco for raw .drc bitstreams. A trailing .zst on any input is inflated first.
 #pragma once
 
