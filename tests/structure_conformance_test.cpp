@@ -109,9 +109,9 @@ void expect_rays_agree(const Scene& scene, const RayQueries& rays, std::span<con
     ok = ok && rays.closest(batch[i]).prim == got.prim;
     if (!ok) {
       ++failures;
-      ADD_FAILURE() << "ray " << i << ": brute force prim " << expected.prim << " t "
-                    << expected.t << ", got prim " << got.prim << " t " << got.t
-                    << ", any-hit prim " << first.prim;
+      ADD_FAILURE() << "ray " << i << ": brute force prim " << expected.prim << " t " << expected.t
+                    << ", got prim " << got.prim << " t " << got.t << ", any-hit prim "
+                    << first.prim;
     }
   }
 }
@@ -197,7 +197,9 @@ void expect_forgeries_refused_or_safe(const Scene& scene, const std::string& spe
     const auto& entry = clean.blob.sections()[section];
     for (int trial = 0; trial < 24 && entry.raw_size >= 4; ++trial) {
       const std::size_t offset = rng() % (entry.raw_size - 3);
-      const std::uint32_t value = trial % 3 == 0 ? 0xFFFFFFFFu : trial % 3 == 1 ? rng() : rng() % 64;
+      const std::uint32_t value = trial % 3 == 0   ? 0xFFFFFFFFu
+                                  : trial % 3 == 1 ? rng()
+                                                   : rng() % 64;
       const AlignedBuffer forged = test::forged_copy(blob, section, offset, value);
       try {
         const Blob b = Blob::open_memory(forged.bytes(), "forged.kiln");
@@ -272,7 +274,8 @@ void expect_neighbors_agree(const Scene& scene, const NeighborQueries& points) {
       EXPECT_EQ(got[i].id, expected[i].id);
       EXPECT_EQ(got[i].distance2, expected[i].distance2);
     }
-    const float radius = std::sqrt(expected[std::min<std::size_t>(20, expected.size() - 1)].distance2);
+    const float radius =
+        std::sqrt(expected[std::min<std::size_t>(20, expected.size() - 1)].distance2);
     std::vector<Neighbor> within;
     points.within_radius(r.org, radius, within);
     std::size_t count = 0;

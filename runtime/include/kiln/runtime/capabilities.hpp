@@ -31,8 +31,8 @@ class RayQueries {
   virtual std::size_t record_size() const = 0;
   /// One record per ray into `records` (rays.size() * record_size() bytes), closest hits or,
   /// with `any_hit`, the first hit found; on up to `threads` threads (0 = all cores).
-  virtual void trace_records(std::span<const Ray> rays, std::span<std::byte> records,
-                             bool any_hit, unsigned threads) const = 0;
+  virtual void trace_records(std::span<const Ray> rays, std::span<std::byte> records, bool any_hit,
+                             unsigned threads) const = 0;
   /// The closest hit of one ray (its Hit part for voxel structures).
   virtual Hit closest(const Ray& ray) const = 0;
   /// The closest hit of one ray as a surface, counting the work into `cost`.

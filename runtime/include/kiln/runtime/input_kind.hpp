@@ -8,9 +8,9 @@ namespace kiln {
 
 enum class InputKind : std::uint8_t {
   kTriangles,  ///< a triangle scene (meshes)
-  kPoint3,    ///< a 3D point set: a point cloud, or a triangle scene's vertices
+  kPoint3,     ///< a 3D point set: a point cloud, or a triangle scene's vertices
   kPolygons2,  ///< a 2D polygon layer
-  kPoint2,    ///< a 2D point table
+  kPoint2,     ///< a 2D point table
   kEvents,     ///< an event table
 };
 

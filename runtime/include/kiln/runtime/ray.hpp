@@ -39,8 +39,8 @@ struct VoxelHit : Hit {
   std::uint32_t x = kNoHit, y = kNoHit, z = kNoHit;  // finest-grid voxel; kNoHit on a miss
   float face_normal[3] = {0, 0, 0};  // entered face (or contour plane); 0 if the ray starts inside
   float normal[3] = {0, 0, 0};       // attached normal; 0 when the blob has none
-  std::uint32_t level = 0;           // level of the leaf hit (the finest level for fixed-depth trees)
-  std::uint32_t color = 0;           // RGBA8 attachment (r in the low byte); 0 without colours
+  std::uint32_t level = 0;  // level of the leaf hit (the finest level for fixed-depth trees)
+  std::uint32_t color = 0;  // RGBA8 attachment (r in the low byte); 0 without colours
 };
 
 /// The voxel-hit record of `kiln trace` on a voxel structure (docs/FORMAT.md), 40 bytes.

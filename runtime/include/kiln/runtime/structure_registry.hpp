@@ -20,11 +20,11 @@ struct StructureInfo;
 /// One structure kind, as the runtime knows it. Every function throws BlobError (one line
 /// naming the blob, the structure and what is wrong) on bad bytes.
 struct StructureKind {
-  std::string_view name;                     ///< the kind name, as `kiln build --accel` takes it
-  std::string_view summary;                  ///< one line: what it is, what it answers
-  InputKind consumes;                        ///< what it is built over
-  std::span<const std::uint32_t> sections;   ///< the section kinds (FourCC) it may own
-  std::uint8_t desc_type;                    ///< its member of the manifest's StructureDesc
+  std::string_view name;                    ///< the kind name, as `kiln build --accel` takes it
+  std::string_view summary;                 ///< one line: what it is, what it answers
+  InputKind consumes;                       ///< what it is built over
+  std::span<const std::uint32_t> sections;  ///< the section kinds (FourCC) it may own
+  std::uint8_t desc_type;                   ///< its member of the manifest's StructureDesc
   /// O(1) checks of its manifest entry: section indices, kinds, element sizes and counts.
   /// Blob::open runs it for every structure.
   void (*check)(const Blob& blob, const StructureInfo& info);
