@@ -44,17 +44,6 @@ const char* const kVoxelStructures[] = {
     "esvo:resolution=64,no-contours=true",
 };
 
-// compile_blob of `scene` with the one structure `spec` names.
-std::vector<std::byte> blob_of(const Scene& scene, const std::string& spec, unsigned threads,
-                               bool compress = false) {
-  BuildOptions options;
-  options.inputs = {"generated"};
-  options.threads = threads;
-  options.compression.enabled = compress;
-  options.structures.push_back(resolve_structure_request(spec, {}));
-  return compile_blob(scene, options);
-}
-
 // A blob kept alive with its (aligned) bytes, opened from memory.
 struct OpenBlob {
   AlignedBuffer bytes;
@@ -121,7 +110,7 @@ TEST_P(RayConformance, AgreesWithBruteForceOnWorstCasesAndACorpusMesh) {
   scenes.emplace("mesh", teapot_or_icosphere());
   for (const auto& [name, scene] : scenes) {
     SCOPED_TRACE(name);
-    const OpenBlob open(blob_of(scene, GetParam(), 2));
+    const OpenBlob open(test::blob_with(scene, GetParam(), 2));
     const auto view = open.view();
     ASSERT_NE(view->rays(), nullptr);
     const auto batch = scene_rays(scene, 3000);
@@ -133,7 +122,7 @@ TEST_P(RayConformance, AgreesWithBruteForceOnWorstCasesAndACorpusMesh) {
 // between triangles.
 TEST_P(RayConformance, WatertightThroughVerticesAndEdges) {
   const Scene sphere = test::icosphere(2);
-  const OpenBlob open(blob_of(sphere, GetParam(), 2));
+  const OpenBlob open(test::blob_with(sphere, GetParam(), 2));
   const auto view = open.view();
   std::vector<Ray> batch;
   auto aim = [&](format::Float3 p) {
@@ -157,8 +146,8 @@ TEST_P(RayConformance, WatertightThroughVerticesAndEdges) {
 
 TEST_P(RayConformance, FileMemoryAndZstdRoundTripsTraceTheSame) {
   const Scene scene = teapot_or_icosphere();
-  const auto raw = blob_of(scene, GetParam(), 2);
-  const auto packed = blob_of(scene, GetParam(), 2, true);
+  const auto raw = test::blob_with(scene, GetParam(), 2);
+  const auto packed = test::blob_with(scene, GetParam(), 2, true);
   EXPECT_LT(packed.size(), raw.size());
   test::TempDir dir;
   test::write_file(dir.file("a.kiln"), raw);
@@ -174,10 +163,10 @@ TEST_P(RayConformance, FileMemoryAndZstdRoundTripsTraceTheSame) {
 
 // Byte-identical blobs on 1, 2 and 8 threads, and between runs.
 void expect_deterministic(const Scene& scene, const std::string& spec) {
-  const auto one = blob_of(scene, spec, 1);
-  EXPECT_EQ(one, blob_of(scene, spec, 1));
-  EXPECT_EQ(one, blob_of(scene, spec, 2));
-  EXPECT_EQ(one, blob_of(scene, spec, 8));
+  const auto one = test::blob_with(scene, spec, 1);
+  EXPECT_EQ(one, test::blob_with(scene, spec, 1));
+  EXPECT_EQ(one, test::blob_with(scene, spec, 2));
+  EXPECT_EQ(one, test::blob_with(scene, spec, 8));
   EXPECT_EQ(test::open_and_verify(one), "");
 }
 
@@ -189,7 +178,7 @@ TEST_P(RayConformance, ByteIdenticalAcrossThreadCounts) {
 // corruption reaches the view: opening, viewing, tracing and verifying either refuse it with a
 // BlobError or run safely (the sanitizer build checks "safely").
 void expect_forgeries_refused_or_safe(const Scene& scene, const std::string& spec) {
-  const auto blob = blob_of(scene, spec, 2);
+  const auto blob = test::blob_with(scene, spec, 2);
   const OpenBlob clean(blob);
   const auto batch = scene_rays(scene, 64);
   std::mt19937 rng(11);
@@ -226,7 +215,7 @@ TEST_P(RayConformance, ForgedAndFlippedBytesAreRefusedOrSafe) {
 void expect_dump_and_verify(const Scene& scene, const std::string& spec) {
   test::TempDir dir;
   const std::string path = dir.file("s.kiln");
-  test::write_file(path, blob_of(scene, spec, 2));
+  test::write_file(path, test::blob_with(scene, spec, 2));
   std::ostringstream out, err, human;
   ASSERT_EQ(run_dump(path, {true, false}, out, err), 0) << err.str();
   const auto json = nlohmann::json::parse(out.str());
@@ -287,7 +276,7 @@ void expect_neighbors_agree(const Scene& scene, const NeighborQueries& points) {
 
 TEST_P(PointConformance, AgreesWithBruteForce) {
   for (const Scene& scene : {teapot_or_icosphere(), test::worst_cases().begin()->second}) {
-    const OpenBlob open(blob_of(scene, GetParam(), 2));
+    const OpenBlob open(test::blob_with(scene, GetParam(), 2));
     const auto view = open.view();
     ASSERT_NE(view->neighbors(), nullptr);
     EXPECT_EQ(view->rays(), nullptr);
@@ -326,7 +315,7 @@ std::vector<VoxelHitRecord> voxel_records(const RayQueries& rays, std::span<cons
 
 TEST_P(VoxelConformance, HitsAreOccupiedAndAnyHitAgrees) {
   const Scene scene = teapot_or_icosphere();
-  const OpenBlob open(blob_of(scene, GetParam(), 2));
+  const OpenBlob open(test::blob_with(scene, GetParam(), 2));
   const auto view = open.view();
   ASSERT_NE(view->rays(), nullptr);
   ASSERT_NE(view->occupancy(), nullptr);
@@ -353,8 +342,8 @@ TEST_P(VoxelConformance, HitsAreOccupiedAndAnyHitAgrees) {
 TEST_P(VoxelConformance, AgreesWithTheOtherVoxelStructures) {
   const Scene scene = teapot_or_icosphere();
   const auto batch = scene_rays(scene, 3000);
-  const OpenBlob reference(blob_of(scene, kVoxelStructures[0], 2));
-  const OpenBlob open(blob_of(scene, GetParam(), 2));
+  const OpenBlob reference(test::blob_with(scene, kVoxelStructures[0], 2));
+  const OpenBlob open(test::blob_with(scene, GetParam(), 2));
   const auto expected = voxel_records(*reference.view()->rays(), batch, false);
   const auto got = voxel_records(*open.view()->rays(), batch, false);
   for (std::size_t i = 0; i < batch.size(); ++i) {
@@ -369,7 +358,8 @@ TEST_P(VoxelConformance, AgreesWithTheOtherVoxelStructures) {
 
 TEST_P(VoxelConformance, ZstdRoundTripTracesTheSame) {
   const Scene scene = teapot_or_icosphere();
-  const OpenBlob raw(blob_of(scene, GetParam(), 2)), packed(blob_of(scene, GetParam(), 2, true));
+  const OpenBlob raw(test::blob_with(scene, GetParam(), 2)),
+      packed(test::blob_with(scene, GetParam(), 2, true));
   const auto batch = scene_rays(scene, 2000);
   const auto a = records_of(*raw.view()->rays(), batch, false);
   EXPECT_EQ(records_of(*packed.view()->rays(), batch, false), a);
@@ -424,7 +414,7 @@ TEST(Registry, StructuresAreNamedApartFromTheirKind) {
 
 // A format 1.x blob is refused with the message to rebuild it.
 TEST(Registry, FormatOneBlobsAskForARebuild) {
-  auto blob = blob_of(test::icosphere(1), "bvh", 1);
+  auto blob = test::blob_with(test::icosphere(1), "bvh", 1);
   format::FileHeader h;
   std::memcpy(&h, blob.data(), sizeof h);
   h.version_major = 1;

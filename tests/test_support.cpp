@@ -9,6 +9,8 @@
 #include <random>
 #include <sstream>
 
+#include "kiln/compiler/build.hpp"
+#include "kiln/compiler/structure_builder.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/checksum.hpp"
@@ -80,6 +82,16 @@ std::string slurp(const std::string& path) {
 }
 
 }  // namespace
+
+std::vector<std::byte> blob_with(const Scene& scene, std::string_view spec, unsigned threads,
+                                 bool compress) {
+  BuildOptions options;
+  options.inputs = {"generated"};
+  options.threads = threads;
+  options.compression.enabled = compress;
+  options.structures.push_back(resolve_structure_request(spec, {}));
+  return compile_blob(scene, options);
+}
 
 std::string open_and_verify(std::span<const std::byte> bytes) {
   return open_impl(bytes, true);

@@ -6,11 +6,21 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "kiln/runtime/aligned_buffer.hpp"
 
+namespace kiln {
+struct Scene;
+}
+
 namespace kiln::test {
+
+// compile_blob of `scene` with the one structure `spec` asks for ("KIND[:key=value,...]", as
+// `--accel` takes it).
+std::vector<std::byte> blob_with(const Scene& scene, std::string_view spec, unsigned threads,
+                                 bool compress = false);
 
 // Absolute path of a corpus file (../shared/data/meshes/...).
 std::string mesh_path(const std::string& relative);

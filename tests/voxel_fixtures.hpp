@@ -9,6 +9,7 @@
 #include "kiln/compiler/voxel_dag_builder.hpp"
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
+#include "test_support.hpp"
 
 namespace kiln::test {
 
@@ -29,18 +30,6 @@ inline BuiltDag build_dag(const Scene& scene, std::uint32_t resolution) {
   b.dag = build_voxel_dag(b.voxels.codes, resolution);
   b.firsts = level_first_words(b.dag);
   return b;
-}
-
-// compile_blob of `scene` with the one structure `spec` asks for ("KIND[:key=value,...]", as
-// `--accel` takes it).
-inline std::vector<std::byte> blob_with(const Scene& scene, std::string_view spec, unsigned threads,
-                                        bool compress = false) {
-  BuildOptions options;
-  options.inputs = {"generated"};
-  options.threads = threads;
-  options.compression.enabled = compress;
-  options.structures.push_back(resolve_structure_request(spec, {}));
-  return compile_blob(scene, options);
 }
 
 }  // namespace kiln::test

@@ -56,6 +56,11 @@ std::string kinds_footer() {
     char line[512];
     std::snprintf(line, sizeof line, "\n  %-8s %s", builder->kind.c_str(), builder->help.c_str());
     text += line;
+    std::string keys = "name";
+    for (const StructureOption& option : builder->options)
+      keys +=
+          ", " + option.key + "=" + (option.default_value.empty() ? "..." : option.default_value);
+    text += "\n           keys: " + keys;
   }
   return text;
 }
