@@ -1,0 +1,64 @@
+// Inputs the blob fuzzers found (tests/fuzz/regressions/) and their seeds (tests/fuzz/corpus/blob/)
+// go through exactly what blob_fuzzer does with an input (tests/fuzz/blob_exercise.hpp): open,
+// every structure's view and queries, verify. Each must be refused with a BlobError or accepted,
+// never crash or throw anything else (the suite also runs under ASan + UBSan); every seed must
+// be accepted.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "fuzz/blob_exercise.hpp"
+#include "kiln/runtime/aligned_buffer.hpp"
+
+namespace kiln {
+namespace {
+
+namespace fs = std::filesystem;
+
+AlignedBuffer read_aligned(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(in)),
+                                std::istreambuf_iterator<char>());
+  AlignedBuffer buffer(bytes.size(), 64);
+  if (!bytes.empty()) std::memcpy(buffer.data(), bytes.data(), bytes.size());
+  return buffer;
+}
+
+std::vector<fs::path> files_in(const fs::path& dir) {
+  std::vector<fs::path> files;
+  if (fs::is_directory(dir))
+    for (const auto& entry : fs::directory_iterator(dir))
+      if (entry.is_regular_file() && entry.path().filename().string().front() != '.')
+        files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+TEST(FuzzRegression, ReproducersAreRefusedOrAnsweredNeverCrash) {
+  for (const fs::path& file : files_in(fs::path(KILN_FUZZ_DIR) / "regressions")) {
+    SCOPED_TRACE(file.string());
+    const AlignedBuffer bytes = read_aligned(file);
+    EXPECT_NO_THROW((void)fuzz::open_query_verify(bytes.bytes()));
+  }
+}
+
+TEST(FuzzRegression, SeedsAreAccepted) {
+  const auto seeds = files_in(fs::path(KILN_FUZZ_DIR) / "corpus" / "blob");
+  ASSERT_FALSE(seeds.empty());
+  for (const fs::path& file : seeds) {
+    SCOPED_TRACE(file.string());
+    const AlignedBuffer bytes = read_aligned(file);
+    std::vector<std::string> refusals;
+    EXPECT_EQ(fuzz::open_query_verify(bytes.bytes(), &refusals), "");
+    EXPECT_TRUE(refusals.empty()) << refusals.front();
+  }
+}
+
+}  // namespace
+}  // namespace kiln
