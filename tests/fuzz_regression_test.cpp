@@ -15,6 +15,7 @@
 
 #include "fuzz/blob_exercise.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"
+#include "kiln/runtime/esvo.hpp"
 
 namespace kiln {
 namespace {
@@ -58,6 +59,22 @@ TEST(FuzzRegression, SeedsAreAccepted) {
     EXPECT_EQ(fuzz::open_query_verify(bytes.bytes(), &refusals), "");
     EXPECT_TRUE(refusals.empty()) << refusals.front();
   }
+}
+
+// The cast behind esvo-huge-voxel-size-nan-cast: a direction so small against the grid that the
+// slab coefficients overflow used to make NaN distances (a float-to-int conversion of NaN, UB)
+// instead of a miss. Also a grid so large against float range that the same happens for unit
+// directions, which Blob-level checks now refuse.
+TEST(FuzzRegression, EsvoRaysTooSlowToCrossTheGridMiss) {
+  const AlignedBuffer bytes = read_aligned(fs::path(KILN_FUZZ_DIR) / "corpus" / "blob" / "esvo");
+  const Blob blob = Blob::open_memory(bytes.bytes());
+  const EsvoView view = EsvoView::from_blob(blob);
+  const float inf = INFINITY;
+  EXPECT_TRUE(view.intersect({{-3, 0.1f, 0.2f}, 0, {1, 0, 0}, inf}).hit());  // the octahedron
+  // Crossing the grid needs t > 2^104 below an octree-space direction of 2^-104: a miss.
+  EXPECT_TRUE(view.intersect({{-3, 0.1f, 0.2f}, 0, {1e-25f, 0, 0}, inf}).hit());
+  for (const float tiny : {1e-33f, 1e-40f})
+    EXPECT_FALSE(view.intersect({{-3, 0.1f, 0.2f}, 0, {tiny, 0, 0}, inf}).hit()) << tiny;
 }
 
 }  // namespace

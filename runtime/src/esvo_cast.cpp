@@ -64,7 +64,10 @@ inline bool to_octree_ray(const Ray& ray, const VoxelGridFrame& frame, double to
   }
   if (std::isnan(ray.tmin) || std::isnan(ray.tmax)) return false;
   const float d_max = std::fmax(std::fabs(s.d[0]), std::fmax(std::fabs(s.d[1]), std::fabs(s.d[2])));
-  if (!(d_max > 0)) return false;
+  // So tiny that 1 / eps (the slab coefficients) would overflow: such a ray needs t > 2^104 to
+  // cross the octree (a direction tiny against the grid, or a grid huge against float range),
+  // and infinite coefficients would make NaN distances. A miss.
+  if (!(d_max >= 0x1p-104f)) return false;
   const float eps = d_max * 0x1p-23f;
   for (float& c : s.d)
     if (std::fabs(c) < eps) c = std::copysign(eps, c);
@@ -150,7 +153,7 @@ inline void leaf_hit(const CastState& s, float tv_min, std::uint32_t resolution,
     const auto first = std::uint32_t((corner - 1.0f) * n);
     const float at = ((s.o[a] + tv_min * s.d[a]) - 1.0f) * n;
     const float rel = std::floor(at) - float(first);
-    cell[a] = first + (rel < 0 ? 0 : rel >= float(cells) ? cells - 1 : std::uint32_t(rel));
+    cell[a] = first + (!(rel >= 0) ? 0 : rel >= float(cells) ? cells - 1 : std::uint32_t(rel));
   }
   hit.x = cell[0], hit.y = cell[1], hit.z = cell[2];
   entered_normal(s, hit.face_normal);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "kiln/formats/voxel_grid.hpp"
@@ -20,11 +21,17 @@ VoxelGridFrame grid_frame_of(const Desc& d) {
   return frame;
 }
 
-// Empty when the frame is usable: a power-of-two resolution in range, a finite positive voxel.
+// Empty when the frame is usable: a power-of-two resolution in range, a finite positive voxel,
+// and a grid whose corners are finite floats (queries and casts work in float world space).
 inline std::string grid_frame_problem(const VoxelGridFrame& frame) {
   if (!format::is_valid_voxel_resolution(frame.resolution))
     return "resolution " + std::to_string(frame.resolution) + " is not a power of two in range";
   if (!(frame.voxel_size > 0) || !std::isfinite(frame.voxel_size)) return "bad voxel size";
+  const double extent = frame.voxel_size * frame.resolution;
+  for (const double origin : frame.origin)
+    if (!(std::fabs(origin) <= std::numeric_limits<float>::max()) ||
+        !(std::fabs(origin + extent) <= std::numeric_limits<float>::max()))
+      return "grid out of float range";
   return {};
 }
 
