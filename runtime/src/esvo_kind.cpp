@@ -66,7 +66,7 @@ void verify(const Blob& blob, const StructureInfo& info) {
 void describe_levels(const schema::EsvoDesc& e, Description& out) {
   out.lines.push_back(printf_string("%5s %14s %14s %14s %14s", "level", "descriptors", "voxels",
                                     "leaves", "contours"));
-  DescTable table{"levels_table", {"descriptors", "voxels", "leaves", "contours"}, {}, false};
+  DescTable table{"levels_table", {"descriptors", "voxels", "leaves", "contours"}, {}};
   const auto& levels = *e.level_stats();
   for (std::uint32_t l = 0; l < levels.size(); ++l) {
     const auto* s = levels.Get(l);

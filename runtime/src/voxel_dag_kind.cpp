@@ -56,7 +56,7 @@ void verify(const Blob& blob, const StructureInfo& info) {
 void describe_levels(const schema::VoxelDagDesc& d, Description& out) {
   out.lines.push_back(printf_string("%5s %14s %14s %8s %14s", "level", "SVO nodes", "DAG nodes",
                                     "SVO/DAG", "DAG bytes"));
-  DescTable table{"levels_table", {"svo_nodes", "dag_nodes", "bytes"}, {}, false};
+  DescTable table{"levels_table", {"svo_nodes", "dag_nodes", "bytes"}, {}};
   const auto& levels = *d.level_stats();
   for (std::uint32_t l = 0; l < levels.size(); ++l) {
     const auto* s = levels.Get(l);

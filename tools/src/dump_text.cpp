@@ -1,5 +1,5 @@
 // `kiln dump`: header, sections and manifest as text; each structure's part is its kind's
-// description (lines, then tables).
+// description (its lines).
 #include <algorithm>
 #include <cstdio>
 #include <string>
@@ -85,35 +85,6 @@ void write_meshes(const Blob& blob, const DumpOptions& options, std::ostream& ou
   }
 }
 
-std::string value_text(const DescValue& value) {
-  struct Text {
-    std::string operator()(bool v) const { return v ? "yes" : "no"; }
-    std::string operator()(std::uint64_t v) const { return std::to_string(v); }
-    std::string operator()(double v) const { return printf_string("%.2f", v); }
-    std::string operator()(const std::string& v) const { return v; }
-  };
-  return std::visit(Text{}, value);
-}
-
-// A header row and right-aligned columns, each as wide as its widest cell, indented 4.
-void write_table(const DescTable& table, std::ostream& out) {
-  std::vector<std::vector<std::string>> cells{table.columns};
-  for (const auto& row : table.rows) {
-    cells.emplace_back();
-    for (const auto& value : row) cells.back().push_back(value_text(value));
-  }
-  std::vector<std::size_t> widths(table.columns.size(), 0);
-  for (const auto& row : cells)
-    for (std::size_t c = 0; c < row.size() && c < widths.size(); ++c)
-      widths[c] = std::max(widths[c], row[c].size());
-  for (const auto& row : cells) {
-    std::string line = "  ";
-    for (std::size_t c = 0; c < row.size() && c < widths.size(); ++c)
-      line += std::string(widths[c] - row[c].size() + 2, ' ') + row[c];
-    out << line << "\n";
-  }
-}
-
 void write_structures(const Blob& blob, std::ostream& out) {
   out << "\nstructures\n";
   if (blob.structures().empty()) out << "  (none)\n";
@@ -121,8 +92,6 @@ void write_structures(const Blob& blob, std::ostream& out) {
     out << "  " << info.name << " (" << info.kind << ")\n";
     const Description d = describe(blob, info);
     for (const auto& line : d.lines) out << "    " << line << "\n";
-    for (const auto& table : d.tables)
-      if (table.human) write_table(table, out);
   }
 }
 

@@ -13,14 +13,12 @@ namespace kiln {
 
 using DescValue = std::variant<bool, std::uint64_t, double, std::string>;
 
-/// A table of per-level (or per-anything) rows: JSON, an array of objects keyed by `columns`;
-/// human, a right-aligned table under a header line, unless `human` is false (the kind printed
-/// the rows in its own format among `lines`).
+/// A table of per-level (or per-anything) rows, for JSON: an array of objects keyed by
+/// `columns`. The human dump prints `lines` only; a kind puts its tables there in its own format.
 struct DescTable {
   std::string key;
   std::vector<std::string> columns;
   std::vector<std::vector<DescValue>> rows;
-  bool human = true;
 };
 
 struct Description {
