@@ -14,8 +14,10 @@
 #include <vector>
 
 #include "fuzz/blob_exercise.hpp"
+#include "fuzz/import_exercise.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"
 #include "kiln/runtime/esvo.hpp"
+#include "test_support.hpp"
 
 namespace kiln {
 namespace {
@@ -58,6 +60,31 @@ TEST(FuzzRegression, SeedsAreAccepted) {
     std::vector<std::string> refusals;
     EXPECT_EQ(fuzz::open_query_verify(bytes.bytes(), &refusals), "");
     EXPECT_TRUE(refusals.empty()) << refusals.front();
+  }
+}
+
+// The importer targets: corpus/<format>/ seeds and regressions/<format>/ reproducers, each imported
+// as that format's fuzzer imports it. Reproducers must be refused in one line or imported, never
+// crash or throw anything else; every seed must import.
+const std::pair<const char*, const char*> kImportTargets[] = {
+    {"obj", ".obj"}, {"ply", ".ply"}, {"stl", ".stl"},     {"gltf", ".gltf"},
+    {"glb", ".glb"}, {"drc", ".drc"}, {"zst", ".ply.zst"},
+};
+
+TEST(FuzzRegression, ImporterSeedsImportAndReproducersAreRefusedOrImported) {
+  for (const auto& [format, extension] : kImportTargets) {
+    const auto seeds = files_in(fs::path(KILN_FUZZ_DIR) / "corpus" / format);
+    EXPECT_FALSE(seeds.empty()) << format;
+    for (const fs::path& file : seeds) {
+      SCOPED_TRACE(file.string());
+      const auto bytes = test::read_file(file.string());
+      EXPECT_EQ(fuzz::import_and_assemble(extension, bytes), "");
+    }
+    for (const fs::path& file : files_in(fs::path(KILN_FUZZ_DIR) / "regressions" / format)) {
+      SCOPED_TRACE(file.string());
+      const auto bytes = test::read_file(file.string());
+      EXPECT_NO_THROW((void)fuzz::import_and_assemble(extension, bytes));
+    }
   }
 }
 

@@ -418,7 +418,7 @@ TEST(PlyImport, SharedPlysImportAsBefore) {
     if (path.ends_with(".zst")) continue;
     ImportedFile assimp;
     assimp.source = scene.sources.at(0);
-    assimp.meshes = import_with_assimp(path, test::read_file(path), ".ply", true);
+    assimp.meshes = import_with_assimp(path, test::read_file(path), ".ply", true, {});
     std::vector<ImportedFile> files;
     files.push_back(std::move(assimp));
     expect_same_scene(scene, assemble_scene(std::move(files)));

@@ -34,28 +34,62 @@ std::vector<std::byte> zstd_compress(std::span<const std::byte> raw, int level) 
 
 }  // namespace
 
-std::vector<std::byte> serialize_blob(std::span<const SectionPayload> sections,
-                                      const CompressionOptions& compression, unsigned threads) {
+std::vector<std::byte> BlobPieces::concatenate() const {
+  std::vector<std::byte> blob(size);  // zero-filled: every padding byte is zero
+  for (const FilePiece& p : pieces)
+    if (!p.bytes.empty()) std::memcpy(blob.data() + p.offset, p.bytes.data(), p.bytes.size());
+  return blob;
+}
+
+namespace {
+
+// The header over the finished table; its checksum covers its own first bytes.
+format::FileHeader make_header(std::span<const std::byte> table_bytes, std::uint64_t file_size,
+                               std::size_t count) {
+  format::FileHeader header{};
+  std::memcpy(header.identifier, format::kIdentifier.data(), format::kIdentifier.size());
+  header.version_major = format::kVersionMajor;
+  header.version_minor = format::kVersionMinor;
+  header.header_size = sizeof(format::FileHeader);
+  header.file_size = file_size;
+  header.section_table_offset = sizeof(format::FileHeader);
+  header.section_count = std::uint32_t(count);
+  header.section_entry_size = sizeof(format::SectionEntry);
+  header.section_table_checksum = xxh3_64(table_bytes);
+  std::byte bytes[sizeof header];
+  std::memcpy(bytes, &header, sizeof header);
+  header.header_checksum =
+      xxh3_64(std::span<const std::byte>(bytes).first(format::kHeaderChecksummedBytes));
+  return header;
+}
+
+}  // namespace
+
+BlobPieces lay_out_blob(std::span<const SectionPayload> sections,
+                        const CompressionOptions& compression, unsigned threads) {
   const std::size_t count = sections.size();
-  std::vector<std::vector<std::byte>> compressed(count);
+  BlobPieces out;
+  out.compressed.resize(count);
   if (compression.enabled) {
     parallel_for(count, threads, [&](std::size_t i) {
       if (!sections[i].compressible || sections[i].bytes.empty()) return;
       auto packed = zstd_compress(sections[i].bytes, compression.level);
-      if (packed.size() < sections[i].bytes.size()) compressed[i] = std::move(packed);
+      if (packed.size() < sections[i].bytes.size()) out.compressed[i] = std::move(packed);
     });
   }
-
+  auto stored = [&](std::size_t i) {
+    return out.compressed[i].empty() ? sections[i].bytes
+                                     : std::span<const std::byte>(out.compressed[i]);
+  };
   std::vector<format::SectionEntry> table(count);
   std::uint64_t offset = sizeof(format::FileHeader) + count * sizeof(format::SectionEntry);
   for (std::size_t i = 0; i < count; ++i) {
     const SectionPayload& s = sections[i];
-    const bool packed = !compressed[i].empty();
     format::SectionEntry& e = table[i];
     e.kind = s.kind;
     e.flags = s.flags;
-    e.codec = std::uint8_t(packed ? format::Codec::kZstd : format::Codec::kNone);
-    e.stored_size = packed ? compressed[i].size() : s.bytes.size();
+    e.codec = std::uint8_t(out.compressed[i].empty() ? format::Codec::kNone : format::Codec::kZstd);
+    e.stored_size = stored(i).size();
     e.alignment_log2 = std::uint8_t(format::section_alignment_log2(e.stored_size));
     e.offset = align_up(offset, e.alignment_log2);
     e.raw_size = s.bytes.size();
@@ -65,33 +99,18 @@ std::vector<std::byte> serialize_blob(std::span<const SectionPayload> sections,
       throw std::logic_error("section element count x size != byte size");
     offset = e.offset + e.stored_size;
   }
-
-  std::vector<std::byte> blob(offset);  // zero-filled: every padding byte is zero
-  parallel_for(count, threads, [&](std::size_t i) {
-    const auto stored =
-        compressed[i].empty() ? sections[i].bytes : std::span<const std::byte>(compressed[i]);
-    if (!stored.empty()) std::memcpy(blob.data() + table[i].offset, stored.data(), stored.size());
-    table[i].checksum = xxh3_64(stored);
-  });
+  out.size = offset;
+  parallel_for(count, threads, [&](std::size_t i) { table[i].checksum = xxh3_64(stored(i)); });
 
   const std::size_t table_bytes = count * sizeof(format::SectionEntry);
-  std::memcpy(blob.data() + sizeof(format::FileHeader), table.data(), table_bytes);
-  format::FileHeader header{};
-  std::memcpy(header.identifier, format::kIdentifier.data(), format::kIdentifier.size());
-  header.version_major = format::kVersionMajor;
-  header.version_minor = format::kVersionMinor;
-  header.header_size = sizeof(format::FileHeader);
-  header.file_size = blob.size();
-  header.section_table_offset = sizeof(format::FileHeader);
-  header.section_count = std::uint32_t(count);
-  header.section_entry_size = sizeof(format::SectionEntry);
-  header.section_table_checksum =
-      xxh3_64(std::span<const std::byte>(blob).subspan(sizeof(format::FileHeader), table_bytes));
-  std::memcpy(blob.data(), &header, sizeof(header));
-  header.header_checksum =
-      xxh3_64(std::span<const std::byte>(blob).first(format::kHeaderChecksummedBytes));
-  std::memcpy(blob.data(), &header, sizeof(header));
-  return blob;
+  out.head.resize(sizeof(format::FileHeader) + table_bytes);
+  std::memcpy(out.head.data() + sizeof(format::FileHeader), table.data(), table_bytes);
+  const format::FileHeader header = make_header(
+      std::span<const std::byte>(out.head).subspan(sizeof(format::FileHeader)), out.size, count);
+  std::memcpy(out.head.data(), &header, sizeof header);
+  out.pieces.push_back({0, out.head});
+  for (std::size_t i = 0; i < count; ++i) out.pieces.push_back({table[i].offset, stored(i)});
+  return out;
 }
 
 }  // namespace kiln

@@ -79,10 +79,11 @@ InputKind input_kind_of(const Scene& scene) {
 }
 
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
-                   const BuildProgress& progress) {
+                   const BuildProgress& progress, const ImportLimits& limits) {
   std::vector<ImportedFile> files(inputs.size());
   if (progress) progress("import", 0, inputs.size());
-  parallel_for(inputs.size(), threads, [&](std::size_t i) { files[i] = import_file(inputs[i]); });
+  parallel_for(inputs.size(), threads,
+               [&](std::size_t i) { files[i] = import_file(inputs[i], limits); });
   if (progress) progress("import", inputs.size(), inputs.size());
   FileAccesses accessed;
   for (const ImportedFile& file : files) {
@@ -101,37 +102,44 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
   return scene;
 }
 
-std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
-                                    std::vector<AccelReport>* reports) {
+CompiledBlob compile_blob_pieces(const Scene& scene, const BuildOptions& options,
+                                 std::vector<AccelReport>* reports) {
   check_requests(scene, options);
+  CompiledBlob blob;
   std::vector<SectionPayload> sections;
   sections.push_back({});  // the manifest, filled in once the other indices are known
   const InputSectionIndices input = add_input_sections(scene, sections);
-  // Each structure is built in turn (each build is parallel inside) and kept alive until the
-  // blob is serialised, since sections only borrow their bytes.
-  std::vector<BuiltStructure> built;
+  // Each structure is built in turn (each build is parallel inside) and kept in the result,
+  // since sections only borrow their bytes.
   std::vector<std::vector<std::uint32_t>> owned_sections;
   for (const StructureRequest& request : options.structures) {
     const auto start = std::chrono::steady_clock::now();
-    built.push_back(find_structure_builder(request.kind)->build(scene, request, options.threads));
+    blob.structures.push_back(
+        find_structure_builder(request.kind)->build(scene, request, options.threads));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (reports) reports->push_back({request.name, request.kind, built.back().summary, seconds});
+    const BuiltStructure& built = blob.structures.back();
+    if (reports) reports->push_back({request.name, request.kind, built.summary, seconds});
     auto& owned = owned_sections.emplace_back();
-    for (const SectionPayload& section : built.back().sections) {
+    for (const SectionPayload& section : built.sections) {
       sections.push_back(section);
       owned.push_back(std::uint32_t(sections.size() - 1));
     }
   }
-  const std::vector<std::byte> manifest =
-      build_manifest(scene, options, input, built, owned_sections);
+  blob.manifest = build_manifest(scene, options, input, blob.structures, owned_sections);
   sections[0] = {format::kSectionManifest,
                  std::uint16_t(format::SectionFlag::kRequired),
                  1,
-                 manifest.size(),
-                 manifest,
+                 blob.manifest.size(),
+                 blob.manifest,
                  false};
-  return serialize_blob(sections, options.compression, options.threads);
+  blob.pieces = lay_out_blob(sections, options.compression, options.threads);
+  return blob;
+}
+
+std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
+                                    std::vector<AccelReport>* reports) {
+  return compile_blob_pieces(scene, options, reports).pieces.concatenate();
 }
 
 }  // namespace kiln

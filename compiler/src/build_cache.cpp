@@ -187,7 +187,8 @@ std::string toolchain_fingerprint() {
 
 Hash128 direct_key(const BuildOptions& options, std::span<const Hash128> input_hashes,
                    std::string_view fingerprint) {
-  const auto& [inputs, structures, compression, threads] = options;
+  // The limits only refuse inputs: a blob that is written never depends on them.
+  const auto& [inputs, structures, compression, threads, limits] = options;
   if (input_hashes.size() != inputs.size())
     throw std::invalid_argument("direct_key: one hash per input expected");
   Hasher h;
@@ -306,7 +307,7 @@ bool restore_blob(const std::string& cache_dir, const CacheEntry& entry,
   });
 }
 
-void store_entry(const std::string& cache_dir, const Hash128& key, std::span<const std::byte> blob,
+void store_entry(const std::string& cache_dir, const Hash128& key, const std::string& blob,
                  const CacheEntry& entry, std::span<const CacheEntry> previous) {
   std::vector<CacheEntry> entries{entry};
   for (const CacheEntry& old : previous)
@@ -318,7 +319,12 @@ void store_entry(const std::string& cache_dir, const Hash128& key, std::span<con
   // the same inputs renames an identical file over it, which readers never notice.
   const std::string stored_blob = blob_path(cache_dir, entry.blob);
   fs::create_directories(fs::path(stored_blob).parent_path());
-  write_file_atomically(stored_blob, blob);
+  const bool same = copy_file_atomically(blob, stored_blob, [&](int fd) {
+    std::uint64_t size = 0;
+    const auto hash = hash_descriptor(fd, size);
+    return hash && *hash == entry.blob && size == entry.blob_size;
+  });
+  if (!same) throw std::runtime_error(blob + " changed while it was copied into the cache");
   const std::string stored_manifest = manifest_path(cache_dir, key);
   fs::create_directories(fs::path(stored_manifest).parent_path());
   write_file_atomically(stored_manifest, as_bytes(text));

@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 
 #include <ctime>
+#include <filesystem>
 #include <map>
 #include <optional>
 
@@ -26,25 +27,22 @@ void write_depfile_text(const BuildJob& job, const std::string& text) {
     write_file_atomically(job.depfile, std::as_bytes(std::span<const char>(text)));
 }
 
-struct BuiltBlob {
-  std::vector<std::byte> bytes;
-  FileAccesses accessed;
-};
-
-// Imports, compiles and writes the blob; returns it (the cache stores it) with what was read.
-BuiltBlob build_and_write(const BuildJob& job, const BuildProgress& progress,
-                          BuildJobReport& report) {
-  Scene scene = import_scene(job.options.inputs, job.options.threads, progress);
+// Imports, compiles and writes the blob straight from its sections (never concatenated in
+// memory); returns what the import read.
+FileAccesses build_and_write(const BuildJob& job, const BuildProgress& progress,
+                             BuildJobReport& report) {
+  Scene scene = import_scene(job.options.inputs, job.options.threads, progress, job.options.limits);
   report.read_files = scene.accessed.read;
   const std::string depfile = depfile_text(job, report.read_files);
   if (progress) progress("compile", 0, 1);
-  std::vector<std::byte> blob = compile_blob(scene, job.options, &report.accels);
+  const CompiledBlob blob = compile_blob_pieces(scene, job.options, &report.accels);
   if (progress) progress("compile", 1, 1);
-  write_file_atomically(job.output, blob, [&](std::size_t done, std::size_t total) {
-    if (progress) progress("write", done, total);
-  });
+  write_pieces_atomically(job.output, blob.pieces.pieces, blob.pieces.size,
+                          [&](std::size_t done, std::size_t total) {
+                            if (progress) progress("write", done, total);
+                          });
   write_depfile_text(job, depfile);
-  return {std::move(blob), std::move(scene.accessed)};
+  return std::move(scene.accessed);
 }
 
 // File timestamps come from the kernel's coarse clock, which lags this one: a file written
@@ -119,16 +117,22 @@ bool restore_from_cache(const BuildJob& job, const std::vector<CacheEntry>& prev
 
 // Stores a fresh build under `key`, unless a file it read changed since `start` or cannot be
 // hashed (then a warning says why it is not cached).
-void store_result(const BuildJob& job, const Hash128& key, const BuiltBlob& built,
+void store_result(const BuildJob& job, const Hash128& key, const FileAccesses& accessed,
                   const timespec& start, const std::vector<CacheEntry>& previous, HashMemo& memo,
                   BuildJobReport& report) {
-  const std::vector<std::byte>& blob = built.bytes;
-  const FileAccesses& accessed = built.accessed;
   if (const auto changed = changed_since(accessed.read, start)) {
     report.warnings.push_back(*changed + " changed during the build; the result is not cached");
     return;
   }
-  CacheEntry entry{hash_bytes(blob), blob.size(), {}, accessed.missing};
+  // The output just written is what gets cached (hashed here, its copy checked against it).
+  std::error_code ec;
+  const auto blob_hash = hash_file(job.output);
+  const auto blob_size = std::filesystem::file_size(job.output, ec);
+  if (!blob_hash || ec) {
+    report.warnings.push_back(job.output + " cannot be read back; the result is not cached");
+    return;
+  }
+  CacheEntry entry{*blob_hash, blob_size, {}, accessed.missing};
   for (const std::string& path : accessed.read) {
     const auto hash = memo(path);
     if (!hash) {
@@ -138,7 +142,7 @@ void store_result(const BuildJob& job, const Hash128& key, const BuiltBlob& buil
     entry.read.push_back({path, *hash});
   }
   try {
-    store_entry(job.cache_dir, key, blob, entry, previous);
+    store_entry(job.cache_dir, key, job.output, entry, previous);
   } catch (const std::exception& e) {
     report.warnings.push_back(std::string("result not cached: ") + e.what());
   }
@@ -171,8 +175,8 @@ BuildJobReport run_cached(const BuildJob& job, const BuildProgress& progress) {
   report.cache_key = to_hex(key);
   const std::vector<CacheEntry> previous = read_manifest(job.cache_dir, key);
   if (restore_from_cache(job, previous, memo, report)) return report;
-  const BuiltBlob built = build_and_write(job, progress, report);
-  store_result(job, key, built, start, previous, memo, report);
+  const FileAccesses accessed = build_and_write(job, progress, report);
+  store_result(job, key, accessed, start, previous, memo, report);
   return report;
 }
 

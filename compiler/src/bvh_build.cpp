@@ -142,24 +142,4 @@ std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildO
   return build_node(ctx, std::move(refs), 0, budget);
 }
 
-double bvh_sah_cost(const BvhBuildNode& root, const BvhBuildOptions& options) {
-  const double root_area = root.box.half_area();
-  if (root_area <= 0) return 0;
-  double cost = 0;
-  std::vector<const BvhBuildNode*> stack{&root};
-  while (!stack.empty()) {
-    const BvhBuildNode* n = stack.back();
-    stack.pop_back();
-    const double area = n->box.half_area() / root_area;
-    if (n->is_leaf()) {
-      cost += area * options.intersection_cost * double(n->prims.size());
-    } else {
-      cost += area * options.traversal_cost;
-      stack.push_back(n->child[1].get());
-      stack.push_back(n->child[0].get());
-    }
-  }
-  return cost;
-}
-
 }  // namespace kiln

@@ -1,7 +1,10 @@
-// pbrt-style flattening: pre-order, first child adjacent, second child's index stored.
+// The flat BVH: the binned builder's nodes or a temporary tree flattened pbrt-style (pre-order,
+// first child adjacent, second child's index stored), leaf triangles copied in leaf order, and
+// the statistics every builder reports.
 #include <algorithm>
 
 #include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
 
@@ -11,11 +14,9 @@ struct Flattener {
   const Scene& scene;
   FlatBvh& out;
 
-  std::uint32_t emit(const BvhBuildNode& n, std::uint32_t depth) {
+  std::uint32_t emit(const BvhBuildNode& n) {
     const auto index = std::uint32_t(out.nodes.size());
     out.nodes.emplace_back();
-    auto& stats = out.stats;
-    stats.max_depth = std::max(stats.max_depth, depth);
     format::BvhNode node{};
     for (int a = 0; a < 3; ++a)
       node.min[a] = format::at(n.box.min, a), node.max[a] = format::at(n.box.max, a);
@@ -28,35 +29,100 @@ struct Flattener {
             {scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]});
         out.prim_ids.push_back(prim);
       }
-      stats.leaf_count += 1;
-      stats.max_leaf_size =
-          std::max<std::uint32_t>(stats.max_leaf_size, std::uint32_t(n.prims.size()));
     } else {
       node.axis = n.axis;
-      emit(*n.child[0], depth + 1);
-      node.offset = emit(*n.child[1], depth + 1);
+      emit(*n.child[0]);
+      node.offset = emit(*n.child[1]);
     }
     out.nodes[index] = node;
     return index;
   }
 };
 
+double half_area(const format::BvhNode& n) {
+  const double dx = double(n.max[0]) - n.min[0], dy = double(n.max[1]) - n.min[1],
+               dz = double(n.max[2]) - n.min[2];
+  return dx < 0 || dy < 0 || dz < 0 ? 0.0 : dx * dy + dy * dz + dz * dx;
+}
+
+// One reference per triangle (its box and id), in parallel: each index writes its own slot.
+std::vector<PrimRef> triangle_refs(const Scene& scene, unsigned threads) {
+  std::vector<PrimRef> refs(scene.triangles.size());
+  parallel_for_batched(refs.size(), 65536, threads, [&](std::size_t i) {
+    PrimRef r;
+    for (const auto v : scene.triangles[i].v) r.box.grow(scene.positions[v]);
+    r.prim = std::uint32_t(i);
+    refs[i] = r;
+  });
+  return refs;
+}
+
+FlatBvh build_binned_bvh(const Scene& scene, const BvhBuildOptions& options) {
+  FlatBvh out;
+  {
+    std::vector<PrimRef> refs = triangle_refs(scene, options.threads);
+    out.nodes = build_binned_nodes(refs, options);
+    out.prim_ids.resize(refs.size());
+    for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim;
+  }  // the references (28 B per triangle) are gone before the triangles are copied
+  out.triangles.resize(out.prim_ids.size());
+  parallel_for_batched(out.prim_ids.size(), 65536, options.threads, [&](std::size_t i) {
+    const auto& t = scene.triangles[out.prim_ids[i]];
+    out.triangles[i] = {scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]};
+  });
+  return out;
+}
+
 }  // namespace
 
 FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuildOptions& options) {
   FlatBvh out;
-  Flattener{scene, out}.emit(root, 1);
-  auto& s = out.stats;
-  s.node_count = out.nodes.size();
-  s.reference_count = out.prim_ids.size();
+  Flattener{scene, out}.emit(root);
+  out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
+  return out;
+}
+
+BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::size_t triangles,
+                                  const BvhBuildOptions& options) {
+  BvhStatistics s;
+  s.node_count = nodes.size();
+  const double root_area = nodes.empty() ? 0.0 : half_area(nodes[0]);
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{0, 1}};  // (node, depth)
+  while (!nodes.empty() && !stack.empty()) {
+    const auto [i, depth] = stack.back();
+    stack.pop_back();
+    const format::BvhNode& n = nodes[i];
+    s.max_depth = std::max(s.max_depth, depth);
+    const double area = root_area > 0 ? half_area(n) / root_area : 0.0;
+    if (n.count != 0) {
+      s.leaf_count += 1;
+      s.reference_count += n.count;
+      s.max_leaf_size = std::max<std::uint32_t>(s.max_leaf_size, n.count);
+      s.sah_cost += area * options.intersection_cost * double(n.count);
+    } else {
+      s.sah_cost += area * options.traversal_cost;
+      stack.push_back({n.offset, depth + 1});
+      stack.push_back({i + 1, depth + 1});
+    }
+  }
   s.average_leaf_size = s.leaf_count ? double(s.reference_count) / double(s.leaf_count) : 0;
-  const double triangles = double(scene.triangles.size());
-  s.duplication_factor = double(s.reference_count) / triangles;
-  s.sah_cost = bvh_sah_cost(root, options);
-  s.bytes_per_triangle = double(out.nodes.size() * sizeof(format::BvhNode) +
-                                out.triangles.size() * sizeof(format::RayTriangle) +
-                                out.prim_ids.size() * sizeof(std::uint32_t)) /
-                         triangles;
+  s.duplication_factor = triangles ? double(s.reference_count) / double(triangles) : 0;
+  s.bytes_per_triangle =
+      triangles
+          ? double(nodes.size() * sizeof(format::BvhNode) +
+                   s.reference_count * (sizeof(format::RayTriangle) + sizeof(std::uint32_t))) /
+                double(triangles)
+          : 0;
+  return s;
+}
+
+FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
+  if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
+  FlatBvh out = options.builder == BvhBuilder::kBinned
+                    ? build_binned_bvh(scene, options)
+                    : flatten_bvh(*build_bvh_tree(scene, options), scene, options);
+  if (options.builder == BvhBuilder::kBinned)
+    out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
   return out;
 }
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -14,9 +15,6 @@
 namespace kiln {
 
 namespace {
-
-// Inflated inputs beyond this are refused rather than exhausting memory on a zstd bomb.
-constexpr unsigned long long kMaxInflatedInput = 8ull << 30;
 
 std::vector<std::byte> read_whole_file(const std::string& path) {
   std::error_code ec;
@@ -33,31 +31,70 @@ std::vector<std::byte> read_whole_file(const std::string& path) {
   return bytes;
 }
 
-std::vector<std::byte> inflate_zstd(const std::string& path, std::span<const std::byte> stored) {
-  const auto size = ZSTD_getFrameContentSize(stored.data(), stored.size());
-  if (size == ZSTD_CONTENTSIZE_ERROR) throw ImportError(path + ": not a zstd file");
-  if (size == ZSTD_CONTENTSIZE_UNKNOWN) {
-    // Streamed frames carry no size: inflate incrementally.
-    std::vector<std::byte> out;
-    std::unique_ptr<ZSTD_DStream, decltype(&ZSTD_freeDStream)> stream(ZSTD_createDStream(),
-                                                                      ZSTD_freeDStream);
-    ZSTD_inBuffer input{stored.data(), stored.size(), 0};
-    std::vector<std::byte> chunk(ZSTD_DStreamOutSize());
-    while (input.pos < input.size) {
-      ZSTD_outBuffer output{chunk.data(), chunk.size(), 0};
-      const auto rc = ZSTD_decompressStream(stream.get(), &output, &input);
-      if (ZSTD_isError(rc)) throw ImportError(path + ": zstd: " + ZSTD_getErrorName(rc));
-      out.insert(out.end(), chunk.begin(), chunk.begin() + std::ptrdiff_t(output.pos));
-      if (out.size() > kMaxInflatedInput) throw ImportError(path + ": inflates to over 8 GiB");
-      if (rc == 0 && input.pos == input.size) break;
-    }
-    return out;
+std::string size_text(std::uint64_t bytes) {
+  if (bytes != 0 && bytes % (1u << 30) == 0) return std::to_string(bytes >> 30) + " GiB";
+  if (bytes != 0 && bytes % (1u << 20) == 0) return std::to_string(bytes >> 20) + " MiB";
+  return std::to_string(bytes) + " bytes";
+}
+
+[[noreturn]] void refuse_inflated(const std::string& path, std::uint64_t limit) {
+  throw ImportError(path + ": inflates to more than " + size_text(limit) +
+                    " (the limit; raise it with --max-inflated-size)");
+}
+
+// Inflated bytes in a malloc'd block: glibc grows a large block with mremap, so growing never
+// holds the old and the new copy at once and memory stays within the limit.
+class InflatedBytes {
+ public:
+  InflatedBytes() = default;
+  std::span<const std::byte> bytes() const { return {data_.get(), size_}; }
+  std::size_t capacity() const { return capacity_; }
+  std::byte* end() { return data_.get() + size_; }
+  void grow_to(std::size_t capacity) {
+    void* grown = std::realloc(data_.get(), capacity);
+    if (grown == nullptr) throw std::bad_alloc();
+    static_cast<void>(data_.release());
+    data_.reset(static_cast<std::byte*>(grown));
+    capacity_ = capacity;
   }
-  if (size > kMaxInflatedInput) throw ImportError(path + ": inflates to over 8 GiB");
-  std::vector<std::byte> out(size);
-  const auto got = ZSTD_decompress(out.data(), out.size(), stored.data(), stored.size());
-  if (ZSTD_isError(got)) throw ImportError(path + ": zstd: " + ZSTD_getErrorName(got));
-  if (got != size) throw ImportError(path + ": zstd frame inflated to the wrong size");
+  void add(std::size_t count) { size_ += count; }
+
+ private:
+  struct Free {
+    void operator()(std::byte* p) const { std::free(p); }
+  };
+  std::unique_ptr<std::byte, Free> data_;
+  std::size_t size_ = 0, capacity_ = 0;
+};
+
+// Streams the frames out, growing the output by doubling but never past the limit, so a bomb
+// costs at most `limit` bytes of memory.
+InflatedBytes inflate_zstd(const std::string& path, std::span<const std::byte> stored,
+                           std::uint64_t limit) {
+  const auto declared = ZSTD_getFrameContentSize(stored.data(), stored.size());
+  if (declared == ZSTD_CONTENTSIZE_ERROR) throw ImportError(path + ": not a zstd file");
+  if (declared != ZSTD_CONTENTSIZE_UNKNOWN && declared > limit) refuse_inflated(path, limit);
+  std::unique_ptr<ZSTD_DStream, decltype(&ZSTD_freeDStream)> stream(ZSTD_createDStream(),
+                                                                    ZSTD_freeDStream);
+  InflatedBytes out;
+  out.grow_to(std::max<std::uint64_t>(1, declared != ZSTD_CONTENTSIZE_UNKNOWN
+                                             ? declared
+                                             : std::min<std::uint64_t>(limit, 1 << 20)));
+  ZSTD_inBuffer input{stored.data(), stored.size(), 0};
+  std::size_t rc = 1;
+  while (input.pos < input.size || rc != 0) {
+    if (out.bytes().size() == out.capacity()) {
+      if (out.capacity() >= limit) refuse_inflated(path, limit);
+      out.grow_to(std::min<std::uint64_t>(limit, std::uint64_t(out.capacity()) * 2));
+    }
+    ZSTD_outBuffer output{out.end(), out.capacity() - out.bytes().size(), 0};
+    const std::size_t before = input.pos;
+    rc = ZSTD_decompressStream(stream.get(), &output, &input);
+    if (ZSTD_isError(rc)) throw ImportError(path + ": zstd: " + ZSTD_getErrorName(rc));
+    out.add(output.pos);
+    if (rc != 0 && input.pos == input.size && output.pos < output.size && input.pos == before)
+      throw ImportError(path + ": zstd: the file ends inside a frame");
+  }
   return out;
 }
 
@@ -108,19 +145,23 @@ std::string lower_extension(const std::string& name) {
 
 }  // namespace
 
-ImportedFile import_file(const std::string& path) {
+ImportedFile import_file(const std::string& path, const ImportLimits& limits) {
+  return import_bytes(path, read_whole_file(path), limits, true);
+}
+
+ImportedFile import_bytes(const std::string& path, std::span<const std::byte> stored,
+                          const ImportLimits& limits, bool companions) {
   ImportedFile file;
-  const std::vector<std::byte> stored = read_whole_file(path);
   file.source = {path, stored.size(), xxh3_64(stored)};
   file.accessed.read.push_back(path);
   if (stored.empty()) throw ImportError(path + ": file is empty");
 
   std::string inner_name = path;
-  std::vector<std::byte> inflated;
+  InflatedBytes inflated;
   std::span<const std::byte> bytes = stored;
   if (lower_extension(path) == ".zst") {
-    inflated = inflate_zstd(path, stored);
-    bytes = inflated;
+    inflated = inflate_zstd(path, stored, limits.max_inflated_bytes);
+    bytes = inflated.bytes();
     inner_name = path.substr(0, path.size() - 4);
     if (bytes.empty()) throw ImportError(path + ": inflates to an empty file");
   }
@@ -133,13 +174,15 @@ ImportedFile import_file(const std::string& path) {
     else if (ext == ".ply")
       file.meshes = import_ply(inner_name, bytes);  // Kiln's reader: Assimp misreads strips
     else if (auto utf8 = utf16_to_utf8(bytes); !utf8.empty())
-      file.meshes = import_with_assimp(inner_name, utf8, ext, false, &file.accessed);
+      file.meshes = import_with_assimp(inner_name, utf8, ext, false, limits, &file.accessed);
     else
-      file.meshes = import_with_assimp(inner_name, bytes, ext, inflated.empty(), &file.accessed);
+      file.meshes = import_with_assimp(
+          inner_name, bytes, ext, companions && inflated.capacity() == 0, limits, &file.accessed);
   } catch (const ImportError& e) {
     // Importers name the inner file; report the path the user gave.
-    if (inner_name == path) throw;
-    throw ImportError(path + ": " + std::string(e.what()).substr(inner_name.size() + 2));
+    const std::string message = e.what();
+    if (inner_name == path || message.rfind(inner_name, 0) != 0) throw;
+    throw ImportError(path + message.substr(inner_name.size()));
   } catch (const std::bad_alloc&) {
     throw ImportError(path + ": out of memory while importing (file claims absurd sizes?)");
   }

@@ -76,21 +76,47 @@ class TempFile {
   bool committed_ = false;
 };
 
+// Writes `bytes` whole (in chunks, for progress), retrying interrupted writes.
+void write_all(int fd, std::span<const std::byte> bytes, const std::string& path,
+               std::uint64_t& written, std::uint64_t total, const WriteProgress& progress) {
+  constexpr std::size_t kChunk = 4u << 20;
+  for (std::size_t done = 0; done < bytes.size();) {
+    const std::size_t n = std::min(kChunk, bytes.size() - done);
+    const ssize_t got = ::write(fd, bytes.data() + done, n);
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) throw write_error(path, "write failed");
+    done += std::size_t(got);
+    written += std::uint64_t(got);
+    if (progress) progress(written, total);
+  }
+}
+
 }  // namespace
 
 void write_file_atomically(const std::string& path, std::span<const std::byte> bytes,
                            const WriteProgress& progress) {
+  const FilePiece whole{0, bytes};
+  write_pieces_atomically(path, {&whole, 1}, bytes.size(), progress);
+}
+
+void write_pieces_atomically(const std::string& path, std::span<const FilePiece> pieces,
+                             std::uint64_t size, const WriteProgress& progress) {
+  static const std::byte zeros[64 * 1024] = {};
   TempFile temp(path);
-  constexpr std::size_t kChunk = 4u << 20;
-  std::size_t written = 0;
-  while (written < bytes.size()) {
-    const std::size_t n = std::min(kChunk, bytes.size() - written);
-    const ssize_t got = ::write(temp.fd(), bytes.data() + written, n);
-    if (got < 0 && errno == EINTR) continue;
-    if (got <= 0) throw write_error(path, "write failed");
-    written += std::size_t(got);
-    if (progress) progress(written, bytes.size());
+  std::uint64_t written = 0;
+  auto pad_to = [&](std::uint64_t offset) {
+    while (written < offset) {
+      const auto n = std::size_t(std::min<std::uint64_t>(sizeof zeros, offset - written));
+      write_all(temp.fd(), {zeros, n}, path, written, size, progress);
+    }
+  };
+  for (const FilePiece& piece : pieces) {
+    if (piece.offset < written || piece.offset + piece.bytes.size() > size)
+      throw std::logic_error(path + ": file pieces overlap or overrun the size");
+    pad_to(piece.offset);
+    write_all(temp.fd(), piece.bytes, path, written, size, progress);
   }
+  pad_to(size);
   temp.commit(path);
 }
 

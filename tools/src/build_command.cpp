@@ -31,6 +31,7 @@ struct BuildArgs {
   int level = 9;
   unsigned threads = 0;
   bool stats = false;
+  ImportLimits limits;
   std::vector<std::string> accels;            // as given: KIND[:key=value,...]
   std::map<std::string, std::string> values;  // global structure flag -> its value text
   std::map<std::string, CLI::Option*> flags;  // global structure flag -> its option
@@ -124,6 +125,7 @@ BuildOptions build_options(const BuildArgs& args) {
     options.structures.push_back(resolve_structure_request(spec, flags));
   options.compression = {args.compress, args.level};
   options.threads = args.threads;
+  options.limits = args.limits;
   return options;
 }
 
@@ -181,6 +183,17 @@ Command add_build_command(CLI::App& app) {
   command->add_option("--cache-dir", args->cache_dir,
                       "Content-addressed build cache: reuse the blob of an identical earlier "
                       "build (created if missing)");
+  command
+      ->add_option("--max-inflated-size", args->limits.max_inflated_bytes,
+                   "Refuse a .zst input that inflates to more than this (bytes; KiB, MiB, GiB "
+                   "suffixes)")
+      ->transform(CLI::AsSizeValue(false))
+      ->default_str("4GiB");
+  command
+      ->add_option("--max-face-vertices", args->limits.max_face_vertices,
+                   "Refuse an OBJ polygon with more corners than this")
+      ->check(CLI::Range(3u, 1u << 30))
+      ->capture_default_str();
   command
       ->add_option("--accel", args->accels,
                    "A structure to build (repeatable): KIND[:key=value,...], each key an option "

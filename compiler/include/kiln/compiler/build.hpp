@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "kiln/compiler/blob_writer.hpp"
+#include "kiln/compiler/import.hpp"
 #include "kiln/compiler/scene.hpp"
 #include "kiln/compiler/structure_builder.hpp"
 
@@ -31,6 +32,7 @@ struct BuildOptions {
   std::vector<StructureRequest> structures;
   CompressionOptions compression;
   unsigned threads = 0;  // 0 = all hardware threads; never affects the output
+  ImportLimits limits;   // refuse hostile inputs early; never affects an output that is written
 };
 
 /// The kind of input a scene is: a 3D point set when it has no triangle, else a triangle scene.
@@ -43,12 +45,23 @@ using BuildProgress = std::function<void(std::string_view, std::uint64_t, std::u
 // scene's `accessed` lists every file the import read. Throws ImportError naming the first
 // failing input in command-line order, or when nothing is left: no triangle and no vertex.
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
-                   const BuildProgress& progress = {});
+                   const BuildProgress& progress = {}, const ImportLimits& limits = {});
+
+/// A compiled blob as pieces (BlobPieces) with what they borrow: each structure's sections and
+/// the manifest. The input's sections borrow the scene, which must outlive it.
+struct CompiledBlob {
+  std::vector<BuiltStructure> structures;
+  std::vector<std::byte> manifest;
+  BlobPieces pieces;
+};
 
 // The complete blob for a scene: manifest (section 0), then the input's sections, then each
 // structure's. Throws ImportError when a structure consumes what the scene's input kind does not
 // provide (triangles of a point set), when a point set is asked for no structure, or when two
-// structures share a name.
+// structures share a name. `compile_blob_pieces` keeps it in pieces for writing straight to a
+// file; `compile_blob` concatenates them.
+CompiledBlob compile_blob_pieces(const Scene& scene, const BuildOptions& options,
+                                 std::vector<AccelReport>* reports = nullptr);
 std::vector<std::byte> compile_blob(const Scene& scene, const BuildOptions& options,
                                     std::vector<AccelReport>* reports = nullptr);
 

@@ -83,10 +83,11 @@ bool entry_matches(const CacheEntry& entry,
 // stored blob is missing or damaged; throws std::runtime_error when `output` cannot be written.
 bool restore_blob(const std::string& cache_dir, const CacheEntry& entry, const std::string& output);
 
-// Stores `blob` and puts `entry` first in the manifest for `key`, after `previous` (what
-// read_manifest gave; entries over the same files are replaced, at most 8 kept). Throws
-// std::runtime_error when the cache cannot be written.
-void store_entry(const std::string& cache_dir, const Hash128& key, std::span<const std::byte> blob,
+// Stores a copy of the file `blob` (the build's output, whose hash and size `entry` holds; a copy
+// that differs is not stored) and puts `entry` first in the manifest for `key`, after
+// `previous` (what read_manifest gave; entries over the same files are replaced, at most 8
+// kept). Throws std::runtime_error when the cache cannot be written or the copy differs.
+void store_entry(const std::string& cache_dir, const Hash128& key, const std::string& blob,
                  const CacheEntry& entry, std::span<const CacheEntry> previous);
 
 // Creates the cache folder and its CACHEDIR.TAG if missing. Throws std::runtime_error.

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -57,17 +58,24 @@ struct FlatBvh {
   BvhStatistics stats;
 };
 
-// Builds the temporary tree over every triangle of the scene.
+// The sweep and SBVH builders' temporary tree over every triangle of the scene.
 std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildOptions& options);
-
-// SAH cost of a tree normalised by the root's area, with the options' constants.
-double bvh_sah_cost(const BvhBuildNode& root, const BvhBuildOptions& options);
 
 // Depth-first pre-order flattening (first child adjacent), triangles copied in leaf order.
 FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuildOptions& options);
 
-inline FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
-  return flatten_bvh(*build_bvh_tree(scene, options), scene, options);
-}
+// The binned builder (bvh_binned_build.cpp): partitions `refs` in place into leaf order and
+// returns the nodes in the flat layout, each leaf's offset indexing `refs`.
+std::vector<format::BvhNode> build_binned_nodes(std::vector<PrimRef>& refs,
+                                                const BvhBuildOptions& options);
+
+// Counts, depth and SAH cost (normalised by the root's area, with the options' constants) of a
+// flat BVH over `triangles` input triangles.
+BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::size_t triangles,
+                                  const BvhBuildOptions& options);
+
+/// The BVH of `options.builder` over every triangle of the scene, in the flat layout. The
+/// binned builder works in place on one reference array; sweep and SBVH build a temporary tree.
+FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options);
 
 }  // namespace kiln

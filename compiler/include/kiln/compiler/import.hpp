@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -19,18 +20,40 @@ class ImportError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Limits that refuse a hostile input early, in one line, before it exhausts memory or time.
+/// Each is stated in docs/FUZZING.md and overridable from `kiln build`.
+struct ImportLimits {
+  /// The most a `.zst` input may inflate to (`--max-inflated-size`). A zstd frame that declares
+  /// more is refused before inflating; a streamed one as soon as it passes the limit, so memory
+  /// stays within it.
+  std::uint64_t max_inflated_bytes = std::uint64_t{4} << 30;
+  /// The most corners an OBJ polygon may have (`--max-face-vertices`): Assimp triangulates a
+  /// polygon in worse than quadratic time (a 30,000-gon takes 6 s), so a face of 10^8 corners
+  /// would never finish.
+  std::uint32_t max_face_vertices = 4096;
+};
+
 // Reads and imports one file; its `accessed` lists `path` and every companion file read
 // (normalized). Throws ImportError.
-ImportedFile import_file(const std::string& path);
+ImportedFile import_file(const std::string& path, const ImportLimits& limits = {});
+
+// The same over a file's bytes already in memory (`path` names them in errors and picks the
+// importer by extension; a trailing .zst inflates them). With `companions`, importers look for
+// companion files beside `path` (an OBJ's .mtl, a glTF's buffers); without, Assimp reads only
+// `stored` (what the fuzzers use).
+ImportedFile import_bytes(const std::string& path, std::span<const std::byte> stored,
+                          const ImportLimits& limits, bool companions);
 
 // Importers over bytes already in memory. `path` names the file in errors and locates companion
 // files (a glTF's .bin buffers, an OBJ's .mtl); `extension` is lower-case with its dot. Every file
 // they open, and every companion they look for in vain, is appended to `accessed` when given
 // (as the library spelled it: import_file normalizes). With `bytes_are_file`, Assimp reads
-// `path` itself, so it is recorded too.
+// `path` itself, so it is recorded too. An OBJ polygon beyond `limits` is refused before Assimp
+// sees it.
 std::vector<ImportedMesh> import_with_assimp(const std::string& path,
                                              std::span<const std::byte> bytes,
                                              const std::string& extension, bool bytes_are_file,
+                                             const ImportLimits& limits,
                                              FileAccesses* accessed = nullptr);
 std::vector<ImportedMesh> import_gltf(const std::string& path, std::span<const std::byte> bytes,
                                       bool binary, FileAccesses* accessed = nullptr);

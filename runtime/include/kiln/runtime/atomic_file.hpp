@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <span>
 #include <string>
@@ -15,6 +16,18 @@ using WriteProgress = std::function<void(std::size_t, std::size_t)>;
 // failure the temporary is removed and std::runtime_error names the path.
 void write_file_atomically(const std::string& path, std::span<const std::byte> bytes,
                            const WriteProgress& progress = {});
+
+/// A run of a file's bytes starting at `offset`.
+struct FilePiece {
+  std::uint64_t offset = 0;
+  std::span<const std::byte> bytes;
+};
+
+// As write_file_atomically, for a file of `size` bytes given as pieces in increasing offset
+// order, the gaps between them zeros: a blob goes to disk straight from its sections, never
+// concatenated in memory. Throws std::logic_error when pieces overlap or pass `size`.
+void write_pieces_atomically(const std::string& path, std::span<const FilePiece> pieces,
+                             std::uint64_t size, const WriteProgress& progress = {});
 
 // Copies `source` to `path` as write_file_atomically writes: into a temporary beside `path`,
 // sharing the source's extents (FICLONE: instant and no extra space on btrfs or XFS) where the
