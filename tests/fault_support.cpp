@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <stdexcept>
 
 namespace kiln::test {
@@ -45,6 +46,13 @@ void write_grid_ply(const std::string& path, int n, float height) {
 }
 
 namespace {
+
+// The whole file as text; "" for an empty or missing one (test::read_text passes a null pointer
+// to memcpy on an empty file, which UBSan reports).
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
 
 // Only async-signal-safe calls between fork and exec.
 [[noreturn]] void exec_kiln(std::vector<char*>& argv, const char* stderr_path,
@@ -88,7 +96,7 @@ CommandResult wait_kiln(pid_t pid, const std::string& stderr_path) {
   CommandResult result;
   if (WIFEXITED(status)) result.exit_code = WEXITSTATUS(status);
   if (WIFSIGNALED(status)) result.signal = WTERMSIG(status);
-  result.err = read_text(stderr_path);
+  result.err = slurp(stderr_path);
   return result;
 }
 
