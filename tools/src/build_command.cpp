@@ -3,6 +3,7 @@
 #include <sys/resource.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -131,6 +132,10 @@ BuildOptions build_options(const BuildArgs& args) {
 
 int run_build(const BuildArgs& args) {
   if (paths_clash(args)) return 2;
+  // Under a file size limit (`ulimit -f`) a write past it raises SIGXFSZ, whose default action
+  // kills kiln before it can remove its temporary or say why. Ignored, the write fails with
+  // EFBIG: one line naming the file, the temporary removed, the previous output untouched.
+  std::signal(SIGXFSZ, SIG_IGN);
   const auto start = std::chrono::steady_clock::now();
   BuildJobReport job;
   try {
