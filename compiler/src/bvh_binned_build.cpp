@@ -18,20 +18,25 @@ namespace kiln {
 
 namespace {
 
-constexpr std::uint32_t kMaxBins = 256;
 constexpr std::size_t kParallelSubtree = 16384;     // fork subtrees at least this large
 constexpr std::size_t kParallelBinning = 1u << 18;  // bin in chunks above this many references
 constexpr std::size_t kBinChunk = 1u << 16;
 
 using format::Box3f;
 
+/// k bins on each axis, axis-major. Sized per use (--bvh-bins may be up to 1024) and reused
+/// per thread: initialising a large fixed array per node would cost more than binning.
 struct Bins {
-  std::array<Box3f, kMaxBins> box[3];
-  std::array<std::uint32_t, kMaxBins> count[3]{};
-  void merge(const Bins& o, std::uint32_t k) {
-    for (int a = 0; a < 3; ++a)
-      for (std::uint32_t b = 0; b < k; ++b)
-        box[a][b].grow(o.box[a][b]), count[a][b] += o.count[a][b];
+  std::uint32_t k = 0;
+  std::vector<Box3f> box;
+  std::vector<std::uint32_t> count;
+  void reset(std::uint32_t bins) {
+    k = bins;
+    box.assign(3 * std::size_t(k), Box3f{});
+    count.assign(3 * std::size_t(k), 0);
+  }
+  void merge(const Bins& o) {
+    for (std::size_t i = 0; i < box.size(); ++i) box[i].grow(o.box[i]), count[i] += o.count[i];
   }
 };
 
@@ -64,15 +69,16 @@ void bin_range(std::span<const PrimRef> refs, const BinMap& map, Bins& bins) {
   for (const PrimRef& r : refs)
     for (int a = 0; a < 3; ++a) {
       const std::uint32_t b = map.bin(r, a);
-      bins.box[a][b].grow(r.box);
-      bins.count[a][b] += 1;
+      bins.box[a * map.k + b].grow(r.box);
+      bins.count[a * map.k + b] += 1;
     }
 }
 
 // Bins in fixed chunks merged in chunk order: the same bins on any thread count (box growth is
 // min/max, exact in any order; counts are integers).
-Bins bin_all(std::span<const PrimRef> refs, const BinMap& map, unsigned threads) {
-  Bins bins;
+const Bins& bin_all(std::span<const PrimRef> refs, const BinMap& map, unsigned threads) {
+  thread_local Bins bins;
+  bins.reset(map.k);
   if (refs.size() < kParallelBinning) {
     bin_range(refs, map, bins);
     return bins;
@@ -81,26 +87,31 @@ Bins bin_all(std::span<const PrimRef> refs, const BinMap& map, unsigned threads)
   std::vector<Bins> partial(chunks);
   parallel_for(chunks, threads, [&](std::size_t c) {
     const std::size_t begin = c * kBinChunk;
+    partial[c].reset(map.k);
     bin_range(refs.subspan(begin, std::min(kBinChunk, refs.size() - begin)), map, partial[c]);
   });
-  for (const Bins& p : partial) bins.merge(p, map.k);
+  for (const Bins& p : partial) bins.merge(p);
   return bins;
 }
 
 Split best_split(const Bins& bins, const BinMap& map, std::size_t n, float node_area,
                  const BvhBuildOptions& o) {
   Split best;
-  std::array<Box3f, kMaxBins> right_box;
+  thread_local std::vector<Box3f> right_box;
+  right_box.resize(map.k);
   for (int a = 0; a < 3; ++a) {
     if (!(map.scale[a] > 0.0f)) continue;
     Box3f acc;
-    for (std::uint32_t b = map.k; b-- > 1;) acc.grow(bins.box[a][b]), right_box[b] = acc;
+    for (std::uint32_t b = map.k; b-- > 1;) acc.grow(bins.box[a * map.k + b]), right_box[b] = acc;
     Box3f left;
     std::size_t left_count = 0;
     for (std::uint32_t b = 0; b + 1 < map.k; ++b) {
-      left.grow(bins.box[a][b]);
-      left_count += bins.count[a][b];
-      if (left_count == 0 || left_count == n) continue;
+      // After an empty bin the split is the previous one at the same cost, which the strict
+      // comparison below would not take: skip it (small nodes leave most bins empty).
+      if (bins.count[a * map.k + b] == 0) continue;
+      left.grow(bins.box[a * map.k + b]);
+      left_count += bins.count[a * map.k + b];
+      if (left_count == n) break;
       const float cost =
           o.traversal_cost + o.intersection_cost *
                                  (left.half_area() * float(left_count) +
@@ -112,21 +123,29 @@ Split best_split(const Bins& bins, const BinMap& map, std::size_t n, float node_
   return best;
 }
 
+format::Float3 centroid(const PrimRef& r) {
+  return {r.box.centroid(0), r.box.centroid(1), r.box.centroid(2)};
+}
+
 Box3f centroid_bounds(std::span<const PrimRef> refs) {
   Box3f c;
-  for (const PrimRef& r : refs)
-    c.grow(format::Float3{r.box.centroid(0), r.box.centroid(1), r.box.centroid(2)});
+  for (const PrimRef& r : refs) c.grow(centroid(r));
   return c;
 }
 
-// Hoare partition by the split's bin: deterministic, in place, no buffer. Returns the middle.
-std::size_t partition_refs(std::span<PrimRef> refs, const BinMap& map, const Split& s) {
+// Hoare partition by the split's bin: deterministic, in place, no buffer. Each reference is
+// looked at once where it settles, which also gives each side's centroid bounds (the children's
+// bin maps) without another pass. Returns the middle.
+std::size_t partition_refs(std::span<PrimRef> refs, const BinMap& map, const Split& s,
+                           Box3f& left_centroids, Box3f& right_centroids) {
   std::size_t i = 0, j = refs.size();
   while (true) {
-    while (i < j && map.bin(refs[i], s.axis) <= s.bin) ++i;
-    while (i < j && map.bin(refs[j - 1], s.axis) > s.bin) --j;
+    while (i < j && map.bin(refs[i], s.axis) <= s.bin) left_centroids.grow(centroid(refs[i++]));
+    while (i < j && map.bin(refs[j - 1], s.axis) > s.bin) right_centroids.grow(centroid(refs[--j]));
     if (i >= j) return i;
     std::swap(refs[i], refs[j - 1]);
+    left_centroids.grow(centroid(refs[i++]));
+    right_centroids.grow(centroid(refs[--j]));
   }
 }
 
@@ -141,7 +160,7 @@ format::BvhNode leaf_node(const Box3f& box, std::size_t begin, std::size_t count
 
 struct Task {
   std::size_t begin, end;
-  Box3f box;
+  Box3f box, centroids;  // the references' boxes and centroids
   std::uint32_t depth;
 };
 
@@ -159,9 +178,9 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
     return std::nullopt;
   }
   const std::span<PrimRef> refs = ctx.refs.subspan(t.begin, n);
-  const Box3f c = centroid_bounds(refs);
+  const Box3f& c = t.centroids;
   BinMap map{};
-  map.k = std::clamp<std::uint32_t>(o.bins, 2, kMaxBins);
+  map.k = std::max<std::uint32_t>(o.bins, 2);
   for (int a = 0; a < 3; ++a) {
     const float extent = format::at(c.max, a) - format::at(c.min, a);
     map.origin[a] = format::at(c.min, a);
@@ -173,17 +192,20 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
   if (s.axis < 0) {  // all centroids coincide (or a flat box): halve the list when too long
     if (n <= o.max_leaf_size) return std::nullopt;
     const std::size_t mid = t.begin + n / 2;
-    Box3f l, r;
-    for (std::size_t i = t.begin; i < mid; ++i) l.grow(ctx.refs[i].box);
-    for (std::size_t i = mid; i < t.end; ++i) r.grow(ctx.refs[i].box);
+    Box3f l, r, lc, rc;
+    for (std::size_t i = t.begin; i < mid; ++i)
+      l.grow(ctx.refs[i].box), lc.grow(centroid(ctx.refs[i]));
+    for (std::size_t i = mid; i < t.end; ++i)
+      r.grow(ctx.refs[i].box), rc.grow(centroid(ctx.refs[i]));
     axis = 0;
-    return std::pair{Task{t.begin, mid, l, t.depth + 1}, Task{mid, t.end, r, t.depth + 1}};
+    return std::pair{Task{t.begin, mid, l, lc, t.depth + 1}, Task{mid, t.end, r, rc, t.depth + 1}};
   }
   if (s.cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) return std::nullopt;
-  const std::size_t mid = t.begin + partition_refs(refs, map, s);
+  Box3f lc, rc;
+  const std::size_t mid = t.begin + partition_refs(refs, map, s, lc, rc);
   axis = s.axis;
-  return std::pair{Task{t.begin, mid, s.left_box, t.depth + 1},
-                   Task{mid, t.end, s.right_box, t.depth + 1}};
+  return std::pair{Task{t.begin, mid, s.left_box, lc, t.depth + 1},
+                   Task{mid, t.end, s.right_box, rc, t.depth + 1}};
 }
 
 // Appends `sub` (a subtree emitted on its own, indices from 0) to `nodes`, shifting its interior
@@ -235,7 +257,7 @@ std::vector<format::BvhNode> build_binned_nodes(std::vector<PrimRef>& refs,
   for (const PrimRef& r : refs) root.grow(r.box);
   const Context ctx{refs, options, fork_depth(options.threads)};
   std::vector<format::BvhNode> nodes;
-  emit(ctx, {0, refs.size(), root, 0}, nodes);
+  emit(ctx, {0, refs.size(), root, centroid_bounds(refs), 0}, nodes);
   return nodes;
 }
 
