@@ -96,8 +96,13 @@ TEST(ImportLimits, StreamedZstdBombStopsAtTheLimitWithinItsMemory) {
                         "--max-inflated-size)");
   });
   ASSERT_GT(peak, 0) << "the child was not refused with the expected line";
+#if defined(__SANITIZE_ADDRESS__)
+  // ASan's shadow memory and its quarantine of freed blocks make resident size meaningless.
+  GTEST_SKIP() << "peak memory not checked under AddressSanitizer (refusal checked)";
+#else
   // The test process's own footprint (parent's pages, the bomb) plus the 64 MiB limit.
   EXPECT_LT(peak, (std::int64_t{64} << 20) + (std::int64_t{160} << 20)) << peak;
+#endif
 }
 
 TEST(ImportLimits, ZstdFrameDeclaringTerabytesIsRefusedBeforeInflating) {
