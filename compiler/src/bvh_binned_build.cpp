@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "bvh_subtree.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -208,16 +209,6 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
                    Task{mid, t.end, s.right_box, rc, t.depth + 1}};
 }
 
-// Appends `sub` (a subtree emitted on its own, indices from 0) to `nodes`, shifting its interior
-// nodes' second-child indices; leaf offsets index the shared reference array and stay.
-void append_subtree(std::vector<format::BvhNode>& nodes, const std::vector<format::BvhNode>& sub) {
-  const auto shift = std::uint32_t(nodes.size());
-  for (format::BvhNode n : sub) {
-    if (n.count == 0) n.offset += shift;
-    nodes.push_back(n);
-  }
-}
-
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes) {
   const std::size_t index = nodes.size();
   nodes.push_back(leaf_node(t.box, t.begin, t.end - t.begin));
@@ -235,9 +226,9 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
     fork_join(
         true, [&] { emit(ctx, left, l); }, [&] { emit(ctx, right, r); });
     nodes.reserve(nodes.size() + l.size() + r.size());
-    append_subtree(nodes, l);
+    append_bvh_subtree(nodes, l);
     second = std::uint32_t(nodes.size());
-    append_subtree(nodes, r);
+    append_bvh_subtree(nodes, r);
   } else {
     emit(ctx, left, nodes);
     second = std::uint32_t(nodes.size());
