@@ -1,5 +1,7 @@
 #include "draco_extension_check.hpp"
 
+#include "draco_counts_check.hpp"
+
 #include <draco/compression/decode.h>
 
 #include <cstring>
@@ -132,6 +134,7 @@ void check_draco_extensions(const std::string& path, std::string_view text,
           std::uint64_t(n) > buffer_bytes.size() - std::uint64_t(o))
         fail("buffer view lies outside its buffer");
 
+      check_draco_counts(path, buffer_bytes.subspan(std::size_t(o), std::size_t(n)));
       draco::DecoderBuffer decoder_buffer;
       decoder_buffer.Init(reinterpret_cast<const char*>(buffer_bytes.data()) + o, std::size_t(n));
       draco::Decoder decoder;

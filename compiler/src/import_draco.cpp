@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "draco_counts_check.hpp"
 #include "import_draco_mesh.hpp"
 #include "kiln/compiler/import.hpp"
 #include "rgba8.hpp"
@@ -98,6 +99,7 @@ std::vector<ImportedMesh> import_draco(const std::string& path, std::span<const 
     throw ImportError(path + ": not a Draco bitstream: " + type.status().error_msg_string());
   if (type.value() != draco::TRIANGULAR_MESH)
     throw ImportError(path + ": Draco point cloud has no triangles");
+  check_draco_counts(path, bytes);
   draco::Decoder decoder;
   auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
   if (!decoded.ok()) throw ImportError(path + ": Draco: " + decoded.status().error_msg_string());
