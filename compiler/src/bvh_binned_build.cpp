@@ -215,29 +215,12 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
   int axis = 0;
   const auto children = split_task(ctx, t, axis);
   if (!children) return;
-  const Task left = children->first, right = children->second;  // (clang 14: no lambda
-                                                                // capture of bindings)
-  std::uint32_t second;
-  if (t.depth < ctx.parallel_depth && left.end - left.begin >= kParallelSubtree &&
-      right.end - right.begin >= kParallelSubtree) {
-    // Both halves are emitted apart and then appended in order: the same nodes whether or not
-    // the right one ran on its own thread.
-    std::vector<format::BvhNode> l, r;
-    fork_join(
-        true, [&] { emit(ctx, left, l); }, [&] { emit(ctx, right, r); });
-    nodes.reserve(nodes.size() + l.size() + r.size());
-    append_bvh_subtree(nodes, l);
-    second = std::uint32_t(nodes.size());
-    append_bvh_subtree(nodes, r);
-  } else {
-    emit(ctx, left, nodes);
-    second = std::uint32_t(nodes.size());
-    emit(ctx, right, nodes);
-  }
-  format::BvhNode& node = nodes[index];
-  node.offset = second;
-  node.count = 0;
-  node.axis = std::uint8_t(axis);
+  const auto& [left, right] = *children;
+  const bool fork = t.depth < ctx.parallel_depth && left.end - left.begin >= kParallelSubtree &&
+                    right.end - right.begin >= kParallelSubtree;
+  emit_bvh_children(fork, left, right, index, nodes,
+                    [&](const Task& child, auto& out) { emit(ctx, child, out); });
+  nodes[index].axis = std::uint8_t(axis);
 }
 
 }  // namespace

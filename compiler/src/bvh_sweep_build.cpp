@@ -106,29 +106,6 @@ std::uint32_t append_leaf(const Context& ctx, const Task& t, const Box3f& box,
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes);
 
-// Emits the two children after the node at `index`, forking near the root (both halves apart,
-// then appended in order: the same nodes either way), and links the node to its second child.
-void emit_children(const Context& ctx, const Task& left, const Task& right, std::size_t index,
-                   std::vector<format::BvhNode>& nodes) {
-  std::uint32_t second;
-  if (left.depth <= ctx.parallel_depth && left.end - left.begin >= kParallelSubtree &&
-      right.end - right.begin >= kParallelSubtree) {
-    std::vector<format::BvhNode> l, r;
-    fork_join(
-        true, [&] { emit(ctx, left, l); }, [&] { emit(ctx, right, r); });
-    nodes.reserve(nodes.size() + l.size() + r.size());
-    append_bvh_subtree(nodes, l);
-    second = std::uint32_t(nodes.size());
-    append_bvh_subtree(nodes, r);
-  } else {
-    emit(ctx, left, nodes);
-    second = std::uint32_t(nodes.size());
-    emit(ctx, right, nodes);
-  }
-  nodes[index].offset = second;
-  nodes[index].count = 0;
-}
-
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes) {
   const std::size_t n = t.end - t.begin;
   Box3f box;
@@ -158,8 +135,12 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
   const std::size_t index = append_leaf(ctx, t, box, nodes);  // made interior below
   nodes[index].axis = std::uint8_t(std::max(s.axis, 0));
   const int axis = s.axis >= 0 ? s.axis : t.order_axis;
-  emit_children(ctx, {t.begin, t.begin + left_count, axis, t.depth + 1},
-                {t.begin + left_count, t.end, axis, t.depth + 1}, index, nodes);
+  const Task left{t.begin, t.begin + left_count, axis, t.depth + 1};
+  const Task right{t.begin + left_count, t.end, axis, t.depth + 1};
+  const bool fork = t.depth < ctx.parallel_depth && left_count >= kParallelSubtree &&
+                    n - left_count >= kParallelSubtree;
+  emit_bvh_children(fork, left, right, index, nodes,
+                    [&](const Task& child, auto& out) { emit(ctx, child, out); });
 }
 
 }  // namespace
