@@ -324,7 +324,7 @@ TEST(StlImport, NonFiniteCoordinatesDropTheirTriangles) {
 }
 
 // UTF-16 text was transcoded before Assimp read it; it still is.
-TEST(StlImport, Utf16Ascii) {
+TEST(StlImport, Utf16AsciiIsTranscodedBinaryNever) {
   const std::string ascii =
       "solid wide\n" + facet("0 0 1", "0 0 0", "1 0 0", "0 1 0") + "endsolid\n";
   std::vector<std::byte> utf16{std::byte(0xFF), std::byte(0xFE)};
@@ -334,6 +334,11 @@ TEST(StlImport, Utf16Ascii) {
   const auto meshes = import_file(dir.file("wide.stl")).meshes;
   ASSERT_EQ(meshes.size(), 1u);
   EXPECT_EQ(meshes[0].name, "wide");
+  // A binary header may start like a UTF-16 BOM: the size decides first, and it stays binary
+  // (Kiln used to transcode it, and Assimp then refused the mangled bytes).
+  const auto binary = import_stl_bytes(
+      BinaryStl("\xff\xfe header").facet({0, 0, 1}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}).bytes());
+  EXPECT_EQ(binary.at(0).triangles.size(), 1u);
 }
 
 // ---------------------------------------------------------------------------------------------
