@@ -1,0 +1,210 @@
+// The wide BVH traversal, written once over a vector abstraction and compiled once per
+// instruction set by runtime/src/bvh_wide_kernel_<isa>.cpp. Not a header: each includer defines,
+// in an anonymous namespace and before including it,
+//   KILN_SIMD  the attributes of every function here (target instruction set, always_inline),
+//   F4, F8     float vectors of 4 and 8 lanes: T, load, set1, add, sub, mul, div, max, min
+//              (max(a, b) = a > b ? a : b and min(a, b) = a < b ? a : b, as x86 computes them, so
+//              NaN handling equals the scalar slab test's), and lt, gt, le, eq returning lane bits.
+// Everything here has internal linkage, so each instruction set's copy stays its own.
+//
+// The arithmetic per box and per triangle is that of ray_box.hpp and watertight.hpp, operation
+// for operation (no contraction: -ffp-contract=off and no FMA target), so every kernel computes
+// bit-identical distances and hits.
+
+template <int W>
+struct NodeVec;
+template <>
+struct NodeVec<4> {
+  using V = F4;
+};
+template <>
+struct NodeVec<8> {
+  using V = F8;
+};
+
+/// Per-ray constants of the box test, splatted.
+template <class V>
+struct BoxLanes {
+  typename V::T org[3], inv[3];
+  int near[3];  // bounds[axis][near] is the entry plane (1 = max for a negative direction)
+};
+
+template <class V>
+KILN_SIMD BoxLanes<V> box_lanes(const BoxRay& r) {
+  BoxLanes<V> b;
+  for (int a = 0; a < 3; ++a) {
+    b.org[a] = V::set1(r.org[a]);
+    b.inv[a] = V::set1(r.inv_dir[a]);
+    b.near[a] = r.negative[a];
+  }
+  return b;
+}
+
+// Entry distances of all W children into `dist`; returns the bits of the children entered.
+template <int W, class V>
+KILN_SIMD unsigned test_children(const format::BvhWideNode<W>& n, const BoxLanes<V>& r,
+                                 typename V::T tmin, typename V::T tmax, float* dist) {
+  const typename V::T far_scale = V::set1(kFarScale);
+  for (int a = 0; a < 3; ++a) {
+    const typename V::T lo = V::load(n.bounds[a][r.near[a]]);
+    const typename V::T hi = V::load(n.bounds[a][1 - r.near[a]]);
+    const typename V::T t0 = V::mul(V::sub(lo, r.org[a]), r.inv[a]);
+    const typename V::T t1 = V::mul(V::mul(V::sub(hi, r.org[a]), r.inv[a]), far_scale);
+    tmin = V::max(t0, tmin);
+    tmax = V::min(t1, tmax);
+  }
+  V::store(dist, tmin);
+  return V::le(tmin, tmax);
+}
+
+// The closest (or, kAny, the first) lane of a packet hit in (tmin, tmax); -1 when none.
+template <bool kAny>
+KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRay& r, float tmin,
+                          float tmax, float& t_out, float& u_out, float& v_out) {
+  using T = F4::T;
+  const T ox = F4::set1(r.org[r.kx]), oy = F4::set1(r.org[r.ky]), oz = F4::set1(r.org[r.kz]);
+  const T sx = F4::set1(r.sx), sy = F4::set1(r.sy), sz = F4::set1(r.sz);
+  T x[3], y[3], z[3];
+  for (int c = 0; c < 3; ++c) {
+    const T px = F4::sub(F4::load(p.v[c][r.kx]), ox), py = F4::sub(F4::load(p.v[c][r.ky]), oy);
+    z[c] = F4::sub(F4::load(p.v[c][r.kz]), oz);
+    x[c] = F4::sub(px, F4::mul(sx, z[c]));
+    y[c] = F4::sub(py, F4::mul(sy, z[c]));
+  }
+  const T u = F4::sub(F4::mul(x[2], y[1]), F4::mul(y[2], x[1]));
+  const T v = F4::sub(F4::mul(x[0], y[2]), F4::mul(y[0], x[2]));
+  const T w = F4::sub(F4::mul(x[1], y[0]), F4::mul(y[1], x[0]));
+  const T zero = F4::set1(0.0f);
+  // Lanes with an exact zero edge function take the scalar test (double re-evaluation).
+  const unsigned exact = F4::eq(u, zero) | F4::eq(v, zero) | F4::eq(w, zero);
+  const unsigned negative = F4::lt(u, zero) | F4::lt(v, zero) | F4::lt(w, zero);
+  const unsigned positive = F4::gt(u, zero) | F4::gt(v, zero) | F4::gt(w, zero);
+  const T det = F4::add(F4::add(u, v), w);
+  unsigned ok = ~(negative & positive) & ~F4::eq(det, zero) & ~exact & 0xFu;
+  const T t_scaled =
+      F4::add(F4::add(F4::mul(u, F4::mul(sz, z[0])), F4::mul(v, F4::mul(sz, z[1]))),
+              F4::mul(w, F4::mul(sz, z[2])));
+  const T t = F4::div(t_scaled, det);
+  ok &= F4::gt(t, F4::set1(tmin)) & F4::lt(t, F4::set1(tmax));
+  if ((ok | exact) == 0) return -1;
+  alignas(16) float ts[4], vs[4], ws[4], dets[4];
+  F4::store(ts, t), F4::store(vs, v), F4::store(ws, w), F4::store(dets, det);
+  int best = -1;
+  for (int lane = 0; lane < 4; ++lane) {
+    float lt, lu, lv;
+    if (exact >> lane & 1u) {
+      const format::Float3 a{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]};
+      const format::Float3 b{p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]};
+      const format::Float3 c{p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]};
+      if (!intersect_watertight(r, a, b, c, tmin, tmax, lt, lu, lv)) continue;
+    } else if (ok >> lane & 1u) {
+      if (!(ts[lane] < tmax)) continue;
+      lt = ts[lane], lu = vs[lane] / dets[lane], lv = ws[lane] / dets[lane];
+    } else {
+      continue;
+    }
+    // Lane order, strictly closer: the scalar BVH's order of triangle tests within a leaf.
+    tmax = lt, t_out = lt, u_out = lu, v_out = lv, best = lane;
+    if constexpr (kAny) return best;
+  }
+  return best;
+}
+
+/// A child to visit: its word, packet count and entry distance.
+struct WideEntry {
+  std::uint32_t word, packets;
+  float t;
+};
+
+// Float bits made to sort as unsigned integers (negative distances included).
+KILN_SIMD std::uint32_t sortable(float f) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &f, sizeof bits);
+  return bits ^ (std::uint32_t(std::int32_t(bits) >> 31) | 0x80000000u);
+}
+
+// Pushes the entered children of `n` (bits `mask`) so that the nearest is on top (kOrdered) or
+// in slot order otherwise; the caller pops the top one to continue with.
+template <int W, bool kOrdered>
+KILN_SIMD void push_children(const format::BvhWideNode<W>& n, unsigned mask, const float* dist,
+                             WideEntry* stack, std::uint32_t& top) {
+  if constexpr (kOrdered) {
+    std::uint64_t keys[W];
+    int count = 0;
+    for (; mask != 0; mask &= mask - 1) {
+      const int slot = __builtin_ctz(mask);
+      std::uint64_t key = std::uint64_t(sortable(dist[slot])) << 32 | std::uint32_t(slot);
+      int j = count++;
+      for (; j > 0 && keys[j - 1] < key; --j) keys[j] = keys[j - 1];  // farthest first
+      keys[j] = key;
+    }
+    for (int k = 0; k < count; ++k) {
+      const int slot = int(keys[k] & 0xFu);
+      stack[top++] = {n.child[slot], n.packets[slot], dist[slot]};
+    }
+  } else {
+    for (int slot = W - 1; slot >= 0; --slot)
+      if (mask >> slot & 1u) stack[top++] = {n.child[slot], n.packets[slot], dist[slot]};
+  }
+}
+
+/// The one traversal: kAny stops at the first hit and leaves children unordered.
+template <int W, bool kAny, bool kCount>
+KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost) {
+  using V = typename NodeVec<W>::V;
+  const auto* nodes = reinterpret_cast<const format::BvhWideNode<W>*>(view.node_bytes().data());
+  const format::BvhTrianglePacket* packets = view.packets().data();
+  const BoxLanes<V> box = box_lanes<V>(prepare_box_ray(ray));
+  const WatertightRay tri_ray = prepare_watertight(ray);
+  const typename V::T tmin = V::set1(ray.tmin);
+  Hit hit;
+  hit.t = ray.tmax;
+  std::uint32_t best_ref = kNoHit;
+  WideEntry stack[(W - 1) * format::kBvhMaxDepth + 1];
+  std::uint32_t top = 0;
+  stack[top++] = {0, 0, ray.tmin};
+  alignas(32) float dist[W];
+  while (top > 0) {
+    const WideEntry e = stack[--top];
+    if (e.t > hit.t) continue;  // a closer hit was found since it was pushed
+    if ((e.word & format::kBvhLeafFlag) == 0) {
+      const auto& n = nodes[e.word];
+      if constexpr (kCount) cost->nodes += 1;
+      const unsigned mask = test_children<W, V>(n, box, tmin, V::set1(hit.t), dist);
+      if (mask != 0) push_children<W, !kAny>(n, mask, dist, stack, top);
+      continue;
+    }
+    const std::uint32_t first = e.word & ~format::kBvhLeafFlag;
+    for (std::uint32_t p = first; p < first + e.packets; ++p) {
+      if constexpr (kCount) cost->tests += format::kBvhPacketSize;
+      const int lane = test_packet<kAny>(packets[p], tri_ray, ray.tmin, hit.t, hit.t, hit.u, hit.v);
+      if (lane < 0) continue;
+      best_ref = p * format::kBvhPacketSize + std::uint32_t(lane);
+      if constexpr (kAny) {
+        hit.prim = view.prim_ids()[best_ref];
+        return hit;
+      }
+    }
+  }
+  if (best_ref == kNoHit) return Hit{};
+  hit.prim = view.prim_ids()[best_ref];
+  return hit;
+}
+
+// The entry points carry the target attribute but are not always_inline (they are called
+// through the table).
+#define KILN_WIDE_KERNEL_TABLE(NAME)                                                          \
+  template <int W>                                                                            \
+  KILN_SIMD_ENTRY Hit NAME##_closest(const BvhWideView& v, const Ray& r) {                    \
+    return traverse_wide<W, false, false>(v, r, nullptr);                                     \
+  }                                                                                           \
+  template <int W>                                                                            \
+  KILN_SIMD_ENTRY Hit NAME##_any(const BvhWideView& v, const Ray& r) {                        \
+    return traverse_wide<W, true, false>(v, r, nullptr);                                      \
+  }                                                                                           \
+  template <int W>                                                                            \
+  KILN_SIMD_ENTRY Hit NAME##_counting(const BvhWideView& v, const Ray& r, Cost& c) {          \
+    return traverse_wide<W, false, true>(v, r, &c);                                           \
+  }                                                                                           \
+  const BvhWideKernel k##NAME##4{NAME##_closest<4>, NAME##_any<4>, NAME##_counting<4>};       \
+  const BvhWideKernel k##NAME##8{NAME##_closest<8>, NAME##_any<8>, NAME##_counting<8>};
