@@ -81,9 +81,8 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
   const unsigned positive = F4::gt(u, zero) | F4::gt(v, zero) | F4::gt(w, zero);
   const T det = F4::add(F4::add(u, v), w);
   unsigned ok = ~(negative & positive) & ~F4::eq(det, zero) & ~exact & 0xFu;
-  const T t_scaled =
-      F4::add(F4::add(F4::mul(u, F4::mul(sz, z[0])), F4::mul(v, F4::mul(sz, z[1]))),
-              F4::mul(w, F4::mul(sz, z[2])));
+  const T t_scaled = F4::add(F4::add(F4::mul(u, F4::mul(sz, z[0])), F4::mul(v, F4::mul(sz, z[1]))),
+                             F4::mul(w, F4::mul(sz, z[2])));
   const T t = F4::div(t_scaled, det);
   ok &= F4::gt(t, F4::set1(tmin)) & F4::lt(t, F4::set1(tmax));
   if ((ok | exact) == 0) return -1;
@@ -123,29 +122,46 @@ KILN_SIMD std::uint32_t sortable(float f) {
   return bits ^ (std::uint32_t(std::int32_t(bits) >> 31) | 0x80000000u);
 }
 
-// Pushes the entered children of `n` (bits `mask`) so that the nearest is on top (kOrdered) or
-// in slot order otherwise; the caller pops the top one to continue with.
+// Of the entered children of `n` (bits `mask`, at least one), returns the one to visit next and
+// pushes the others: kOrdered, nearest next and the rest farthest first (so nearer ones pop
+// first); otherwise the lowest slot next and the rest unordered.
 template <int W, bool kOrdered>
-KILN_SIMD void push_children(const format::BvhWideNode<W>& n, unsigned mask, const float* dist,
-                             WideEntry* stack, std::uint32_t& top) {
+KILN_SIMD WideEntry next_child(const format::BvhWideNode<W>& n, unsigned mask, const float* dist,
+                               WideEntry* stack, std::uint32_t& top) {
+  int slot = __builtin_ctz(mask);
+  mask &= mask - 1;
+  if (mask == 0) return {n.child[slot], n.packets[slot], dist[slot]};
   if constexpr (kOrdered) {
+    const int second = __builtin_ctz(mask);
+    mask &= mask - 1;
+    if (mask == 0) {  // two children, the common case: one compare
+      const int near = dist[second] < dist[slot] ? second : slot;
+      const int far = near == slot ? second : slot;
+      stack[top++] = {n.child[far], n.packets[far], dist[far]};
+      return {n.child[near], n.packets[near], dist[near]};
+    }
     std::uint64_t keys[W];
-    int count = 0;
-    for (; mask != 0; mask &= mask - 1) {
-      const int slot = __builtin_ctz(mask);
-      std::uint64_t key = std::uint64_t(sortable(dist[slot])) << 32 | std::uint32_t(slot);
+    keys[0] = std::uint64_t(sortable(dist[slot])) << 32 | std::uint32_t(slot);
+    int count = 1;
+    for (mask |= 1u << second; mask != 0; mask &= mask - 1) {
+      const int s = __builtin_ctz(mask);
+      const std::uint64_t key = std::uint64_t(sortable(dist[s])) << 32 | std::uint32_t(s);
       int j = count++;
       for (; j > 0 && keys[j - 1] < key; --j) keys[j] = keys[j - 1];  // farthest first
       keys[j] = key;
     }
-    for (int k = 0; k < count; ++k) {
-      const int slot = int(keys[k] & 0xFu);
-      stack[top++] = {n.child[slot], n.packets[slot], dist[slot]};
+    for (int k = 0; k < count - 1; ++k) {
+      const int s = int(keys[k] & 0xFu);
+      stack[top++] = {n.child[s], n.packets[s], dist[s]};
     }
+    slot = int(keys[count - 1] & 0xFu);
   } else {
-    for (int slot = W - 1; slot >= 0; --slot)
-      if (mask >> slot & 1u) stack[top++] = {n.child[slot], n.packets[slot], dist[slot]};
+    for (; mask != 0; mask &= mask - 1) {
+      const int s = __builtin_ctz(mask);
+      stack[top++] = {n.child[s], n.packets[s], dist[s]};
+    }
   }
+  return {n.child[slot], n.packets[slot], dist[slot]};
 }
 
 /// The one traversal: kAny stops at the first hit and leaves children unordered.
@@ -162,49 +178,56 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
   std::uint32_t best_ref = kNoHit;
   WideEntry stack[(W - 1) * format::kBvhMaxDepth + 1];
   std::uint32_t top = 0;
-  stack[top++] = {0, 0, ray.tmin};
   alignas(32) float dist[W];
-  while (top > 0) {
-    const WideEntry e = stack[--top];
-    if (e.t > hit.t) continue;  // a closer hit was found since it was pushed
-    if ((e.word & format::kBvhLeafFlag) == 0) {
+  WideEntry e{0, 0, ray.tmin};
+  for (;;) {
+    while ((e.word & format::kBvhLeafFlag) == 0) {
       const auto& n = nodes[e.word];
       if constexpr (kCount) cost->nodes += 1;
       const unsigned mask = test_children<W, V>(n, box, tmin, V::set1(hit.t), dist);
-      if (mask != 0) push_children<W, !kAny>(n, mask, dist, stack, top);
-      continue;
+      if (mask == 0) goto pop;
+      e = next_child<W, !kAny>(n, mask, dist, stack, top);
     }
-    const std::uint32_t first = e.word & ~format::kBvhLeafFlag;
-    for (std::uint32_t p = first; p < first + e.packets; ++p) {
-      if constexpr (kCount) cost->tests += format::kBvhPacketSize;
-      const int lane = test_packet<kAny>(packets[p], tri_ray, ray.tmin, hit.t, hit.t, hit.u, hit.v);
-      if (lane < 0) continue;
-      best_ref = p * format::kBvhPacketSize + std::uint32_t(lane);
-      if constexpr (kAny) {
+    {
+      const std::uint32_t first = e.word & ~format::kBvhLeafFlag;
+      for (std::uint32_t p = first; p < first + e.packets; ++p) {
+        if constexpr (kCount) cost->tests += format::kBvhPacketSize;
+        const int lane =
+            test_packet<kAny>(packets[p], tri_ray, ray.tmin, hit.t, hit.t, hit.u, hit.v);
+        if (lane < 0) continue;
+        best_ref = p * format::kBvhPacketSize + std::uint32_t(lane);
+        if constexpr (kAny) {
+          hit.prim = view.prim_ids()[best_ref];
+          return hit;
+        }
+      }
+    }
+  pop:  // the next subtree that can still hold a closer hit
+    do {
+      if (top == 0) {
+        if (best_ref == kNoHit) return Hit{};
         hit.prim = view.prim_ids()[best_ref];
         return hit;
       }
-    }
+      e = stack[--top];
+    } while (e.t > hit.t);
   }
-  if (best_ref == kNoHit) return Hit{};
-  hit.prim = view.prim_ids()[best_ref];
-  return hit;
 }
 
 // The entry points carry the target attribute but are not always_inline (they are called
 // through the table).
-#define KILN_WIDE_KERNEL_TABLE(NAME)                                                          \
-  template <int W>                                                                            \
-  KILN_SIMD_ENTRY Hit NAME##_closest(const BvhWideView& v, const Ray& r) {                    \
-    return traverse_wide<W, false, false>(v, r, nullptr);                                     \
-  }                                                                                           \
-  template <int W>                                                                            \
-  KILN_SIMD_ENTRY Hit NAME##_any(const BvhWideView& v, const Ray& r) {                        \
-    return traverse_wide<W, true, false>(v, r, nullptr);                                      \
-  }                                                                                           \
-  template <int W>                                                                            \
-  KILN_SIMD_ENTRY Hit NAME##_counting(const BvhWideView& v, const Ray& r, Cost& c) {          \
-    return traverse_wide<W, false, true>(v, r, &c);                                           \
-  }                                                                                           \
-  const BvhWideKernel k##NAME##4{NAME##_closest<4>, NAME##_any<4>, NAME##_counting<4>};       \
-  const BvhWideKernel k##NAME##8{NAME##_closest<8>, NAME##_any<8>, NAME##_counting<8>};
+#define KILN_WIDE_KERNEL_TABLE(NAME)                                                     \
+  template <int W>                                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_closest(const BvhWideView& v, const Ray& r) {               \
+    return traverse_wide<W, false, false>(v, r, nullptr);                                \
+  }                                                                                      \
+  template <int W>                                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_any(const BvhWideView& v, const Ray& r) {                   \
+    return traverse_wide<W, true, false>(v, r, nullptr);                                 \
+  }                                                                                      \
+  template <int W>                                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_counting(const BvhWideView& v, const Ray& r, Cost& c) {     \
+    return traverse_wide<W, false, true>(v, r, &c);                                      \
+  }                                                                                      \
+  const BvhWideKernel k##NAME##4 {NAME##_closest<4>, NAME##_any<4>, NAME##_counting<4>}; \
+  const BvhWideKernel k##NAME##8 {NAME##_closest<8>, NAME##_any<8>, NAME##_counting<8>};
