@@ -79,8 +79,10 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
   const unsigned exact = F4::eq(u, zero) | F4::eq(v, zero) | F4::eq(w, zero);
   const unsigned negative = F4::lt(u, zero) | F4::lt(v, zero) | F4::lt(w, zero);
   const unsigned positive = F4::gt(u, zero) | F4::gt(v, zero) | F4::gt(w, zero);
+  unsigned ok = ~(negative & positive) & ~exact & 0xFu;
+  if ((ok | exact) == 0) return -1;  // most packets: every lane outside an edge, no division
   const T det = F4::add(F4::add(u, v), w);
-  unsigned ok = ~(negative & positive) & ~F4::eq(det, zero) & ~exact & 0xFu;
+  ok &= ~F4::eq(det, zero);
   const T t_scaled = F4::add(F4::add(F4::mul(u, F4::mul(sz, z[0])), F4::mul(v, F4::mul(sz, z[1]))),
                              F4::mul(w, F4::mul(sz, z[2])));
   const T t = F4::div(t_scaled, det);
