@@ -786,6 +786,7 @@ struct Contestant {
   std::string name;
   double bytes_per_triangle = kNaN;
   std::function<void(const std::vector<kiln::Ray>&, std::vector<kiln::Hit>&, bool, bool)> trace;
+  std::function<kiln::Cost(const kiln::Ray&)> cost;  // Kiln: node visits and triangle tests
 };
 
 // Kiln's layouts, kept alive for the views the contestants hold.
@@ -804,6 +805,11 @@ Contestant kiln_contestant(std::string name, View view, double bytes_per_triangl
             } else {
               trace_kiln_single(view, rays, hits, any_hit);
             }
+          },
+          [view](const kiln::Ray& ray) {
+            kiln::Cost cost;
+            view.intersect_counting(ray, cost);
+            return cost;
           }};
 }
 
@@ -925,6 +931,22 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
       for (int t : {0, 1})
         std::printf(" %s |", format("%.2f", double(rays) / median(times[k][t][c]) * 1e-6).c_str());
     std::printf("\n");
+  }
+  std::printf(
+      "\nWork per closest-hit diffuse ray (untimed): node visits + triangle tests (wide: "
+      "tests = 4 per packet):\n\n");
+  const auto& diffuse = g_meshes.empty()
+                            ? std::vector<kiln::Ray>{}
+                            : const_cast<MeshCase&>(mesh).rays[kiln::RayKind::kDiffuse];
+  for (const auto& c : contestants) {
+    if (!c.cost || c.name.find("scalar") != std::string::npos) continue;
+    double nodes = 0, tests = 0;
+    for (const auto& ray : diffuse) {
+      const kiln::Cost k = c.cost(ray);
+      nodes += k.nodes, tests += k.tests;
+    }
+    const double n = double(std::max<std::size_t>(diffuse.size(), 1));
+    std::printf("- %s: %.1f nodes, %.1f tests\n", c.name.c_str(), nodes / n, tests / n);
   }
   auto find = [&](const std::string& name) {
     for (std::size_t c = 0; c < contestants.size(); ++c)
