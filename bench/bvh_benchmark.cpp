@@ -821,10 +821,12 @@ void add_kiln_contestants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Cont
     out.push_back(kiln_contestant(b + " w2",
                                   kiln::BvhView(flat.nodes, flat.triangles, flat.prim_ids),
                                   flat.stats.bytes_per_triangle));
-    for (const std::uint32_t width : {4u, 8u}) {
-      const std::string key = b + " w" + std::to_string(width);
+    for (const auto& [width, quantized] :
+         {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
+      const std::string key = b + " w" + std::to_string(width) + (quantized ? "q" : "");
       const auto& w =
-          layouts.wide.emplace(key, kiln::collapse_bvh(flat, width, triangles)).first->second;
+          layouts.wide.emplace(key, kiln::collapse_bvh(flat, width, triangles, quantized))
+              .first->second;
       auto& nodes =
           layouts.nodes.emplace(key, kiln::AlignedBuffer(w.nodes.size(), 64)).first->second;
       std::memcpy(nodes.data(), w.nodes.data(), w.nodes.size());
@@ -832,12 +834,12 @@ void add_kiln_contestants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Cont
                                 kiln::BvhKernel::kAvx2, kiln::BvhKernel::kAvx512}) {
         if (!kiln::bvh_kernel_supported(kernel)) continue;
         // Every kernel on the SBVH's 8-wide layout; the others with the default kernel.
-        const bool all_kernels = builder == kiln::BvhBuilder::kSpatial && width == 8;
+        const bool all_kernels = builder == kiln::BvhBuilder::kSpatial && width == 8 && !quantized;
         if (!all_kernels && kernel != kiln::bvh_auto_kernel()) continue;
-        out.push_back(kiln_contestant(
-            key + " " + kiln::bvh_kernel_name(kernel),
-            kiln::BvhWideView(width, nodes.bytes(), w.packets, w.prim_ids, key, kernel),
-            w.stats.bytes_per_triangle));
+        out.push_back(kiln_contestant(key + " " + kiln::bvh_kernel_name(kernel),
+                                      kiln::BvhWideView(width, w.quantized, nodes.bytes(),
+                                                        w.packets, w.prim_ids, key, kernel),
+                                      w.stats.bytes_per_triangle));
       }
     }
   }
@@ -960,7 +962,7 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
       "%uT |\n",
       hardware_threads(), hardware_threads(), hardware_threads());
   std::printf("|---|---|---:|---:|---:|---:|---:|---:|\n");
-  for (const char* kiln_name : {"sbvh w8", "bvh w8", "sbvh w4", "sbvh w2"})
+  for (const char* kiln_name : {"sbvh w8", "sbvh w8q", "bvh w8", "bvh w8q", "sbvh w4", "sbvh w2"})
     for (const char* embree_name : {"embree medium", "embree high", "embree high robust"}) {
       std::string name = kiln_name;
       if (name.back() != '2') name += " " + auto_kernel;

@@ -30,32 +30,35 @@ constexpr BvhKernel kKernels[] = {BvhKernel::kScalar, BvhKernel::kSse, BvhKernel
                                   BvhKernel::kAvx512};
 constexpr BvhBuilder kBuilders[] = {BvhBuilder::kBinned, BvhBuilder::kSpatial};
 
-FlatWideBvh wide_of(const Scene& scene, BvhBuilder builder, std::uint32_t width) {
+FlatWideBvh wide_of(const Scene& scene, BvhBuilder builder, std::uint32_t width,
+                    bool quantized = false) {
   BvhBuildOptions o;
   o.builder = builder;
-  return collapse_bvh(build_bvh(scene, o), width, scene.triangles.size());
+  return collapse_bvh(build_bvh(scene, o), width, scene.triangles.size(), quantized);
 }
 
 BvhWideView view_of(const FlatWideBvh& w, BvhKernel kernel) {
-  return BvhWideView(w.width, w.nodes, w.packets, w.prim_ids, "test", kernel);
+  return BvhWideView(w.width, w.quantized, w.nodes, w.packets, w.prim_ids, "test", kernel);
 }
 
-// Runs `check(view)` for each width, builder and kernel this CPU has (saying which it skips).
+// Runs `check(view)` for each width, box encoding, builder and kernel this CPU has (saying
+// which it skips).
 template <class Check>
 void for_each_layout(const Scene& scene, Check&& check) {
   for (const std::uint32_t width : {4u, 8u})
-    for (const BvhBuilder builder : kBuilders) {
-      const FlatWideBvh wide = wide_of(scene, builder, width);
-      for (const BvhKernel kernel : kKernels) {
-        if (!bvh_kernel_supported(kernel)) {
-          std::printf("skipped: this CPU cannot run the %s kernel\n", bvh_kernel_name(kernel));
-          continue;
+    for (const bool quantized : {false, true})
+      for (const BvhBuilder builder : kBuilders) {
+        const FlatWideBvh wide = wide_of(scene, builder, width, quantized);
+        for (const BvhKernel kernel : kKernels) {
+          if (!bvh_kernel_supported(kernel)) {
+            std::printf("skipped: this CPU cannot run the %s kernel\n", bvh_kernel_name(kernel));
+            continue;
+          }
+          SCOPED_TRACE(std::to_string(width) + "-wide " + (quantized ? "u8 " : "float ") +
+                       bvh_builder_name(builder) + " " + bvh_kernel_name(kernel));
+          check(view_of(wide, kernel));
         }
-        SCOPED_TRACE(std::to_string(width) + "-wide " + bvh_builder_name(builder) + " " +
-                     bvh_kernel_name(kernel));
-        check(view_of(wide, kernel));
       }
-    }
 }
 
 TEST(WideBvh, EveryKernelAgreesWithBruteForceOnGeneratedWorstCases) {
@@ -112,12 +115,36 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
                std::invalid_argument);
 }
 
+// Every quantised child box contains the float box it encodes.
+TEST(WideBvh, QuantizedBoxesContainTheFloatBoxes) {
+  const Scene scene = test::icosphere(4);
+  for (const BvhBuilder builder : kBuilders) {
+    const FlatWideBvh exact = wide_of(scene, builder, 8), q = wide_of(scene, builder, 8, true);
+    ASSERT_EQ(exact.nodes.size(), 2 * q.nodes.size());
+    const auto* a = reinterpret_cast<const format::BvhNode8*>(exact.nodes.data());
+    const auto* b = reinterpret_cast<const format::BvhQNode8*>(q.nodes.data());
+    for (std::size_t i = 0; i < q.nodes.size() / sizeof(format::BvhQNode8); ++i)
+      for (int k = 0; k < 8; ++k) {
+        EXPECT_EQ(a[i].child[k], b[i].child[k]);
+        if (a[i].child[k] == format::kBvhLeafFlag && a[i].packets[k] == 0) continue;
+        float lo[3], hi[3], qlo[3], qhi[3];
+        format::bvh_child_box(a[i], k, lo, hi);
+        format::bvh_child_box(b[i], k, qlo, qhi);
+        for (int axis = 0; axis < 3; ++axis) {
+          EXPECT_LE(qlo[axis], lo[axis]);
+          EXPECT_GE(qhi[axis], hi[axis]);
+        }
+      }
+  }
+}
+
 TEST(WideBvh, ProximityQueriesEqualTheBinaryBvh) {
   const Scene scene = test::icosphere(3);
   const FlatBvh flat = build_bvh(scene, {});
   const BvhView binary(flat.nodes, flat.triangles, flat.prim_ids);
-  for (const std::uint32_t width : {4u, 8u}) {
-    const FlatWideBvh wide = collapse_bvh(flat, width, scene.triangles.size());
+  for (const auto& [width, quantized] :
+       {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
+    const FlatWideBvh wide = collapse_bvh(flat, width, scene.triangles.size(), quantized);
     const BvhWideView view = view_of(wide, BvhKernel::kScalar);
     for (const Ray& r : test::box_rays(scene, 200)) {
       const ClosestPoint a = closest_point(binary, r.org), b = closest_point(view, r.org);

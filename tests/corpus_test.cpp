@@ -190,7 +190,8 @@ TEST_P(CorpusTest, WideKernelsTraceLikeTheBinaryBvh) {
   KILN_REQUIRE_CORPUS();
   const Scene scene = import_scene({test::mesh_path(GetParam().path)}, 2);
   const AlignedBuffer aligned =
-      compile_with(scene, {"bvh:width=2,name=b2", "bvh:width=4,name=b4", "sbvh:width=8,name=s8"});
+      compile_with(scene, {"bvh:width=2,name=b2", "bvh:width=4,name=b4", "sbvh:width=8,name=s8",
+                           "bvh:width=8,boxes=u8,name=q8", "sbvh:width=4,boxes=u8,name=q4"});
   const Blob blob = Blob::open_memory(aligned.bytes());
   ASSERT_NO_THROW(blob.verify());
   const BvhView binary = BvhView::from_blob(blob, "b2");
@@ -200,7 +201,7 @@ TEST_P(CorpusTest, WideKernelsTraceLikeTheBinaryBvh) {
         generate_rays({binary, blob.positions(), blob.triangles(), lo, hi}, kind, 1500, 5, 2);
     std::vector<Hit> expected(rays.size()), reference(rays.size());
     trace_rays(binary, rays, expected, false, 2);
-    for (const char* name : {"b4", "s8"}) {
+    for (const char* name : {"b4", "s8", "q8", "q4"}) {
       trace_rays(BvhWideView::from_blob(blob, name, BvhKernel::kScalar), rays, reference, false, 2);
       std::size_t disagreements = 0;
       for (std::size_t i = 0; i < rays.size(); ++i) {

@@ -48,6 +48,12 @@ const char* const kRayStructures[] = {
     "sbvh@sse",
     "sbvh@avx2",
     "sbvh@avx512",
+    "bvh:boxes=u8",
+    "sbvh:width=4,boxes=u8",
+    "bvh:boxes=u8@scalar",
+    "bvh:boxes=u8@sse",
+    "bvh:width=4,boxes=u8@avx2",
+    "bvh:boxes=u8@avx512",
 };
 const char* const kPointStructures[] = {
     "points",

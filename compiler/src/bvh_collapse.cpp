@@ -2,6 +2,7 @@
 #include "kiln/compiler/bvh_collapse.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -16,6 +17,58 @@ namespace {
 float half_area(const format::BvhNode& n) {
   const float dx = n.max[0] - n.min[0], dy = n.max[1] - n.min[1], dz = n.max[2] - n.min[2];
   return dx * dy + dy * dz + dz * dx;
+}
+
+// One axis of a quantised node: origin and exponent such that origin + 255 x 2^e reaches every
+// child's max, then per child the largest byte whose plane is <= min and the smallest whose plane
+// is >= max, checked with the traversal's own float arithmetic.
+template <int W>
+void quantize_axis(const format::BvhWideNode<W>& in, int a, format::BvhQuantizedNode<W>& out) {
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  for (int k = 0; k < W; ++k)
+    if (in.bounds[a][0][k] <= in.bounds[a][1][k])
+      lo = std::min(lo, in.bounds[a][0][k]), hi = std::max(hi, in.bounds[a][1][k]);
+  const double extent = double(hi) - double(lo);
+  int e = extent > 0 ? std::max(-126, int(std::ceil(std::log2(extent / 255.0)))) : -126;
+  auto plane = [&](int q) { return lo + float(q) * format::bvh_quantized_scale(std::int8_t(e)); };
+  while (e < 127 && plane(255) < hi) ++e;
+  if (!(plane(255) >= hi)) throw std::invalid_argument("BVH coordinates too large to quantise");
+  out.origin[a] = lo;
+  out.exponent[a] = std::int8_t(e);
+  const double scale = std::ldexp(1.0, e);
+  for (int k = 0; k < W; ++k) {
+    if (!(in.bounds[a][0][k] <= in.bounds[a][1][k])) {  // empty slot: inverted
+      out.q[a][0][k] = 255, out.q[a][1][k] = 0;
+      continue;
+    }
+    int qlo = int(std::clamp(std::floor((double(in.bounds[a][0][k]) - lo) / scale), 0.0, 255.0));
+    int qhi = int(std::clamp(std::ceil((double(in.bounds[a][1][k]) - lo) / scale), 0.0, 255.0));
+    while (qlo > 0 && plane(qlo) > in.bounds[a][0][k]) --qlo;
+    while (qhi < 255 && plane(qhi) < in.bounds[a][1][k]) ++qhi;
+    out.q[a][0][k] = std::uint8_t(qlo), out.q[a][1][k] = std::uint8_t(qhi);
+  }
+}
+
+template <int W>
+format::BvhQuantizedNode<W> quantize(const format::BvhWideNode<W>& in) {
+  format::BvhQuantizedNode<W> out{};
+  for (int a = 0; a < 3; ++a) quantize_axis(in, a, out);
+  for (int k = 0; k < W; ++k) out.child[k] = in.child[k], out.packets[k] = in.packets[k];
+  return out;
+}
+
+// Rewrites the float nodes as quantised ones, in place order.
+template <int W>
+std::vector<std::byte> quantize_all(const std::vector<std::byte>& nodes) {
+  const std::size_t count = nodes.size() / sizeof(format::BvhWideNode<W>);
+  std::vector<std::byte> out(count * sizeof(format::BvhQuantizedNode<W>));
+  for (std::size_t i = 0; i < count; ++i) {
+    format::BvhWideNode<W> node;
+    std::memcpy(&node, nodes.data() + i * sizeof node, sizeof node);
+    const format::BvhQuantizedNode<W> q = quantize(node);
+    std::memcpy(out.data() + i * sizeof q, &q, sizeof q);
+  }
+  return out;
 }
 
 template <int W>
@@ -115,9 +168,11 @@ struct Collapser {
 
 }  // namespace
 
-FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count) {
+FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
+                         bool quantized) {
   FlatWideBvh out;
   out.width = width;
+  out.quantized = quantized;
   if (width == 4)
     Collapser<4>(binary, out).emit(0, 1);
   else if (width == 8)
@@ -127,6 +182,7 @@ FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t
   auto& s = out.stats;
   const std::size_t node_size = width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
   s.node_count = out.nodes.size() / node_size;
+  if (quantized) out.nodes = width == 4 ? quantize_all<4>(out.nodes) : quantize_all<8>(out.nodes);
   s.packet_count = out.packets.size();
   s.packet_fill = s.packet_count ? double(binary.prim_ids.size()) /
                                        double(s.packet_count * format::kBvhPacketSize)

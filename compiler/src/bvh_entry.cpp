@@ -34,6 +34,10 @@ std::vector<StructureOption> common_options() {
        parse_float_in(0.001, 1000)},
       {"width", "--bvh-width", "8", "Children per node: 8 (fastest here), 4, or 2 (binary)", false,
        parse_one_of({"2", "4", "8"})},
+      {"boxes", "--bvh-boxes", "float",
+       "Wide child boxes: float (fastest here), or u8 (8 bits per plane relative to the node: "
+       "half the node bytes)",
+       false, parse_one_of({"float", "u8"})},
   };
 }
 
@@ -62,6 +66,7 @@ BvhBuildOptions common_options_of(const StructureRequest& request, unsigned thre
   o.traversal_cost = request.float_option("traversal-cost");
   o.intersection_cost = request.float_option("intersection-cost");
   o.width = request.uint_option("width");
+  o.quantized = request.text_option("boxes") == "u8";
   o.threads = threads;
   return o;
 }
@@ -100,9 +105,11 @@ BuiltStructure binary_structure(std::shared_ptr<FlatBvh> flat, const BvhBuildOpt
 // The wide layout: BVWN, BVWT, BVHP (one id per packet lane).
 BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o,
                               std::size_t triangle_count) {
-  auto wide = std::make_shared<FlatWideBvh>(collapse_bvh(flat, o.width, triangle_count));
+  auto wide =
+      std::make_shared<FlatWideBvh>(collapse_bvh(flat, o.width, triangle_count, o.quantized));
   BuiltStructure built;
-  SectionPayload nodes = raw_section(format::kSectionBvhWideNodes, wide->nodes);
+  SectionPayload nodes = raw_section(
+      o.quantized ? format::kSectionBvhQuantizedNodes : format::kSectionBvhWideNodes, wide->nodes);
   nodes.element_size = std::uint32_t(wide->nodes.size() / wide->stats.node_count);
   nodes.element_count = wide->stats.node_count;
   built.sections = {nodes, raw_section(format::kSectionBvhPackets, wide->packets),
@@ -117,12 +124,15 @@ BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o,
         o.max_leaf_size, o.sbvh_alpha, o.sbvh_max_duplication, kAbsent, kAbsent, index[2],
         s.node_count, s.leaf_count, s.reference_count, s.max_depth, s.max_leaf_size,
         s.average_leaf_size, s.duplication_factor, s.sah_cost, w.bytes_per_triangle, o.width,
-        index[0], index[1], w.node_count, w.leaf_count, w.packet_count, w.max_depth, w.packet_fill);
+        index[0], index[1], w.node_count, w.leaf_count, w.packet_count, w.max_depth, w.packet_fill,
+        o.quantized);
     return std::pair{std::uint8_t(schema::StructureDesc::BvhDesc), desc.o};
   };
-  built.summary = summary_of(s, w.bytes_per_triangle) +
-                  printf_like(", %u-wide: %llu nodes, %.0f%% packet fill", o.width,
-                              (unsigned long long)w.node_count, 100.0 * w.packet_fill);
+  built.summary =
+      summary_of(s, w.bytes_per_triangle) +
+      printf_like(o.quantized ? ", %u-wide (8-bit boxes): %llu nodes, %.0f%% packet fill"
+                              : ", %u-wide: %llu nodes, %.0f%% packet fill",
+                  o.width, (unsigned long long)w.node_count, 100.0 * w.packet_fill);
   built.storage = std::move(wide);
   return built;
 }

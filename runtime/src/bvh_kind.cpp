@@ -1,6 +1,7 @@
 // The BVH kinds of the runtime registry: "bvh" (binned or sweep SAH builder) and "sbvh" (spatial
 // splits), one BvhDesc and two layouts: binary (width 2, BvhView) and wide (width 4 or 8,
 // BvhWideView). Their manifest checks, view, deep check and description.
+#include <cmath>
 #include <cstring>
 #include <memory>
 #include <string>
@@ -18,15 +19,18 @@ namespace kiln {
 
 namespace {
 
-constexpr std::uint32_t kSections[] = {format::kSectionBvhNodes, format::kSectionBvhTriangles,
-                                       format::kSectionBvhPrimIds, format::kSectionBvhWideNodes,
-                                       format::kSectionBvhPackets};
+constexpr std::uint32_t kSections[] = {
+    format::kSectionBvhNodes,     format::kSectionBvhTriangles, format::kSectionBvhPrimIds,
+    format::kSectionBvhWideNodes, format::kSectionBvhPackets,   format::kSectionBvhQuantizedNodes};
 
 void check_wide(const Blob& blob, const schema::BvhDesc& d, const std::string& where) {
+  const bool q = d.quantized();
   const std::uint32_t node_size =
-      d.width() == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
-  blob.check_section(where + "wide nodes", d.wide_nodes(), format::kSectionBvhWideNodes, node_size,
-                     d.wide_node_count(), false);
+      q ? (d.width() == 4 ? sizeof(format::BvhQNode4) : sizeof(format::BvhQNode8))
+        : (d.width() == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8));
+  blob.check_section(where + "wide nodes", d.wide_nodes(),
+                     q ? format::kSectionBvhQuantizedNodes : format::kSectionBvhWideNodes,
+                     node_size, d.wide_node_count(), false);
   blob.check_section(where + "packets", d.packets(), format::kSectionBvhPackets,
                      sizeof(format::BvhTrianglePacket), d.packet_count(), false);
   blob.check_section(where + "primitive ids", d.prim_ids(), format::kSectionBvhPrimIds,
@@ -82,18 +86,33 @@ void check_reference(const Blob& blob, const schema::BvhDesc& d, const std::stri
 }
 
 // Child boxes inside the box their parent slot gave them (the root's children are unchecked).
+// How far a child node's boxes may reach past its parent's slot box: none for float boxes; for
+// quantised ones, one quantisation step of the child plus rounding (each plane is rounded
+// outwards to the child's own grid, not clipped to the parent's).
 template <int W>
+float slack(const format::BvhWideNode<W>&, int, float) {
+  return 0.0f;
+}
+template <int W>
+float slack(const format::BvhQuantizedNode<W>& n, int axis, float at) {
+  return format::bvh_quantized_scale(n.exponent[axis]) + std::fabs(at) * 0x1p-21f;
+}
+
+template <int W, class Node>
 void verify_wide_nodes(const Blob& blob, const schema::BvhDesc& d, const std::string& name,
-                       std::span<const format::BvhWideNode<W>> nodes) {
+                       std::span<const Node> nodes) {
   for (std::size_t i = 0; i < nodes.size(); ++i)
     for (int k = 0; k < W; ++k) {
       if (nodes[i].child[k] & format::kBvhLeafFlag) continue;
+      float lo[3], hi[3];
+      format::bvh_child_box(nodes[i], k, lo, hi);
       const auto& c = nodes[nodes[i].child[k]];
       for (int j = 0; j < W; ++j) {
         if (c.child[j] == format::kBvhLeafFlag && c.packets[j] == 0) continue;  // empty slot
+        float clo[3], chi[3];
+        format::bvh_child_box(c, j, clo, chi);
         for (int a = 0; a < 3; ++a)
-          if (!(nodes[i].bounds[a][0][k] <= c.bounds[a][0][j] &&
-                c.bounds[a][1][j] <= nodes[i].bounds[a][1][k]))
+          if (!(lo[a] - slack(c, a, lo[a]) <= clo[a] && chi[a] <= hi[a] + slack(c, a, hi[a])))
             blob.fail_section(d.wide_nodes(), name + " node " + std::to_string(i) +
                                                   " does not contain its children");
       }
@@ -103,10 +122,12 @@ void verify_wide_nodes(const Blob& blob, const schema::BvhDesc& d, const std::st
 void verify_wide(const Blob& blob, const StructureInfo& info) {
   const auto& d = desc_of<schema::BvhDesc>(blob, info);
   const BvhWideView bvh = BvhWideView::from_blob(blob, info.name, BvhKernel::kScalar);
-  if (bvh.width() == 4)
-    verify_wide_nodes<4>(blob, d, info.name, bvh.nodes4());
+  if (bvh.quantized())
+    bvh.width() == 4 ? verify_wide_nodes<4>(blob, d, info.name, bvh.qnodes4())
+                     : verify_wide_nodes<8>(blob, d, info.name, bvh.qnodes8());
   else
-    verify_wide_nodes<8>(blob, d, info.name, bvh.nodes8());
+    bvh.width() == 4 ? verify_wide_nodes<4>(blob, d, info.name, bvh.nodes4())
+                     : verify_wide_nodes<8>(blob, d, info.name, bvh.nodes8());
   const auto prims = bvh.prim_ids();
   for (std::size_t r = 0; r < prims.size(); ++r) {
     const auto& p = bvh.packets()[r / format::kBvhPacketSize];
@@ -179,13 +200,14 @@ Description describe(const Blob& blob, const StructureInfo& info) {
   out.field("bytes_per_triangle", b.bytes_per_triangle()).field("width", b.width());
   if (b.width() == 2) return out;
   out.lines.push_back(printf_string(
-      "%u-wide layout: %llu nodes, %llu leaves, depth %u, %llu packets of 4, "
+      "%u-wide layout, %s child boxes: %llu nodes, %llu leaves, depth %u, %llu packets of 4, "
       "%.1f%% packet fill",
-      b.width(), (unsigned long long)b.wide_node_count(), (unsigned long long)b.wide_leaf_count(),
-      b.wide_max_depth(), (unsigned long long)b.packet_count(), 100.0 * b.packet_fill()));
+      b.width(), b.quantized() ? "8-bit" : "float", (unsigned long long)b.wide_node_count(),
+      (unsigned long long)b.wide_leaf_count(), b.wide_max_depth(),
+      (unsigned long long)b.packet_count(), 100.0 * b.packet_fill()));
   out.field("wide_node_count", b.wide_node_count()).field("wide_leaf_count", b.wide_leaf_count());
   out.field("packet_count", b.packet_count()).field("wide_max_depth", b.wide_max_depth());
-  out.field("packet_fill", b.packet_fill());
+  out.field("packet_fill", b.packet_fill()).field("quantized", b.quantized());
   return out;
 }
 

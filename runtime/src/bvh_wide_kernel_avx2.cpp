@@ -18,6 +18,11 @@ namespace {
 struct AvxF8 {
   using T = __m256;
   KILN_SIMD static T load(const float* p) { return _mm256_loadu_ps(p); }
+  KILN_SIMD static T load_u8(const std::uint8_t* p) {
+    const __m128i bytes = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(p));
+    return _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(bytes));
+  }
+  KILN_SIMD static T add(T a, T b) { return _mm256_add_ps(a, b); }
   KILN_SIMD static void store(float* p, T a) { _mm256_storeu_ps(p, a); }
   KILN_SIMD static T set1(float x) { return _mm256_set1_ps(x); }
   KILN_SIMD static T sub(T a, T b) { return _mm256_sub_ps(a, b); }
@@ -38,8 +43,8 @@ KILN_WIDE_KERNEL_TABLE(avx2)
 
 }  // namespace
 
-const BvhWideKernel* avx2_kernel(std::uint32_t width) {
-  return width == 4 ? &kavx24 : width == 8 ? &kavx28 : nullptr;
+const BvhWideKernel* avx2_kernel(std::uint32_t width, bool quantized) {
+  return width == 4 || width == 8 ? &kavx2[quantized][width / 8] : nullptr;
 }
 
 }  // namespace kiln::bvh_wide
@@ -47,7 +52,7 @@ const BvhWideKernel* avx2_kernel(std::uint32_t width) {
 #else
 
 namespace kiln::bvh_wide {
-const BvhWideKernel* avx2_kernel(std::uint32_t) {
+const BvhWideKernel* avx2_kernel(std::uint32_t, bool) {
   return nullptr;
 }
 }  // namespace kiln::bvh_wide

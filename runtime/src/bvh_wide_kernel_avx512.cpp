@@ -16,6 +16,11 @@ struct Avx512F4 {
   using T = __m128;
   KILN_SIMD static T load(const float* p) { return _mm_loadu_ps(p); }
   KILN_SIMD static void store(float* p, T a) { _mm_storeu_ps(p, a); }
+  KILN_SIMD static T load_u8(const std::uint8_t* p) {
+    std::int32_t word;
+    std::memcpy(&word, p, sizeof word);
+    return _mm_cvtepi32_ps(_mm_cvtepu8_epi32(_mm_cvtsi32_si128(word)));
+  }
   KILN_SIMD static T set1(float x) { return _mm_set1_ps(x); }
   KILN_SIMD static T add(T a, T b) { return _mm_add_ps(a, b); }
   KILN_SIMD static T sub(T a, T b) { return _mm_sub_ps(a, b); }
@@ -32,6 +37,11 @@ struct Avx512F4 {
 struct Avx512F8 {
   using T = __m256;
   KILN_SIMD static T load(const float* p) { return _mm256_loadu_ps(p); }
+  KILN_SIMD static T load_u8(const std::uint8_t* p) {
+    const __m128i bytes = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(p));
+    return _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(bytes));
+  }
+  KILN_SIMD static T add(T a, T b) { return _mm256_add_ps(a, b); }
   KILN_SIMD static void store(float* p, T a) { _mm256_storeu_ps(p, a); }
   KILN_SIMD static T set1(float x) { return _mm256_set1_ps(x); }
   KILN_SIMD static T sub(T a, T b) { return _mm256_sub_ps(a, b); }
@@ -50,8 +60,8 @@ KILN_WIDE_KERNEL_TABLE(avx512)
 
 }  // namespace
 
-const BvhWideKernel* avx512_kernel(std::uint32_t width) {
-  return width == 4 ? &kavx5124 : width == 8 ? &kavx5128 : nullptr;
+const BvhWideKernel* avx512_kernel(std::uint32_t width, bool quantized) {
+  return width == 4 || width == 8 ? &kavx512[quantized][width / 8] : nullptr;
 }
 
 }  // namespace kiln::bvh_wide
@@ -59,7 +69,7 @@ const BvhWideKernel* avx512_kernel(std::uint32_t width) {
 #else
 
 namespace kiln::bvh_wide {
-const BvhWideKernel* avx512_kernel(std::uint32_t) {
+const BvhWideKernel* avx512_kernel(std::uint32_t, bool) {
   return nullptr;
 }
 }  // namespace kiln::bvh_wide

@@ -31,6 +31,11 @@ struct ArrayVec {
     std::memcpy(r.v, p, sizeof r.v);
     return r;
   }
+  static T load_u8(const std::uint8_t* p) {
+    T r;
+    for (int i = 0; i < N; ++i) r.v[i] = float(p[i]);
+    return r;
+  }
   static void store(float* p, const T& a) { std::memcpy(p, a.v, sizeof a.v); }
   static T set1(float x) {
     T r;
@@ -77,8 +82,8 @@ KILN_WIDE_KERNEL_TABLE(scalar)
 
 }  // namespace
 
-const BvhWideKernel* scalar_kernel(std::uint32_t width) {
-  return width == 4 ? &kscalar4 : width == 8 ? &kscalar8 : nullptr;
+const BvhWideKernel* scalar_kernel(std::uint32_t width, bool quantized) {
+  return width == 4 || width == 8 ? &kscalar[quantized][width / 8] : nullptr;
 }
 
 }  // namespace kiln::bvh_wide

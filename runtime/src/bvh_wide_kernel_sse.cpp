@@ -22,6 +22,13 @@ struct SseF8 {
   KILN_SIMD static T load(const float* p) { return {_mm_loadu_ps(p), _mm_loadu_ps(p + 4)}; }
   KILN_SIMD static void store(float* p, T a) { _mm_storeu_ps(p, a.lo), _mm_storeu_ps(p + 4, a.hi); }
   KILN_SIMD static T set1(float x) { return {_mm_set1_ps(x), _mm_set1_ps(x)}; }
+  KILN_SIMD static T load_u8(const std::uint8_t* p) {
+    const __m128i zero = _mm_setzero_si128();
+    const __m128i x = _mm_unpacklo_epi8(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p)), zero);
+    return {_mm_cvtepi32_ps(_mm_unpacklo_epi16(x, zero)),
+            _mm_cvtepi32_ps(_mm_unpackhi_epi16(x, zero))};
+  }
+  KILN_SIMD static T add(T a, T b) { return {_mm_add_ps(a.lo, b.lo), _mm_add_ps(a.hi, b.hi)}; }
   KILN_SIMD static T sub(T a, T b) { return {_mm_sub_ps(a.lo, b.lo), _mm_sub_ps(a.hi, b.hi)}; }
   KILN_SIMD static T mul(T a, T b) { return {_mm_mul_ps(a.lo, b.lo), _mm_mul_ps(a.hi, b.hi)}; }
   KILN_SIMD static T max(T a, T b) { return {_mm_max_ps(a.lo, b.lo), _mm_max_ps(a.hi, b.hi)}; }
@@ -41,8 +48,8 @@ KILN_WIDE_KERNEL_TABLE(sse)
 
 }  // namespace
 
-const BvhWideKernel* sse_kernel(std::uint32_t width) {
-  return width == 4 ? &ksse4 : width == 8 ? &ksse8 : nullptr;
+const BvhWideKernel* sse_kernel(std::uint32_t width, bool quantized) {
+  return width == 4 || width == 8 ? &ksse[quantized][width / 8] : nullptr;
 }
 
 }  // namespace kiln::bvh_wide
@@ -50,7 +57,7 @@ const BvhWideKernel* sse_kernel(std::uint32_t width) {
 #else
 
 namespace kiln::bvh_wide {
-const BvhWideKernel* sse_kernel(std::uint32_t) {
+const BvhWideKernel* sse_kernel(std::uint32_t, bool) {
   return nullptr;
 }
 }  // namespace kiln::bvh_wide

@@ -8,9 +8,9 @@
 
 namespace kiln::bvh_wide {
 
-const BvhWideKernel* scalar_kernel(std::uint32_t width);
-const BvhWideKernel* sse_kernel(std::uint32_t width);
-const BvhWideKernel* avx2_kernel(std::uint32_t width);
-const BvhWideKernel* avx512_kernel(std::uint32_t width);
+const BvhWideKernel* scalar_kernel(std::uint32_t width, bool quantized);
+const BvhWideKernel* sse_kernel(std::uint32_t width, bool quantized);
+const BvhWideKernel* avx2_kernel(std::uint32_t width, bool quantized);
+const BvhWideKernel* avx512_kernel(std::uint32_t width, bool quantized);
 
 }  // namespace kiln::bvh_wide

@@ -16,10 +16,11 @@ struct ChildBox {
   float lo[3], hi[3];
 };
 
-template <int W>
-ChildBox child_box(const format::BvhWideNode<W>& n, int k) {
-  return {{n.bounds[0][0][k], n.bounds[1][0][k], n.bounds[2][0][k]},
-          {n.bounds[0][1][k], n.bounds[1][1][k], n.bounds[2][1][k]}};
+template <class Node>
+ChildBox child_box(const Node& n, int k) {
+  ChildBox b;
+  format::bvh_child_box(n, k, b.lo, b.hi);
+  return b;
 }
 
 format::RayTriangle lane_triangle(const format::BvhTrianglePacket& p, std::uint32_t lane) {
@@ -39,8 +40,8 @@ void for_each_lane(const BvhWideView& bvh, std::uint32_t word, std::uint32_t pac
             bvh.prim_ids()[p * format::kBvhPacketSize + lane]);
 }
 
-template <int W>
-ClosestPoint closest_wide(const BvhWideView& bvh, std::span<const format::BvhWideNode<W>> nodes,
+template <int W, class Node>
+ClosestPoint closest_wide(const BvhWideView& bvh, std::span<const Node> nodes,
                           const format::Float3& point, float max_distance) {
   const format::Double3 p = to_d(point);
   double best = double(max_distance) * double(max_distance);
@@ -82,9 +83,9 @@ ClosestPoint closest_wide(const BvhWideView& bvh, std::span<const format::BvhWid
 
 // Sorted, distinct primitive ids of the lanes in every leaf whose box passes `enter` (from the
 // root down) and that pass `keep`.
-template <int W, class Enter, class Keep>
-void collect_wide(const BvhWideView& bvh, std::span<const format::BvhWideNode<W>> nodes,
-                  Enter enter, Keep keep, std::vector<std::uint32_t>& out) {
+template <int W, class Node, class Enter, class Keep>
+void collect_wide(const BvhWideView& bvh, std::span<const Node> nodes, Enter enter, Keep keep,
+                  std::vector<std::uint32_t>& out) {
   out.clear();
   struct Entry {
     std::uint32_t word, packets;
@@ -112,17 +113,22 @@ void collect_wide(const BvhWideView& bvh, std::span<const format::BvhWideNode<W>
 
 template <class Enter, class Keep>
 void collect(const BvhWideView& bvh, Enter enter, Keep keep, std::vector<std::uint32_t>& out) {
-  if (bvh.width() == 4)
-    collect_wide<4>(bvh, bvh.nodes4(), enter, keep, out);
+  if (bvh.quantized())
+    bvh.width() == 4 ? collect_wide<4>(bvh, bvh.qnodes4(), enter, keep, out)
+                     : collect_wide<8>(bvh, bvh.qnodes8(), enter, keep, out);
   else
-    collect_wide<8>(bvh, bvh.nodes8(), enter, keep, out);
+    bvh.width() == 4 ? collect_wide<4>(bvh, bvh.nodes4(), enter, keep, out)
+                     : collect_wide<8>(bvh, bvh.nodes8(), enter, keep, out);
 }
 
 }  // namespace
 
 ClosestPoint closest_point(const BvhWideView& bvh, const format::Float3& p, float max_distance) {
-  if (bvh.width() == 4) return closest_wide<4>(bvh, bvh.nodes4(), p, max_distance);
-  return closest_wide<8>(bvh, bvh.nodes8(), p, max_distance);
+  if (bvh.quantized())
+    return bvh.width() == 4 ? closest_wide<4>(bvh, bvh.qnodes4(), p, max_distance)
+                            : closest_wide<8>(bvh, bvh.qnodes8(), p, max_distance);
+  return bvh.width() == 4 ? closest_wide<4>(bvh, bvh.nodes4(), p, max_distance)
+                          : closest_wide<8>(bvh, bvh.nodes8(), p, max_distance);
 }
 
 void triangles_in_box(const BvhWideView& bvh, const format::Float3& lo_f,

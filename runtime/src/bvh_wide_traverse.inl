@@ -45,12 +45,23 @@ KILN_SIMD BoxLanes<V> box_lanes(const BoxRay& r) {
 }
 
 // Entry distances of all W children into `dist`; returns the bits of the children entered.
-template <int W, class V>
-KILN_SIMD unsigned test_children(const format::BvhWideNode<W>& n, const BoxLanes<V>& r,
-                                 typename V::T tmin, typename V::T tmax, float* dist) {
+// One box plane of every child: side 0 min, 1 max.
+template <class V, int W>
+KILN_SIMD typename V::T plane(const format::BvhWideNode<W>& n, int axis, int side) {
+  return V::load(n.bounds[axis][side]);
+}
+template <class V, int W>
+KILN_SIMD typename V::T plane(const format::BvhQuantizedNode<W>& n, int axis, int side) {
+  const typename V::T scale = V::set1(format::bvh_quantized_scale(n.exponent[axis]));
+  return V::add(V::set1(n.origin[axis]), V::mul(V::load_u8(n.q[axis][side]), scale));
+}
+
+template <class Node, class V>
+KILN_SIMD unsigned test_children(const Node& n, const BoxLanes<V>& r, typename V::T tmin,
+                                 typename V::T tmax, float* dist) {
   for (int a = 0; a < 3; ++a) {
-    const typename V::T lo = V::load(n.bounds[a][r.near[a]]);
-    const typename V::T hi = V::load(n.bounds[a][1 - r.near[a]]);
+    const typename V::T lo = plane<V>(n, a, r.near[a]);
+    const typename V::T hi = plane<V>(n, a, 1 - r.near[a]);
     const typename V::T t0 = V::mul(V::sub(lo, r.org[a]), r.inv[a]);
     const typename V::T t1 = V::mul(V::sub(hi, r.org[a]), r.inv_far[a]);
     tmin = V::max(t0, tmin);
@@ -130,9 +141,9 @@ KILN_SIMD std::uint32_t sortable(float f) {
 // Of the entered children of `n` (bits `mask`, at least one), returns the one to visit next and
 // pushes the others: kOrdered, nearest next and the rest farthest first (so nearer ones pop
 // first); otherwise the lowest slot next and the rest unordered.
-template <int W, bool kOrdered>
-KILN_SIMD WideEntry next_child(const format::BvhWideNode<W>& n, unsigned mask, const float* dist,
-                               WideEntry* stack, std::uint32_t& top) {
+template <int W, bool kOrdered, class Node>
+KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, WideEntry* stack,
+                               std::uint32_t& top) {
   int slot = __builtin_ctz(mask);
   mask &= mask - 1;
   if (mask == 0) return {n.child[slot], n.packets[slot], dist[slot]};
@@ -170,10 +181,10 @@ KILN_SIMD WideEntry next_child(const format::BvhWideNode<W>& n, unsigned mask, c
 }
 
 /// The one traversal: kAny stops at the first hit and leaves children unordered.
-template <int W, bool kAny, bool kCount>
+template <class Node, int W, bool kAny, bool kCount>
 KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost) {
   using V = typename NodeVec<W>::V;
-  const auto* nodes = reinterpret_cast<const format::BvhWideNode<W>*>(view.node_bytes().data());
+  const auto* nodes = reinterpret_cast<const Node*>(view.node_bytes().data());
   const format::BvhTrianglePacket* packets = view.packets().data();
   const BoxLanes<V> box = box_lanes<V>(prepare_box_ray(ray));
   const WatertightRay tri_ray = prepare_watertight(ray);
@@ -189,7 +200,7 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
     while ((e.word & format::kBvhLeafFlag) == 0) {
       const auto& n = nodes[e.word];
       if constexpr (kCount) cost->nodes += 1;
-      const unsigned mask = test_children<W, V>(n, box, tmin, V::set1(hit.t), dist);
+      const unsigned mask = test_children<Node, V>(n, box, tmin, V::set1(hit.t), dist);
       if (mask == 0) goto pop;
       e = next_child<W, !kAny>(n, mask, dist, stack, top);
     }
@@ -221,18 +232,23 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
 
 // The entry points carry the target attribute but are not always_inline (they are called
 // through the table).
-#define KILN_WIDE_KERNEL_TABLE(NAME)                                                     \
-  template <int W>                                                                       \
-  KILN_SIMD_ENTRY Hit NAME##_closest(const BvhWideView& v, const Ray& r) {               \
-    return traverse_wide<W, false, false>(v, r, nullptr);                                \
-  }                                                                                      \
-  template <int W>                                                                       \
-  KILN_SIMD_ENTRY Hit NAME##_any(const BvhWideView& v, const Ray& r) {                   \
-    return traverse_wide<W, true, false>(v, r, nullptr);                                 \
-  }                                                                                      \
-  template <int W>                                                                       \
-  KILN_SIMD_ENTRY Hit NAME##_counting(const BvhWideView& v, const Ray& r, Cost& c) {     \
-    return traverse_wide<W, false, true>(v, r, &c);                                      \
-  }                                                                                      \
-  const BvhWideKernel k##NAME##4 {NAME##_closest<4>, NAME##_any<4>, NAME##_counting<4>}; \
-  const BvhWideKernel k##NAME##8 {NAME##_closest<8>, NAME##_any<8>, NAME##_counting<8>};
+#define KILN_WIDE_KERNEL_TABLE(NAME)                                                 \
+  template <class Node, int W>                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_closest(const BvhWideView& v, const Ray& r) {           \
+    return traverse_wide<Node, W, false, false>(v, r, nullptr);                      \
+  }                                                                                  \
+  template <class Node, int W>                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_any(const BvhWideView& v, const Ray& r) {               \
+    return traverse_wide<Node, W, true, false>(v, r, nullptr);                       \
+  }                                                                                  \
+  template <class Node, int W>                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_counting(const BvhWideView& v, const Ray& r, Cost& c) { \
+    return traverse_wide<Node, W, false, true>(v, r, &c);                            \
+  }                                                                                  \
+  template <class Node, int W>                                                       \
+  constexpr BvhWideKernel table_of() {                                               \
+    return {NAME##_closest<Node, W>, NAME##_any<Node, W>, NAME##_counting<Node, W>}; \
+  }                                                                                  \
+  const BvhWideKernel k##NAME[2][2] = {                                              \
+      {table_of<format::BvhNode4, 4>(), table_of<format::BvhNode8, 8>()},            \
+      {table_of<format::BvhQNode4, 4>(), table_of<format::BvhQNode8, 8>()}};

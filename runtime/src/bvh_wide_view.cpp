@@ -35,11 +35,11 @@ bool bvh_kernel_supported(BvhKernel kernel) {
   switch (kernel) {
     case BvhKernel::kAvx512:
       return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-             bvh_wide::avx512_kernel(8) != nullptr;
+             bvh_wide::avx512_kernel(8, false) != nullptr;
     case BvhKernel::kAvx2:
-      return __builtin_cpu_supports("avx2") && bvh_wide::avx2_kernel(8);
+      return __builtin_cpu_supports("avx2") && bvh_wide::avx2_kernel(8, false);
     case BvhKernel::kSse:
-      return bvh_wide::sse_kernel(8) != nullptr;
+      return bvh_wide::sse_kernel(8, false) != nullptr;
     default:
       return true;
   }
@@ -69,24 +69,28 @@ BvhKernel bvh_auto_kernel() {
 
 namespace {
 
-const BvhWideKernel* kernel_table(BvhKernel kernel, std::uint32_t width) {
+const BvhWideKernel* kernel_table(BvhKernel kernel, std::uint32_t width, bool quantized) {
   switch (kernel) {
     case BvhKernel::kSse:
-      return bvh_wide::sse_kernel(width);
+      return bvh_wide::sse_kernel(width, quantized);
     case BvhKernel::kAvx2:
-      return bvh_wide::avx2_kernel(width);
+      return bvh_wide::avx2_kernel(width, quantized);
     case BvhKernel::kAvx512:
-      return bvh_wide::avx512_kernel(width);
+      return bvh_wide::avx512_kernel(width, quantized);
     default:
-      return bvh_wide::scalar_kernel(width);
+      return bvh_wide::scalar_kernel(width, quantized);
   }
+}
+
+std::size_t node_size(std::uint32_t width, bool quantized) {
+  if (quantized) return width == 4 ? sizeof(format::BvhQNode4) : sizeof(format::BvhQNode8);
+  return width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
 }
 
 // Pre-order walk: the n-th node reached must be node n (no sharing, cycles or unreachable
 // nodes), leaves take the packets in order, nothing deeper than the kernels' stacks allow.
-template <int W>
-void check_nodes(std::span<const format::BvhWideNode<W>> nodes, std::size_t packet_count,
-                 const std::string& name) {
+template <int W, class Node>
+void check_nodes(std::span<const Node> nodes, std::size_t packet_count, const std::string& name) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
   struct Pending {
     std::uint32_t word, packets, depth;
@@ -125,39 +129,31 @@ void check_nodes(std::span<const format::BvhWideNode<W>> nodes, std::size_t pack
 
 }  // namespace
 
-BvhWideView::BvhWideView(std::uint32_t width, std::span<const std::byte> nodes,
+BvhWideView::BvhWideView(std::uint32_t width, bool quantized, std::span<const std::byte> nodes,
                          std::span<const format::BvhTrianglePacket> packets,
                          std::span<const std::uint32_t> prim_ids, const std::string& name,
                          BvhKernel kernel)
-    : width_(width), nodes_(nodes), packets_(packets), prim_ids_(prim_ids) {
+    : width_(width), quantized_(quantized), nodes_(nodes), packets_(packets), prim_ids_(prim_ids) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
   if (width != 4 && width != 8) fail("width " + std::to_string(width) + " is not 4 or 8");
-  const std::size_t node_size = width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
-  if (nodes.empty() || nodes.size() % node_size != 0) fail("no whole nodes");
-  node_count_ = nodes.size() / node_size;
+  const std::size_t size = node_size(width, quantized);
+  if (nodes.empty() || nodes.size() % size != 0) fail("no whole nodes");
+  node_count_ = nodes.size() / size;
   if (node_count_ >= format::kBvhLeafFlag) fail("too many nodes");
   if (prim_ids.size() != packets.size() * format::kBvhPacketSize)
     fail(std::to_string(packets.size()) + " packets but " + std::to_string(prim_ids.size()) +
          " primitive ids");
-  if (width == 4)
-    check_nodes(nodes4(), packets.size(), name);
+  if (quantized)
+    width == 4 ? check_nodes<4>(qnodes4(), packets.size(), name)
+               : check_nodes<8>(qnodes8(), packets.size(), name);
   else
-    check_nodes(nodes8(), packets.size(), name);
+    width == 4 ? check_nodes<4>(nodes4(), packets.size(), name)
+               : check_nodes<8>(nodes8(), packets.size(), name);
   kernel_id_ = kernel == BvhKernel::kAuto ? bvh_auto_kernel() : kernel;
   if (!bvh_kernel_supported(kernel_id_))
     throw std::invalid_argument(std::string("BVH kernel ") + bvh_kernel_name(kernel_id_) +
                                 " is not supported on this CPU");
-  kernel_ = kernel_table(kernel_id_, width);
-}
-
-std::span<const format::BvhNode4> BvhWideView::nodes4() const {
-  if (width_ != 4) return {};
-  return {reinterpret_cast<const format::BvhNode4*>(nodes_.data()), node_count_};
-}
-
-std::span<const format::BvhNode8> BvhWideView::nodes8() const {
-  if (width_ != 8) return {};
-  return {reinterpret_cast<const format::BvhNode8*>(nodes_.data()), node_count_};
+  kernel_ = kernel_table(kernel_id_, width, quantized);
 }
 
 BvhWideView BvhWideView::from_blob(const Blob& blob, const std::string& name, BvhKernel kernel) {
@@ -168,7 +164,7 @@ BvhWideView BvhWideView::from_blob(const Blob& blob, const std::string& name, Bv
   if (d->width() != 4 && d->width() != 8)
     blob.fail("structure '" + name + "' is a " + std::to_string(d->width()) + "-wide BVH");
   // Blob::open checked kinds, sizes and counts of these sections.
-  return BvhWideView(d->width(), blob.section_bytes(d->wide_nodes()),
+  return BvhWideView(d->width(), d->quantized(), blob.section_bytes(d->wide_nodes()),
                      blob.section_view<format::BvhTrianglePacket>(d->packets()),
                      blob.section_view<std::uint32_t>(d->prim_ids()), blob.name() + ": " + name,
                      kernel);

@@ -29,6 +29,7 @@ struct BvhBuildOptions {
   unsigned threads = 0;               // never changes the result
   std::uint32_t width = 2;            // stored layout: 2 (binary), 4 or 8 (bvh_collapse.hpp);
                                       // build_bvh ignores it and always returns the binary tree
+  bool quantized = false;             // wide layouts: 8-bit child boxes (ignored by build_bvh)
 };
 
 // A reference to a triangle: its (possibly clipped) box and original triangle id.

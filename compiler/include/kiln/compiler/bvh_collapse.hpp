@@ -19,9 +19,11 @@ struct WideBvhStatistics {
 };
 
 /// A collapsed BVH ready for the blob: `nodes` holds node_count nodes of `width` children as raw
-/// bytes (BvhNode4 or BvhNode8), `prim_ids` one original triangle id per packet lane.
+/// bytes (BvhNode4/8, or BvhQNode4/8 when quantized), `prim_ids` one original triangle id per
+/// packet lane.
 struct FlatWideBvh {
   std::uint32_t width = 8;
+  bool quantized = false;  ///< nodes are BvhQNode4/8 (8-bit child boxes) instead of float ones
   std::vector<std::byte> nodes;
   std::vector<format::BvhTrianglePacket> packets;
   std::vector<std::uint32_t> prim_ids;
@@ -32,7 +34,10 @@ struct FlatWideBvh {
 /// binary node and repeatedly opens the child of largest surface area until it has `width`
 /// children (greedy SAH-driven expansion); a binary subtree of at most four references becomes
 /// one leaf packet. Deterministic and serial. `triangle_count` is the scene's (for bytes per
-/// triangle). Throws std::invalid_argument for another width or a leaf over 1020 references.
-FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count);
+/// triangle). `quantized`: child boxes as bytes relative to the node (BvhQuantizedNode), each
+/// containing the float box. Throws std::invalid_argument for another width, a leaf over 1020
+/// references, or (quantized) coordinates beyond 1e38.
+FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
+                         bool quantized = false);
 
 }  // namespace kiln

@@ -14,6 +14,7 @@ namespace kiln::format {
 
 inline constexpr std::uint32_t kSectionBvhWideNodes = fourcc('B', 'V', 'W', 'N');
 inline constexpr std::uint32_t kSectionBvhPackets = fourcc('B', 'V', 'W', 'T');
+inline constexpr std::uint32_t kSectionBvhQuantizedNodes = fourcc('B', 'V', 'Q', 'N');
 
 /// Triangles per leaf packet (SIMD lanes of the triangle test).
 inline constexpr std::uint32_t kBvhPacketSize = 4;
@@ -40,6 +41,52 @@ static_assert(sizeof(BvhNode4) == 128);
 static_assert(sizeof(BvhNode8) == 256);
 static_assert(offsetof(BvhNode4, child) == 96 && offsetof(BvhNode4, packets) == 112);
 static_assert(offsetof(BvhNode8, child) == 192 && offsetof(BvhNode8, packets) == 224);
+
+/// A wide node with quantised child boxes (Ylitie et al. 2017, here per axis): the same children
+/// as BvhWideNode, each box plane one byte relative to the node. Child i's box on axis a is
+/// [origin[a] + float(q[a][0][i]) * 2^exponent[a], origin[a] + float(q[a][1][i]) * 2^exponent[a]],
+/// computed in float exactly so (the product is exact, the sum rounds once): the builder picks
+/// the bytes so that this box contains the child's float box. Empty slot: q 255 / 0 (inverted).
+template <int W>
+struct BvhQuantizedNode {
+  float origin[3];
+  std::int8_t exponent[3];  // scale 2^exponent, in [-126, 127]
+  std::uint8_t reserved0;
+  std::uint8_t q[3][2][W];
+  std::uint32_t child[W];
+  std::uint8_t packets[W];
+  std::uint8_t reserved[W == 4 ? 4 : 24];  // zero; pads the node to whole cache lines
+};
+using BvhQNode4 = BvhQuantizedNode<4>;
+using BvhQNode8 = BvhQuantizedNode<8>;
+static_assert(sizeof(BvhQNode4) == 64);
+static_assert(sizeof(BvhQNode8) == 128);
+static_assert(offsetof(BvhQNode4, q) == 16 && offsetof(BvhQNode4, child) == 40);
+static_assert(offsetof(BvhQNode8, q) == 16 && offsetof(BvhQNode8, child) == 64);
+static_assert(offsetof(BvhQNode4, packets) == 56 && offsetof(BvhQNode8, packets) == 96);
+
+/// The scale 2^e of a quantised node's axis, as float bits (e in [-126, 127]; other values of
+/// a forged node still give some float, never an out-of-range read).
+inline float bvh_quantized_scale(std::int8_t e) {
+  const std::uint32_t bits = std::uint32_t(std::int32_t(e) + 127) << 23;
+  float f;
+  __builtin_memcpy(&f, &bits, sizeof f);
+  return f;
+}
+
+/// Child k's box as traversal sees it, from either node type.
+template <int W>
+void bvh_child_box(const BvhWideNode<W>& n, int k, float lo[3], float hi[3]) {
+  for (int a = 0; a < 3; ++a) lo[a] = n.bounds[a][0][k], hi[a] = n.bounds[a][1][k];
+}
+template <int W>
+void bvh_child_box(const BvhQuantizedNode<W>& n, int k, float lo[3], float hi[3]) {
+  for (int a = 0; a < 3; ++a) {
+    const float scale = bvh_quantized_scale(n.exponent[a]);
+    lo[a] = n.origin[a] + float(n.q[a][0][k]) * scale;
+    hi[a] = n.origin[a] + float(n.q[a][1][k]) * scale;
+  }
+}
 
 /// Four triangles, structure-of-arrays: `v[corner][axis][lane]`, the corners exactly as the
 /// watertight test (Woop et al. 2013) consumes them. A leaf's last packet repeats its last

@@ -48,8 +48,9 @@ class BvhWideView {
  public:
   using HitType = Hit;
 
-  /// `nodes` holds BvhNode4 or BvhNode8 (width 4 or 8); `prim_ids` one id per packet lane.
-  BvhWideView(std::uint32_t width, std::span<const std::byte> nodes,
+  /// `nodes` holds BvhNode4 or BvhNode8 (width 4 or 8), or BvhQNode4/8 when `quantized`;
+  /// `prim_ids` one id per packet lane.
+  BvhWideView(std::uint32_t width, bool quantized, std::span<const std::byte> nodes,
               std::span<const format::BvhTrianglePacket> packets,
               std::span<const std::uint32_t> prim_ids, const std::string& name = "bvh",
               BvhKernel kernel = BvhKernel::kAuto);
@@ -69,17 +70,31 @@ class BvhWideView {
   }
 
   std::uint32_t width() const { return width_; }
+  bool quantized() const { return quantized_; }
   BvhKernel kernel() const { return kernel_id_; }
   std::size_t node_count() const { return node_count_; }
-  /// The nodes as BvhNode4 (width 4) or BvhNode8 (width 8); empty for the other width.
-  std::span<const format::BvhNode4> nodes4() const;
-  std::span<const format::BvhNode8> nodes8() const;
+  /// The nodes as the type they are (by width and quantized()); empty for the other types.
+  std::span<const format::BvhNode4> nodes4() const { return nodes_as<format::BvhNode4>(4, false); }
+  std::span<const format::BvhNode8> nodes8() const { return nodes_as<format::BvhNode8>(8, false); }
+  std::span<const format::BvhQNode4> qnodes4() const {
+    return nodes_as<format::BvhQNode4>(4, true);
+  }
+  std::span<const format::BvhQNode8> qnodes8() const {
+    return nodes_as<format::BvhQNode8>(8, true);
+  }
   std::span<const std::byte> node_bytes() const { return nodes_; }
   std::span<const format::BvhTrianglePacket> packets() const { return packets_; }
   std::span<const std::uint32_t> prim_ids() const { return prim_ids_; }
 
  private:
+  template <class Node>
+  std::span<const Node> nodes_as(std::uint32_t width, bool quantized) const {
+    if (width_ != width || quantized_ != quantized) return {};
+    return {reinterpret_cast<const Node*>(nodes_.data()), node_count_};
+  }
+
   std::uint32_t width_;
+  bool quantized_ = false;
   std::size_t node_count_ = 0;
   std::span<const std::byte> nodes_;
   std::span<const format::BvhTrianglePacket> packets_;
