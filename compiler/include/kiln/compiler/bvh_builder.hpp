@@ -28,6 +28,9 @@ struct BvhBuildOptions {
   float sbvh_alpha = 1e-5f;           // try spatial splits when child overlap > alpha * root area
   float sbvh_max_duplication = 1.0f;  // at most (1 + this) x triangles references
   unsigned threads = 0;               // never changes the result
+  std::uint32_t width = 2;            // stored layout: 2 (binary), 4 or 8 (bvh_collapse.hpp);
+                                      // build_bvh ignores it and always returns the binary tree
+  bool quantized = false;             // wide layouts: 8-bit child boxes (ignored by build_bvh)
 };
 
 // A reference to a triangle: its (possibly clipped) box and original triangle id.
