@@ -74,10 +74,14 @@ std::vector<std::byte> quantize_all(const std::vector<std::byte>& nodes) {
 template <int W>
 struct Collapser {
   const FlatBvh& bin;
+  const Scene* scene;  // corners from here when bin.triangles is empty
   FlatWideBvh& out;
   std::vector<std::uint32_t> refs;  // references under each binary node
 
-  explicit Collapser(const FlatBvh& b, FlatWideBvh& o) : bin(b), out(o), refs(b.nodes.size()) {
+  Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o)
+      : bin(b), scene(s), out(o), refs(b.nodes.size()) {
+    if (bin.triangles.empty() && scene == nullptr)
+      throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
     // Pre-order: children follow their parent, so a reverse sweep sees them first.
     for (std::size_t i = bin.nodes.size(); i-- > 0;) {
       const auto& n = bin.nodes[i];
@@ -95,6 +99,12 @@ struct Collapser {
     return bin.nodes[i].offset;
   }
 
+  format::RayTriangle corners_of(std::uint32_t r) const {
+    if (!bin.triangles.empty()) return bin.triangles[r];
+    const auto& t = scene->triangles[bin.prim_ids[r]];
+    return {scene->positions[t.v[0]], scene->positions[t.v[1]], scene->positions[t.v[2]]};
+  }
+
   // Packs subtree `i`'s references into packets; returns the child word and packet count.
   std::pair<std::uint32_t, std::uint8_t> emit_leaf(std::uint32_t i) {
     const std::uint32_t first = first_ref(i), count = refs[i];
@@ -108,7 +118,7 @@ struct Collapser {
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
         // Unused lanes repeat the leaf's last triangle: every lane is a real triangle.
         const std::uint32_t r = first + std::min(p * format::kBvhPacketSize + lane, count - 1);
-        const format::RayTriangle& t = bin.triangles[r];
+        const format::RayTriangle t = corners_of(r);
         const format::Float3 corners[3] = {t.v0, t.v1, t.v2};
         for (int c = 0; c < 3; ++c)
           for (int a = 0; a < 3; ++a) packet.v[c][a][lane] = format::at(corners[c], a);
@@ -169,14 +179,14 @@ struct Collapser {
 }  // namespace
 
 FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
-                         bool quantized) {
+                         bool quantized, const Scene* scene) {
   FlatWideBvh out;
   out.width = width;
   out.quantized = quantized;
   if (width == 4)
-    Collapser<4>(binary, out).emit(0, 1);
+    Collapser<4>(binary, scene, out).emit(0, 1);
   else if (width == 8)
-    Collapser<8>(binary, out).emit(0, 1);
+    Collapser<8>(binary, scene, out).emit(0, 1);
   else
     throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4 or 8");
   auto& s = out.stats;

@@ -103,10 +103,9 @@ BuiltStructure binary_structure(std::shared_ptr<FlatBvh> flat, const BvhBuildOpt
 }
 
 // The wide layout: BVWN, BVWT, BVHP (one id per packet lane).
-BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o,
-                              std::size_t triangle_count) {
-  auto wide =
-      std::make_shared<FlatWideBvh>(collapse_bvh(flat, o.width, triangle_count, o.quantized));
+BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, const Scene& scene) {
+  auto wide = std::make_shared<FlatWideBvh>(
+      collapse_bvh(flat, o.width, scene.triangles.size(), o.quantized, &scene));
   BuiltStructure built;
   SectionPayload nodes = raw_section(
       o.quantized ? format::kSectionBvhQuantizedNodes : format::kSectionBvhWideNodes, wide->nodes);
@@ -137,10 +136,12 @@ BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o,
   return built;
 }
 
-BuiltStructure build_structure(const Scene& scene, const BvhBuildOptions& options) {
+BuiltStructure build_structure(const Scene& scene, BvhBuildOptions options) {
+  // The wide layout takes corners from the scene: no binary leaf triangles at the peak.
+  options.leaf_triangles = options.width == 2;
   auto flat = std::make_shared<FlatBvh>(build_bvh(scene, options));
   if (options.width == 2) return binary_structure(std::move(flat), options);
-  return wide_structure(*flat, options, scene.triangles.size());
+  return wide_structure(*flat, options, scene);
 }
 
 BuiltStructure build_binned_or_sweep(const Scene& scene, const StructureRequest& request,

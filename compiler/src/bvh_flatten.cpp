@@ -69,7 +69,7 @@ void copy_leaf_triangles(const Scene& scene, FlatBvh& out, unsigned threads) {
 FlatBvh build_sweep_bvh(const Scene& scene, const BvhBuildOptions& options) {
   FlatBvh out;
   out.nodes = build_sweep_nodes(triangle_refs(scene, options.threads), out.prim_ids, options);
-  copy_leaf_triangles(scene, out, options.threads);
+  if (options.leaf_triangles) copy_leaf_triangles(scene, out, options.threads);
   return out;
 }
 
@@ -81,7 +81,7 @@ FlatBvh build_binned_bvh(const Scene& scene, const BvhBuildOptions& options) {
     out.prim_ids.resize(refs.size());
     for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim;
   }  // the references (28 B per triangle) are gone before the triangles are copied
-  copy_leaf_triangles(scene, out, options.threads);
+  if (options.leaf_triangles) copy_leaf_triangles(scene, out, options.threads);
   return out;
 }
 

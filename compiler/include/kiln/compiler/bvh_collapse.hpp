@@ -35,9 +35,11 @@ struct FlatWideBvh {
 /// children (greedy SAH-driven expansion); a binary subtree of at most four references becomes
 /// one leaf packet. Deterministic and serial. `triangle_count` is the scene's (for bytes per
 /// triangle). `quantized`: child boxes as bytes relative to the node (BvhQuantizedNode), each
-/// containing the float box. Throws std::invalid_argument for another width, a leaf over 1020
-/// references, or (quantized) coordinates beyond 1e38.
+/// containing the float box. Corners come from `binary.triangles`, or, when it is empty (built
+/// with BvhBuildOptions::leaf_triangles off), from `scene` through the primitive ids. Throws
+/// std::invalid_argument for another width, a leaf over 1020 references, (quantized)
+/// coordinates beyond 1e38, or no source of corners.
 FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
-                         bool quantized = false);
+                         bool quantized = false, const Scene* scene = nullptr);
 
 }  // namespace kiln
