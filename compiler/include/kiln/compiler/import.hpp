@@ -55,6 +55,13 @@ std::vector<ImportedMesh> import_with_assimp(const std::string& path,
                                              const std::string& extension, bool bytes_are_file,
                                              const ImportLimits& limits,
                                              FileAccesses* accessed = nullptr);
+// Kiln's OBJ reader: the meshes, names, base colours (from the .mtl) and joined, triangulated
+// vertices the Assimp path gave, in its order. With `companions` the .mtl is looked for beside
+// `path` as Assimp looked for it; without, none is read. Errors: "path: what" or
+// "path:LINE: what".
+std::vector<ImportedMesh> import_obj(const std::string& path, std::span<const std::byte> bytes,
+                                     bool companions, const ImportLimits& limits,
+                                     FileAccesses* accessed = nullptr);
 std::vector<ImportedMesh> import_gltf(const std::string& path, std::span<const std::byte> bytes,
                                       bool binary, FileAccesses* accessed = nullptr);
 std::vector<ImportedMesh> import_draco(const std::string& path, std::span<const std::byte> bytes);
