@@ -1234,34 +1234,35 @@ bool joinable(const CornerMesh& m, std::uint32_t a, std::uint32_t b) {
   return !far(m.normals) && !far(m.uvs);
 }
 
-// For every used vertex, the vertex it becomes: at one position, in vertex order, a vertex
-// joins the newest earlier kept vertex it is joinable with (the one Assimp's hash map found
-// first), else is kept. Only the newest kKeptScanned are tried, so that a hostile file cannot
-// make this quadratic.
+// For every used vertex, the vertex it becomes: in vertex order, a vertex joins the newest
+// earlier kept vertex at its position that it is joinable with (the one Assimp's hash map found
+// first), else is kept. Kept vertices are chained per position from a hash table; only the
+// newest kKeptScanned are tried, so that a hostile file cannot make this quadratic.
 std::vector<std::uint32_t> join_targets(const CornerMesh& m,
                                         const std::vector<std::uint8_t>& used) {
   constexpr std::size_t kKeptScanned = 1024;
-  std::vector<std::uint32_t> order, first(m.positions.size(), 0), kept;
-  for (std::uint32_t v = 0; v < used.size(); ++v)
-    if (used[v] != 0) order.push_back(v);
-  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return position_key(m.positions[a]) < position_key(m.positions[b]);
-  });
-  for (std::size_t begin = 0, end = 0; begin < order.size(); begin = end) {
-    const auto key = position_key(m.positions[order[begin]]);
-    for (end = begin + 1; end < order.size() && position_key(m.positions[order[end]]) == key;)
-      ++end;
-    kept.clear();
-    for (std::size_t i = begin; i < end; ++i) {
-      const std::uint32_t v = order[i];
-      first[v] = v;
-      for (std::size_t k = kept.size(); k-- > 0 && kept.size() - k <= kKeptScanned;)
-        if (joinable(m, v, kept[k])) {
-          first[v] = kept[k];
-          break;
-        }
-      if (first[v] == v) kept.push_back(v);
-    }
+  constexpr std::uint32_t kNone = ~0u;
+  std::vector<std::uint32_t> first(m.positions.size(), 0), older(m.positions.size(), kNone);
+  std::size_t size = 16;
+  while (size < 2 * m.positions.size()) size *= 2;
+  std::vector<std::uint32_t> heads(size, kNone);  // newest kept vertex per position
+  for (std::uint32_t v = 0; v < used.size(); ++v) {
+    if (used[v] == 0) continue;
+    const auto key = position_key(m.positions[v]);
+    std::size_t slot =
+        (key[0] * 0x9E3779B1u ^ key[1] * 0x85EBCA77u ^ key[2] * 0xC2B2AE3Du) & (size - 1);
+    while (heads[slot] != kNone && position_key(m.positions[heads[slot]]) != key)
+      slot = (slot + 1) & (size - 1);
+    first[v] = v;
+    std::size_t tried = 0;
+    for (std::uint32_t k = heads[slot]; k != kNone && tried++ < kKeptScanned; k = older[k])
+      if (joinable(m, v, k)) {
+        first[v] = k;
+        break;
+      }
+    if (first[v] != v) continue;
+    older[v] = heads[slot];
+    heads[slot] = v;
   }
   return first;
 }
