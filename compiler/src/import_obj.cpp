@@ -330,6 +330,8 @@ struct Model {
   std::vector<ObjObject> objects;
   std::vector<Material> materials;  // Assimp's material library order; [0] is its default
   std::unordered_map<std::string, std::uint32_t> material_index;
+  // The first object of each name (Assimp searched them in order, in quadratic time).
+  std::unordered_map<std::string, std::uint32_t> object_index;
   int current_material = -1, current_object = -1, current_mesh = -1;
   std::string active_group;
 };
@@ -918,17 +920,17 @@ void ObjParser::object(std::string_view s) {
   std::size_t at = after_keyword(s);
   const std::string name(first_word(s.substr(at)));
   if (name.empty()) return;
-  for (std::size_t i = 0; i < model_.objects.size(); ++i)
-    if (model_.objects[i].name == name) {
-      model_.current_object = int(i);
-      return;
-    }
+  if (const auto found = model_.object_index.find(name); found != model_.object_index.end()) {
+    model_.current_object = int(found->second);
+    return;
+  }
   create_object(name);
 }
 
 void ObjParser::create_object(const std::string& name) {
   model_.objects.push_back({name, {}});
   model_.current_object = int(model_.objects.size() - 1);
+  model_.object_index.emplace(name, std::uint32_t(model_.current_object));  // the first keeps it
   create_mesh(name);
   if (model_.current_material >= 0)
     model_.meshes[model_.current_mesh].material = std::uint32_t(model_.current_material);
