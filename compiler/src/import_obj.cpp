@@ -14,10 +14,19 @@
 // - Vertices of a mesh are joined when their positions are equal and their normals and texture
 //   coordinates within 1e-5, keeping the first, numbered in order of first use, as
 //   JoinIdenticalVertices did (colours are not compared, as there).
-// - Base colours: the .mtl's Kd for materials that differ from Assimp's default material.
-// - No face, line or point anywhere: one point cloud of all vertices, named after the file.
-// Where Assimp read past the end of a line (a fourth '/' field in a face corner) or crashed
-// (MTL statements before any `newmtl`), Kiln ends the face or ignores the statement.
+// - Base colours: the .mtl's Kd for materials that differ from Assimp's default material. The
+//   .mtl is looked for as Assimp's FileSystemFilter looked, every probe recorded in FileAccesses.
+// - No face, `o` or `g` at all: one point cloud of all vertices, named after the file.
+// Where Kiln differs, on purpose or as a known approximation:
+// - Assimp read past the end of a line (a fourth '/' field in a face corner) or crashed (MTL
+//   statements before any `newmtl`); Kiln ends the face or ignores the statement.
+// - Read from memory (.zst, UTF-16, fuzzers) Kiln opens no .mtl (Assimp looked in the working
+//   directory, then parsed the OBJ itself as the .mtl) and names a point cloud after the file
+//   (Assimp: "$$$___magic___$$$.obj").
+// - Assimp's hash map could join distinct positions within 1e-5 that fell in one bucket; Kiln
+//   joins equal positions only, as its PLY reader does.
+// - Deciding whether a material equals the default, texture options (-clamp, -bm) are not
+//   compared, and a UTF-16 .mtl is not transcoded.
 #include "import_obj.hpp"
 
 #include <algorithm>
