@@ -2,7 +2,8 @@
 // and SBVH builders; the SAH k-d tree) and, when built with -DKILN_BENCH_EMBREE=ON, of Embree 3
 // on the same triangles and the same rays.
 //
-// Usage: kiln_bench_bvh [--rays=N] [--seed=N] [--iterations=N] MESH... [benchmark flags]
+// Usage: kiln_bench_bvh [--rays=N] [--seed=N] [--iterations=N] [--rounds=N]
+//                       [--camera=EX,EY,EZ,TX,TY,TZ,FOV] MESH... [benchmark flags]
 //   MESH    a file import_scene reads (OBJ, PLY, .drc, any of them .zst...), or
 //           [LABEL=]@DIR[/PATTERN]: every file in DIR matching PATTERN (default *.obj), sorted by
 //           name, imported as one scene, e.g.
@@ -10,6 +11,11 @@
 //   --rays  rays per kind (primary, diffuse, shadow); default 200000
 //   --seed  ray generator seed; default 1
 //   --iterations  timed repetitions of every benchmark; default 0 = by mesh size
+//   --rounds  instead of the benchmarks: N rounds that trace every ray set once with each Kiln
+//           layout and kernel and each Embree scene, alternately in one process; reports the
+//           median Mrays/s and the median of the per-round Kiln ÷ Embree ratios
+//   --camera  primary rays (and the hits diffuse and shadow rays start from) from this pinhole
+//           camera, for the meshes named after it (--camera=none: frame the bounds again)
 //
 // Every benchmark times itself with std::chrono (manual time) and keeps its fastest iteration,
 // which feeds the counters and the Markdown tables printed at the end: on a small, shared machine
@@ -23,6 +29,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
 #include <exception>
 #include <functional>
 #include <limits>
@@ -38,8 +47,11 @@
 #include "bench_args.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/bvh_collapse.hpp"
 #include "kiln/compiler/kdtree_builder.hpp"
+#include "kiln/runtime/aligned_buffer.hpp"
 #include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/bvh_wide.hpp"
 #include "kiln/runtime/kdtree.hpp"
 #include "kiln/runtime/ray.hpp"
 #include "kiln/runtime/ray_structure.hpp"
@@ -182,7 +194,8 @@ using EmbreeScene = std::unique_ptr<RTCSceneTy, EmbreeSceneDeleter>;
 // A scene holding one triangle geometry with copies of the vertices and indices, not yet
 // committed (the commit is the build being timed). rtcSetNewGeometryBuffer pads the vertex
 // buffer as Embree's SIMD loads require, which sharing the Scene's arrays would not.
-EmbreeScene make_embree_scene(const kiln::Scene& scene, RTCBuildQuality quality) {
+EmbreeScene make_embree_scene(const kiln::Scene& scene, RTCBuildQuality quality,
+                              RTCSceneFlags flags = RTC_SCENE_FLAG_NONE) {
   const RTCDevice device = embree_device();
   RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
   auto* vertices = static_cast<kiln::format::Float3*>(
@@ -198,6 +211,7 @@ EmbreeScene make_embree_scene(const kiln::Scene& scene, RTCBuildQuality quality)
 
   EmbreeScene out(rtcNewScene(device));
   rtcSetSceneBuildQuality(out.get(), quality);
+  rtcSetSceneFlags(out.get(), flags);
   rtcAttachGeometry(out.get(), geometry);
   rtcReleaseGeometry(geometry);  // the scene holds it now
   return out;
@@ -258,6 +272,7 @@ struct MeshCase {
   std::optional<kiln::FlatKdTree> kdtree;
   std::map<kiln::RayKind, std::vector<kiln::Ray>> rays;
   std::map<Structure, Row> rows;
+  std::optional<kiln::RayCamera> camera;  // primary rays from here, else framing the bounds
 #ifdef KILN_BENCH_EMBREE
   std::map<Structure, EmbreeScene> embree;
 #endif
@@ -267,6 +282,7 @@ struct Settings {
   std::size_t rays = 200000;
   std::uint64_t seed = 1;
   int iterations = 0;  // 0: by mesh size
+  int rounds = 0;      // > 0: the alternating comparison instead of the benchmarks
 };
 
 Settings g_settings;
@@ -305,8 +321,10 @@ const std::vector<kiln::Ray>& rays_for(MeshCase& mesh, kiln::RayKind kind) {
     const kiln::RayScene ray_scene{bvh, mesh.scene.positions, mesh.scene.triangles,
                                    mesh.scene.bounds.min, mesh.scene.bounds.max};
     it = mesh.rays
-             .emplace(kind,
-                      kiln::generate_rays(ray_scene, kind, g_settings.rays, g_settings.seed, 0))
+             .emplace(kind, mesh.camera ? kiln::generate_rays(ray_scene, *mesh.camera, kind,
+                                                              g_settings.rays, g_settings.seed, 0)
+                                        : kiln::generate_rays(ray_scene, kind, g_settings.rays,
+                                                              g_settings.seed, 0))
              .first;
   }
   return it->second;
@@ -598,6 +616,20 @@ std::optional<MeshCase> parse_mesh(const std::string& arg) {
 
 using kiln::bench::parse_number_option;
 
+// "EX,EY,EZ,TX,TY,TZ,FOV" -> a camera; nullopt when malformed.
+std::optional<kiln::RayCamera> parse_camera(const std::string& text) {
+  float v[7];
+  const char* p = text.c_str();
+  for (int i = 0; i < 7; ++i) {
+    char* end = nullptr;
+    v[i] = std::strtof(p, &end);
+    if (end == p || (i < 6 && *end != ',') || (i == 6 && *end != 0)) return std::nullopt;
+    p = end + 1;
+  }
+  if (!(v[6] > 0 && v[6] < 180)) return std::nullopt;
+  return kiln::RayCamera{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}, v[6]};
+}
+
 bool import_meshes(std::vector<MeshCase> meshes) {
   for (MeshCase& mesh : meshes) {
     const auto start = Clock::now();
@@ -745,21 +777,249 @@ void print_report() {
 #endif
 }
 
+// ---------------------------------------------------------------------------------------------
+// Alternating comparison (--rounds): every contestant traces every ray set once per round, in a
+// fixed order, so slow phases of a shared machine hit Kiln and Embree alike; the ratio of each
+// round is taken before the median.
+
+struct Contestant {
+  std::string name;
+  double bytes_per_triangle = kNaN;
+  std::function<void(const std::vector<kiln::Ray>&, std::vector<kiln::Hit>&, bool, bool)> trace;
+  std::function<kiln::Cost(const kiln::Ray&)> cost;  // Kiln: node visits and triangle tests
+};
+
+// Kiln's layouts, kept alive for the views the contestants hold.
+struct KilnLayouts {
+  std::map<std::string, kiln::FlatWideBvh> wide;
+  std::map<std::string, kiln::AlignedBuffer> nodes;  // 64-byte aligned, as in a blob
+};
+
+template <class View>
+Contestant kiln_contestant(std::string name, View view, double bytes_per_triangle) {
+  return {std::move(name), bytes_per_triangle,
+          [view](const std::vector<kiln::Ray>& rays, std::vector<kiln::Hit>& hits, bool any_hit,
+                 bool all_threads) {
+            if (all_threads) {
+              kiln::trace_rays(view, rays, hits, any_hit, 0);
+            } else {
+              trace_kiln_single(view, rays, hits, any_hit);
+            }
+          },
+          [view](const kiln::Ray& ray) {
+            kiln::Cost cost;
+            view.intersect_counting(ray, cost);
+            return cost;
+          }};
+}
+
+void add_kiln_contestants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Contestant>& out) {
+  const std::size_t triangles = mesh.scene.triangles.size();
+  for (const auto builder : {kiln::BvhBuilder::kSpatial, kiln::BvhBuilder::kBinned}) {
+    const kiln::FlatBvh& flat = bvh_for(mesh, builder);
+    const std::string b = builder == kiln::BvhBuilder::kSpatial ? "sbvh" : "bvh";
+    out.push_back(kiln_contestant(b + " w2",
+                                  kiln::BvhView(flat.nodes, flat.triangles, flat.prim_ids),
+                                  flat.stats.bytes_per_triangle));
+    for (const auto& [width, quantized] :
+         {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
+      const std::string key = b + " w" + std::to_string(width) + (quantized ? "q" : "");
+      const auto& w =
+          layouts.wide.emplace(key, kiln::collapse_bvh(flat, width, triangles, quantized))
+              .first->second;
+      auto& nodes =
+          layouts.nodes.emplace(key, kiln::AlignedBuffer(w.nodes.size(), 64)).first->second;
+      std::memcpy(nodes.data(), w.nodes.data(), w.nodes.size());
+      for (const auto kernel : {kiln::BvhKernel::kScalar, kiln::BvhKernel::kSse,
+                                kiln::BvhKernel::kAvx2, kiln::BvhKernel::kAvx512}) {
+        if (!kiln::bvh_kernel_supported(kernel)) continue;
+        // Every kernel on the SBVH's 8-wide layout; the others with the default kernel.
+        const bool all_kernels = builder == kiln::BvhBuilder::kSpatial && width == 8 && !quantized;
+        if (!all_kernels && kernel != kiln::bvh_auto_kernel()) continue;
+        out.push_back(kiln_contestant(key + " " + kiln::bvh_kernel_name(kernel),
+                                      kiln::BvhWideView(width, w.quantized, nodes.bytes(),
+                                                        w.packets, w.prim_ids, key, kernel),
+                                      w.stats.bytes_per_triangle));
+      }
+    }
+  }
+}
+
+#ifdef KILN_BENCH_EMBREE
+void add_embree_contestants(MeshCase& mesh, std::vector<std::shared_ptr<EmbreeScene>>& scenes,
+                            std::vector<Contestant>& out) {
+  struct Kind {
+    const char* name;
+    RTCBuildQuality quality;
+    RTCSceneFlags flags;
+  };
+  for (const Kind k : {Kind{"embree medium", RTC_BUILD_QUALITY_MEDIUM, RTC_SCENE_FLAG_NONE},
+                       Kind{"embree high", RTC_BUILD_QUALITY_HIGH, RTC_SCENE_FLAG_NONE},
+                       Kind{"embree high robust", RTC_BUILD_QUALITY_HIGH, RTC_SCENE_FLAG_ROBUST}}) {
+    auto scene = std::make_shared<EmbreeScene>(make_embree_scene(mesh.scene, k.quality, k.flags));
+    const std::int64_t before = g_embree_bytes;
+    rtcCommitScene(scene->get());
+    const double bytes = double(g_embree_bytes - before) / double(mesh.scene.triangles.size());
+    scenes.push_back(scene);
+    const RTCScene s = scene->get();
+    out.push_back({k.name, bytes,
+                   [s](const std::vector<kiln::Ray>& rays, std::vector<kiln::Hit>& hits,
+                       bool any_hit, bool all_threads) {
+                     auto one = [&](std::size_t i) { hits[i] = embree_trace(s, rays[i], any_hit); };
+                     if (all_threads) {
+                       for_each_ray_parallel(rays.size(), one);
+                     } else {
+                       for (std::size_t i = 0; i < rays.size(); ++i) one(i);
+                     }
+                   }});
+  }
+}
+#endif
+
+double thread_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return double(t.tv_sec) + double(t.tv_nsec) * 1e-9;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  if (v.empty()) return kNaN;
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+// Seconds per pass: [contestant][round].
+using Times = std::vector<std::vector<double>>;
+
+Times run_rounds(const std::vector<Contestant>& contestants, const std::vector<kiln::Ray>& rays,
+                 bool any_hit, bool all_threads) {
+  Times times(contestants.size());
+  std::vector<kiln::Hit> hits(rays.size());
+  for (int round = 0; round < g_settings.rounds; ++round)
+    for (std::size_t c = 0; c < contestants.size(); ++c) {
+      // One thread: its CPU time, which time slices lost to other work on a shared machine do
+      // not inflate; all threads: wall time (throughput).
+      const double cpu_start = thread_cpu_seconds();
+      const auto start = Clock::now();
+      contestants[c].trace(rays, hits, any_hit, all_threads);
+      benchmark::ClobberMemory();
+      times[c].push_back(all_threads ? seconds_since(start) : thread_cpu_seconds() - cpu_start);
+    }
+  return times;
+}
+
+// Median over rounds of (reference's time ÷ contestant's time): above 1, the contestant is faster.
+double median_ratio(const Times& t, std::size_t contestant, std::size_t reference) {
+  std::vector<double> ratios;
+  for (std::size_t r = 0; r < t[contestant].size(); ++r)
+    ratios.push_back(t[reference][r] / t[contestant][r]);
+  return median(ratios);
+}
+
+void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& contestants,
+                       const std::vector<std::array<Times, 2>>& times, std::size_t rays) {
+  std::printf("\n### %s (%s triangles%s): median Mrays/s of %d rounds\n\n", mesh.label.c_str(),
+              with_thousands(mesh.scene.triangles.size()).c_str(),
+              mesh.camera ? ", camera inside" : "", g_settings.rounds);
+  std::printf(
+      "| layout | B/tri | primary 1T | primary %uT | diffuse 1T | diffuse %uT | shadow 1T | shadow "
+      "%uT |\n",
+      hardware_threads(), hardware_threads(), hardware_threads());
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (std::size_t c = 0; c < contestants.size(); ++c) {
+    std::printf("| %s | %s |", contestants[c].name.c_str(),
+                format("%.1f", contestants[c].bytes_per_triangle).c_str());
+    for (std::size_t k = 0; k < kRayKinds.size(); ++k)
+      for (int t : {0, 1})
+        std::printf(" %s |", format("%.2f", double(rays) / median(times[k][t][c]) * 1e-6).c_str());
+    std::printf("\n");
+  }
+  std::printf(
+      "\nWork per closest-hit diffuse ray (untimed): node visits + triangle tests (wide: "
+      "tests = 4 per packet):\n\n");
+  const auto& diffuse = g_meshes.empty()
+                            ? std::vector<kiln::Ray>{}
+                            : const_cast<MeshCase&>(mesh).rays[kiln::RayKind::kDiffuse];
+  for (const auto& c : contestants) {
+    if (!c.cost || c.name.find("scalar") != std::string::npos) continue;
+    double nodes = 0, tests = 0;
+    for (const auto& ray : diffuse) {
+      const kiln::Cost k = c.cost(ray);
+      nodes += k.nodes, tests += k.tests;
+    }
+    const double n = double(std::max<std::size_t>(diffuse.size(), 1));
+    std::printf("- %s: %.1f nodes, %.1f tests\n", c.name.c_str(), nodes / n, tests / n);
+  }
+  auto find = [&](const std::string& name) {
+    for (std::size_t c = 0; c < contestants.size(); ++c)
+      if (contestants[c].name == name) return c;
+    return contestants.size();
+  };
+  const std::string auto_kernel = kiln::bvh_kernel_name(kiln::bvh_auto_kernel());
+  std::printf("\nMedian of per-round ratios, Kiln ÷ Embree (above 1: Kiln faster):\n\n");
+  std::printf(
+      "| Kiln | Embree | primary 1T | primary %uT | diffuse 1T | diffuse %uT | shadow 1T | shadow "
+      "%uT |\n",
+      hardware_threads(), hardware_threads(), hardware_threads());
+  std::printf("|---|---|---:|---:|---:|---:|---:|---:|\n");
+  for (const char* kiln_name : {"sbvh w8", "sbvh w8q", "bvh w8", "bvh w8q", "sbvh w4", "sbvh w2"})
+    for (const char* embree_name : {"embree medium", "embree high", "embree high robust"}) {
+      std::string name = kiln_name;
+      if (name.back() != '2') name += " " + auto_kernel;
+      const std::size_t a = find(name), b = find(embree_name);
+      if (a == contestants.size() || b == contestants.size()) continue;
+      std::printf("| %s | %s |", name.c_str(), embree_name);
+      for (std::size_t k = 0; k < kRayKinds.size(); ++k)
+        for (int t : {0, 1})
+          std::printf(" %s |", format("%.2f×", median_ratio(times[k][t], a, b)).c_str());
+      std::printf("\n");
+    }
+}
+
+void run_alternating(MeshCase& mesh) {
+  std::vector<Contestant> contestants;
+  KilnLayouts layouts;
+  add_kiln_contestants(mesh, layouts, contestants);
+#ifdef KILN_BENCH_EMBREE
+  std::vector<std::shared_ptr<EmbreeScene>> scenes;
+  add_embree_contestants(mesh, scenes, contestants);
+#endif
+  std::vector<std::array<Times, 2>> times(kRayKinds.size());
+  std::size_t count = 0;
+  for (std::size_t k = 0; k < kRayKinds.size(); ++k) {
+    const auto& rays = rays_for(mesh, kRayKinds[k]);
+    count = rays.size();
+    for (int t : {0, 1})
+      times[k][t] = run_rounds(contestants, rays, is_any_hit(kRayKinds[k]), t == 1);
+  }
+  print_alternating(mesh, contestants, times, count);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);  // removes the --benchmark_* flags
   std::vector<MeshCase> meshes;
+  std::optional<kiln::RayCamera> camera;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     try {
       if (parse_number_option(arg, "rays", g_settings.rays) ||
           parse_number_option(arg, "seed", g_settings.seed) ||
-          parse_number_option(arg, "iterations", g_settings.iterations))
+          parse_number_option(arg, "iterations", g_settings.iterations) ||
+          parse_number_option(arg, "rounds", g_settings.rounds))
         continue;
     } catch (const std::exception&) {
       std::fprintf(stderr, "bad number in '%s'\n", arg.c_str());
       return 2;
+    }
+    if (arg.starts_with("--camera=")) {
+      camera = parse_camera(arg.substr(9));
+      if (!camera && arg != "--camera=none") {
+        std::fprintf(stderr, "bad camera in '%s' (EX,EY,EZ,TX,TY,TZ,FOV)\n", arg.c_str());
+        return 2;
+      }
+      continue;
     }
     if (arg.starts_with("--")) {
       std::fprintf(stderr, "unknown option '%s'\n", arg.c_str());
@@ -767,6 +1027,7 @@ int main(int argc, char** argv) {
     }
     std::optional<MeshCase> mesh = parse_mesh(arg);
     if (!mesh) return 2;
+    mesh->camera = camera;
     meshes.push_back(std::move(*mesh));
   }
   if (meshes.empty()) {
@@ -777,6 +1038,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (!import_meshes(std::move(meshes))) return 1;
+  if (g_settings.rounds > 0) {
+    std::printf(
+        "## kiln_bench_bvh --rounds=%d: %zu rays per kind, seed %llu, %u threads, "
+        "default kernel %s\n",
+        g_settings.rounds, g_settings.rays, (unsigned long long)g_settings.seed, hardware_threads(),
+        kiln::bvh_kernel_name(kiln::bvh_auto_kernel()));
+    for (const auto& mesh : g_meshes) run_alternating(*mesh);
+    return 0;
+  }
   for (const auto& mesh : g_meshes) register_mesh(mesh.get());
 
   benchmark::RunSpecifiedBenchmarks();

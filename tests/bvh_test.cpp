@@ -126,8 +126,8 @@ std::vector<std::byte> blob_with_bvhs(const Scene& scene, bool compress, unsigne
   options.inputs = {"generated"};
   options.threads = threads;
   options.compression.enabled = compress;
-  options.structures = {resolve_structure_request("bvh", {}),
-                        resolve_structure_request("sbvh", {})};
+  options.structures = {resolve_structure_request("bvh:width=2", {}),
+                        resolve_structure_request("sbvh:width=2", {})};
   return compile_blob(scene, options);
 }
 

@@ -6,6 +6,7 @@
 
 #include "kiln/formats/container.hpp"
 #include "kiln/runtime/checksum.hpp"
+#include "kiln/runtime/ray.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
@@ -184,6 +185,46 @@ TEST(Cli, BuildRaysTraceWithBothBvhs) {
     }
     EXPECT_GT(hits, 0u);
   }
+}
+
+// `kiln rays --camera`: primary rays start at the eye and look towards the target; diffuse rays
+// start on the surface; a malformed camera is refused in one line. `--bvh-width` and
+// `--bvh-boxes` reach the blob's description.
+TEST(Cli, RaysFromACameraAndBvhLayoutFlags) {
+  KILN_REQUIRE_CORPUS();
+  test::TempDir dir;
+  const std::string mesh = quoted(test::mesh_path("classic/teapot.obj"));
+  const std::string blob = dir.file("w.kiln");
+  ASSERT_EQ(test::run_kiln("build --accel bvh --bvh-width 4 --bvh-boxes u8 " + mesh + " -o " +
+                           quoted(blob))
+                .exit_code,
+            0);
+  const auto dump = nlohmann::json::parse(test::run_kiln("dump --json " + quoted(blob)).out);
+  EXPECT_EQ(dump["manifest"]["structures"][0]["bvh"]["width"], 4);
+  EXPECT_EQ(dump["manifest"]["structures"][0]["bvh"]["quantized"], true);
+  const std::string rays = dir.file("c.rays");
+  ASSERT_EQ(test::run_kiln("rays " + quoted(blob) + " --count 64 --camera=0.5,1,6,0,0.5,0,40 -o " +
+                           quoted(rays))
+                .exit_code,
+            0);
+  const auto bytes = test::read_file(rays);
+  ASSERT_EQ(bytes.size(), 64u * sizeof(Ray));
+  for (std::size_t i = 0; i < 64; ++i) {
+    Ray r;
+    std::memcpy(&r, bytes.data() + i * sizeof r, sizeof r);
+    EXPECT_EQ(r.org.x, 0.5f);
+    EXPECT_EQ(r.org.z, 6.0f);
+    EXPECT_LT(r.dir.z, 0.0f);  // towards the target
+  }
+  ASSERT_EQ(test::run_kiln("rays " + quoted(blob) +
+                           " --kind diffuse --count 64 "
+                           "--camera=0.5,1,6,0,0.5,0,40 -o " +
+                           quoted(rays))
+                .exit_code,
+            0);
+  const auto bad = test::run_kiln("rays " + quoted(blob) + " --camera=1,2,3 -o " + quoted(rays));
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--camera"), std::string::npos) << bad.err;
 }
 
 TEST(Cli, TraceRefusesBadInputs) {

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "import_fixtures.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/import.hpp"
 #include "test_support.hpp"
@@ -37,19 +38,6 @@ std::vector<std::uint32_t> mesh_colors(const Scene& scene, std::size_t m) {
 void expect_all(const std::vector<std::uint32_t>& colors, std::uint32_t expected) {
   for (std::size_t i = 0; i < colors.size(); ++i)
     EXPECT_EQ(colors[i], expected) << "vertex " << i << ": 0x" << std::hex << colors[i];
-}
-
-// Runs `body`, expecting an ImportError whose one-line message contains `needle`.
-template <class F>
-void expect_import_error(F body, const std::string& needle) {
-  try {
-    body();
-    ADD_FAILURE() << "no ImportError (wanted one mentioning '" << needle << "')";
-  } catch (const ImportError& e) {
-    const std::string message = e.what();
-    EXPECT_NE(message.find(needle), std::string::npos) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-  }
 }
 
 // --- Assimp ---------------------------------------------------------------------------------
@@ -245,18 +233,20 @@ TEST(ColorImport, GltfMaterialPresenceDecides) {
 TEST(ColorImport, GltfMalformedColorsAreRefused) {
   test::TempDir dir;
   ColorAccessor short_count{5121, "VEC4", 2, {255, 0, 0, 255, 0, 255, 0, 255}};
-  expect_import_error([&] { import_gltf_text(dir, triangle_gltf(&short_count, "")); }, "COLOR_0");
+  test::expect_import_error([&] { import_gltf_text(dir, triangle_gltf(&short_count, "")); },
+                            "COLOR_0");
   ColorAccessor nan{5126, "VEC3", 3, {}};
   append(nan.bytes,
          std::vector<float>{1, 0, 0, std::numeric_limits<float>::quiet_NaN(), 0, 0, 0, 0, 1});
-  expect_import_error([&] { import_gltf_text(dir, triangle_gltf(&nan, "")); }, "non-finite");
+  test::expect_import_error([&] { import_gltf_text(dir, triangle_gltf(&nan, "")); }, "non-finite");
   ColorAccessor signed_bytes{5120, "VEC4", 3, std::vector<std::uint8_t>(12, 1)};
-  expect_import_error([&] { import_gltf_text(dir, triangle_gltf(&signed_bytes, "")); }, "COLOR_0");
+  test::expect_import_error([&] { import_gltf_text(dir, triangle_gltf(&signed_bytes, "")); },
+                            "COLOR_0");
   ColorAccessor vec2{5126, "VEC2", 3, std::vector<std::uint8_t>(24, 0)};
-  expect_import_error([&] { import_gltf_text(dir, triangle_gltf(&vec2, "")); }, "COLOR_0");
+  test::expect_import_error([&] { import_gltf_text(dir, triangle_gltf(&vec2, "")); }, "COLOR_0");
   std::string bad_material = triangle_gltf(nullptr, "{}");
   bad_material.replace(bad_material.find(R"("material":0)"), 12, R"("material":3)");
-  expect_import_error([&] { import_gltf_text(dir, bad_material); }, "material 3");
+  test::expect_import_error([&] { import_gltf_text(dir, bad_material); }, "material 3");
 }
 
 // Box_Draco.glb's one material: "baseColorFactor": [0.800000011920929, 0, 0, 1] (204 = 0.8 * 255).
@@ -361,10 +351,10 @@ TEST(ColorImport, DracoMalformedColorsAreRefused) {
                              {float_bytes({1, 0, 0}), float_bytes({nan, 0, 0}),
                               float_bytes({0, 1, 0}), float_bytes({0, 0, 1})}};
   write_draco(dir.file("nan.drc"), not_finite);
-  expect_import_error([&] { import_scene({dir.file("nan.drc")}, 1); }, "Draco COLOR");
+  test::expect_import_error([&] { import_scene({dir.file("nan.drc")}, 1); }, "Draco COLOR");
   const DracoCase two_components{draco::DT_UINT8, 2, {{1, 2}, {3, 4}, {5, 6}, {7, 8}}};
   write_draco(dir.file("two.drc"), two_components);
-  expect_import_error([&] { import_scene({dir.file("two.drc")}, 1); }, "Draco COLOR");
+  test::expect_import_error([&] { import_scene({dir.file("two.drc")}, 1); }, "Draco COLOR");
 }
 
 // --- Scene assembly -------------------------------------------------------------------------
@@ -436,7 +426,7 @@ TEST(ColorImport, AssemblyColorEdgeCases) {
   file.meshes.push_back(mesh_of({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, {{{0, 1, 2}}}, {kWhite}));
   std::vector<ImportedFile> files;
   files.push_back(std::move(file));
-  expect_import_error([&] { assemble_scene(std::move(files)); }, "colours");
+  test::expect_import_error([&] { assemble_scene(std::move(files)); }, "colours");
 }
 
 }  // namespace

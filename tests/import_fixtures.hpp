@@ -1,14 +1,28 @@
 // Small meshes whose import reads more than one file (an OBJ and its .mtl, a glTF and its
-// .bin), for the depfile and build-cache tests.
+// .bin), for the depfile and build-cache tests, and the check of an import's refusal.
 #pragma once
 
 #include <filesystem>
 #include <span>
 #include <string>
 
+#include "kiln/compiler/import.hpp"
 #include "test_support.hpp"
 
 namespace kiln::test {
+
+// Runs `body`, expecting an ImportError whose one-line message contains `needle`.
+template <class F>
+void expect_import_error(F body, const std::string& needle) {
+  try {
+    body();
+    ADD_FAILURE() << "no ImportError (wanted one mentioning '" << needle << "')";
+  } catch (const ImportError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(needle), std::string::npos) << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  }
+}
 
 // One red triangle in an OBJ whose colour lives in `mtl_name`.
 inline void write_obj_with_mtl(const std::filesystem::path& dir, const std::string& mtl_name,

@@ -10,23 +10,12 @@
 #include <string>
 #include <vector>
 
+#include "import_fixtures.hpp"
 #include "kiln/compiler/import.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
 namespace {
-
-template <typename F>
-void expect_refused(F body, const std::string& needle) {
-  try {
-    body();
-    ADD_FAILURE() << "no ImportError (wanted one mentioning '" << needle << "')";
-  } catch (const ImportError& e) {
-    const std::string message = e.what();
-    EXPECT_NE(message.find(needle), std::string::npos) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-  }
-}
 
 std::span<const std::byte> as_bytes(const std::string& text) {
   return std::as_bytes(std::span<const char>(text));
@@ -112,8 +101,8 @@ TEST(ImportLimits, ZstdFrameDeclaringTerabytesIsRefusedBeforeInflating) {
                                std::byte{0xFD}, std::byte{0xC0}, std::byte{0x00}};
   const std::uint64_t terabyte = std::uint64_t{1} << 40;
   for (int i = 0; i < 8; ++i) frame.push_back(std::byte((terabyte >> (8 * i)) & 0xFF));
-  expect_refused([&] { import_bytes("huge.ply.zst", frame, {}, false); },
-                 "huge.ply.zst: inflates to more than 4 GiB");
+  test::expect_import_error([&] { import_bytes("huge.ply.zst", frame, {}, false); },
+                            "huge.ply.zst: inflates to more than 4 GiB");
 }
 
 TEST(ImportLimits, InflateLimitCanBeRaised) {
@@ -121,8 +110,8 @@ TEST(ImportLimits, InflateLimitCanBeRaised) {
   const auto packed = streamed_zstd(obj, "# padding to inflate past the limit\n", 2000);
   ImportLimits tight;
   tight.max_inflated_bytes = 1000;
-  expect_refused([&] { import_bytes("t.obj.zst", packed, tight, false); },
-                 "inflates to more than 1000 bytes");
+  test::expect_import_error([&] { import_bytes("t.obj.zst", packed, tight, false); },
+                            "inflates to more than 1000 bytes");
   const ImportedFile file = import_bytes("t.obj.zst", packed, {}, false);
   ASSERT_EQ(file.meshes.size(), 1u);
   EXPECT_EQ(file.meshes[0].triangles.size(), 1u);
@@ -131,8 +120,8 @@ TEST(ImportLimits, InflateLimitCanBeRaised) {
 TEST(ImportLimits, TruncatedZstdIsOneLine) {
   const auto packed = streamed_zstd("v 0 0 0\n", "v 1 2 3\n", 100000);
   const std::span<const std::byte> cut(packed.data(), packed.size() / 2);
-  expect_refused([&] { import_bytes("cut.obj.zst", cut, {}, false); },
-                 "cut.obj.zst: zstd: the file ends inside a frame");
+  test::expect_import_error([&] { import_bytes("cut.obj.zst", cut, {}, false); },
+                            "cut.obj.zst: zstd: the file ends inside a frame");
 }
 
 TEST(ImportLimits, ObjFaceWithTooManyCornersIsRefusedWithItsLine) {
@@ -140,17 +129,18 @@ TEST(ImportLimits, ObjFaceWithTooManyCornersIsRefusedWithItsLine) {
   const auto bomb = streamed_zstd("v 0 0 0\nv 1 0 0\nv 0 1 0\nf", " 1 2 3", 100'000'000 / 3);
   ImportLimits limits;
   limits.max_inflated_bytes = std::uint64_t{1} << 30;
-  expect_refused([&] { import_bytes("face.obj.zst", bomb, limits, false); },
-                 "face.obj.zst:4: a face with 99999999 corners; the limit is 4096 (raise it with "
-                 "--max-face-vertices)");
+  test::expect_import_error(
+      [&] { import_bytes("face.obj.zst", bomb, limits, false); },
+      "face.obj.zst:4: a face with 99999999 corners; the limit is 4096 (raise it with "
+      "--max-face-vertices)");
 }
 
 TEST(ImportLimits, FaceLimitCountsContinuedLinesAndCanBeRaised) {
   std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n# a comment\nf 1 2 \\\n 4 3\n";
   ImportLimits limits;
   limits.max_face_vertices = 3;
-  expect_refused([&] { import_bytes("quad.obj", as_bytes(obj), limits, false); },
-                 "quad.obj:6: a face with 4 corners; the limit is 3");
+  test::expect_import_error([&] { import_bytes("quad.obj", as_bytes(obj), limits, false); },
+                            "quad.obj:6: a face with 4 corners; the limit is 3");
   limits.max_face_vertices = 4;
   const ImportedFile file = import_bytes("quad.obj", as_bytes(obj), limits, false);
   ASSERT_EQ(file.meshes.size(), 1u);
@@ -167,8 +157,8 @@ TEST(ImportLimits, GltfAccessorClaimingBillionsIsRefused) {
                   "min":[0,0,0],"max":[1,1,0]}],
     "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
     "nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"scene":0})";
-  expect_refused([&] { import_bytes("/nonexistent/a.gltf", as_bytes(gltf), {}, false); },
-                 "1000000000 elements do not fit in the buffer view");
+  test::expect_import_error([&] { import_bytes("/nonexistent/a.gltf", as_bytes(gltf), {}, false); },
+                            "1000000000 elements do not fit in the buffer view");
 }
 
 }  // namespace

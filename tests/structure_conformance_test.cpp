@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -17,6 +18,7 @@
 #include "kiln/compiler/import.hpp"
 #include "kiln/compiler/structure_builder.hpp"
 #include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/bvh_wide.hpp"
 #include "kiln/runtime/checksum.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/structure_registry.hpp"
@@ -27,12 +29,31 @@
 namespace kiln {
 namespace {
 
-// The structures each suite runs on: `kiln build --accel` specs.
+// The structures each suite runs on: `kiln build --accel` specs. A ray structure's spec may end
+// in "@KERNEL": the suite then runs with KILN_BVH_KERNEL=KERNEL (skipped where the CPU lacks it).
 const char* const kRayStructures[] = {
     "bvh",
     "bvh:builder=sweep",
     "sbvh",
     "kdtree",
+    "bvh:width=2",
+    "sbvh:width=2",
+    "bvh:width=4",
+    "sbvh:width=4",
+    "bvh:width=4@scalar",
+    "bvh:width=4@sse",
+    "bvh:width=4@avx2",
+    "bvh:width=4@avx512",
+    "sbvh@scalar",
+    "sbvh@sse",
+    "sbvh@avx2",
+    "sbvh@avx512",
+    "bvh:boxes=u8",
+    "sbvh:width=4,boxes=u8",
+    "bvh:boxes=u8@scalar",
+    "bvh:boxes=u8@sse",
+    "bvh:width=4,boxes=u8@avx2",
+    "bvh:boxes=u8@avx512",
 };
 const char* const kPointStructures[] = {
     "points",
@@ -75,7 +96,26 @@ Scene teapot_or_icosphere() {
 // ---------------------------------------------------------------------------------------------
 // Ray structures over triangles.
 
-class RayConformance : public testing::TestWithParam<const char*> {};
+class RayConformance : public testing::TestWithParam<const char*> {
+ protected:
+  void SetUp() override {
+    const std::string param = GetParam();
+    const auto at = param.find('@');
+    spec_ = param.substr(0, at);
+    if (at == std::string::npos) return;
+    const std::string kernel = param.substr(at + 1);
+    for (const BvhKernel k :
+         {BvhKernel::kScalar, BvhKernel::kSse, BvhKernel::kAvx2, BvhKernel::kAvx512})
+      if (kernel == bvh_kernel_name(k) && !bvh_kernel_supported(k))
+        GTEST_SKIP() << "this CPU cannot run the " << kernel << " BVH kernel";
+    setenv("KILN_BVH_KERNEL", kernel.c_str(), 1);
+  }
+  void TearDown() override { unsetenv("KILN_BVH_KERNEL"); }
+  const std::string& spec() const { return spec_; }
+
+ private:
+  std::string spec_;
+};
 
 // Closest hits agree with brute force (hit/miss, t, prim unless tied); any-hit finds a hit
 // exactly when closest-hit does, never nearer than the closest.
@@ -110,7 +150,7 @@ TEST_P(RayConformance, AgreesWithBruteForceOnWorstCasesAndACorpusMesh) {
   scenes.emplace("mesh", teapot_or_icosphere());
   for (const auto& [name, scene] : scenes) {
     SCOPED_TRACE(name);
-    const OpenBlob open(test::blob_with(scene, GetParam(), 2));
+    const OpenBlob open(test::blob_with(scene, spec(), 2));
     const auto view = open.view();
     ASSERT_NE(view->rays(), nullptr);
     const auto batch = scene_rays(scene, 3000);
@@ -122,7 +162,7 @@ TEST_P(RayConformance, AgreesWithBruteForceOnWorstCasesAndACorpusMesh) {
 // between triangles.
 TEST_P(RayConformance, WatertightThroughVerticesAndEdges) {
   const Scene sphere = test::icosphere(2);
-  const OpenBlob open(test::blob_with(sphere, GetParam(), 2));
+  const OpenBlob open(test::blob_with(sphere, spec(), 2));
   const auto view = open.view();
   std::vector<Ray> batch;
   auto aim = [&](format::Float3 p) {
@@ -146,8 +186,8 @@ TEST_P(RayConformance, WatertightThroughVerticesAndEdges) {
 
 TEST_P(RayConformance, FileMemoryAndZstdRoundTripsTraceTheSame) {
   const Scene scene = teapot_or_icosphere();
-  const auto raw = test::blob_with(scene, GetParam(), 2);
-  const auto packed = test::blob_with(scene, GetParam(), 2, true);
+  const auto raw = test::blob_with(scene, spec(), 2);
+  const auto packed = test::blob_with(scene, spec(), 2, true);
   EXPECT_LT(packed.size(), raw.size());
   test::TempDir dir;
   test::write_file(dir.file("a.kiln"), raw);
@@ -171,7 +211,7 @@ void expect_deterministic(const Scene& scene, const std::string& spec) {
 }
 
 TEST_P(RayConformance, ByteIdenticalAcrossThreadCounts) {
-  expect_deterministic(teapot_or_icosphere(), GetParam());
+  expect_deterministic(teapot_or_icosphere(), spec());
 }
 
 // Random bytes written into each of the structure's sections, checksums recomputed so the
@@ -208,7 +248,7 @@ void expect_forgeries_refused_or_safe(const Scene& scene, const std::string& spe
 }
 
 TEST_P(RayConformance, ForgedAndFlippedBytesAreRefusedOrSafe) {
-  expect_forgeries_refused_or_safe(test::icosphere(2), GetParam());
+  expect_forgeries_refused_or_safe(test::icosphere(2), spec());
 }
 
 // kiln dump --json lists the structure with its name and kind; kiln verify passes.
@@ -231,7 +271,7 @@ void expect_dump_and_verify(const Scene& scene, const std::string& spec) {
 }
 
 TEST_P(RayConformance, DumpAndVerify) {
-  expect_dump_and_verify(test::icosphere(1), GetParam());
+  expect_dump_and_verify(test::icosphere(1), spec());
 }
 
 INSTANTIATE_TEST_SUITE_P(Registered, RayConformance, testing::ValuesIn(kRayStructures));

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "bvh_subtree.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -208,45 +209,18 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
                    Task{mid, t.end, s.right_box, rc, t.depth + 1}};
 }
 
-// Appends `sub` (a subtree emitted on its own, indices from 0) to `nodes`, shifting its interior
-// nodes' second-child indices; leaf offsets index the shared reference array and stay.
-void append_subtree(std::vector<format::BvhNode>& nodes, const std::vector<format::BvhNode>& sub) {
-  const auto shift = std::uint32_t(nodes.size());
-  for (format::BvhNode n : sub) {
-    if (n.count == 0) n.offset += shift;
-    nodes.push_back(n);
-  }
-}
-
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes) {
   const std::size_t index = nodes.size();
   nodes.push_back(leaf_node(t.box, t.begin, t.end - t.begin));
   int axis = 0;
   const auto children = split_task(ctx, t, axis);
   if (!children) return;
-  const Task left = children->first, right = children->second;  // (clang 14: no lambda
-                                                                // capture of bindings)
-  std::uint32_t second;
-  if (t.depth < ctx.parallel_depth && left.end - left.begin >= kParallelSubtree &&
-      right.end - right.begin >= kParallelSubtree) {
-    // Both halves are emitted apart and then appended in order: the same nodes whether or not
-    // the right one ran on its own thread.
-    std::vector<format::BvhNode> l, r;
-    fork_join(
-        true, [&] { emit(ctx, left, l); }, [&] { emit(ctx, right, r); });
-    nodes.reserve(nodes.size() + l.size() + r.size());
-    append_subtree(nodes, l);
-    second = std::uint32_t(nodes.size());
-    append_subtree(nodes, r);
-  } else {
-    emit(ctx, left, nodes);
-    second = std::uint32_t(nodes.size());
-    emit(ctx, right, nodes);
-  }
-  format::BvhNode& node = nodes[index];
-  node.offset = second;
-  node.count = 0;
-  node.axis = std::uint8_t(axis);
+  const auto& [left, right] = *children;
+  const bool fork = t.depth < ctx.parallel_depth && left.end - left.begin >= kParallelSubtree &&
+                    right.end - right.begin >= kParallelSubtree;
+  emit_bvh_children(fork, left, right, index, nodes,
+                    [&](const Task& child, auto& out) { emit(ctx, child, out); });
+  nodes[index].axis = std::uint8_t(axis);
 }
 
 }  // namespace

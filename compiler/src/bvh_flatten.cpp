@@ -57,6 +57,22 @@ std::vector<PrimRef> triangle_refs(const Scene& scene, unsigned threads) {
   return refs;
 }
 
+// Triangles and primitive ids in leaf order.
+void copy_leaf_triangles(const Scene& scene, FlatBvh& out, unsigned threads) {
+  out.triangles.resize(out.prim_ids.size());
+  parallel_for_batched(out.prim_ids.size(), 65536, threads, [&](std::size_t i) {
+    const auto& t = scene.triangles[out.prim_ids[i]];
+    out.triangles[i] = {scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]};
+  });
+}
+
+FlatBvh build_sweep_bvh(const Scene& scene, const BvhBuildOptions& options) {
+  FlatBvh out;
+  out.nodes = build_sweep_nodes(triangle_refs(scene, options.threads), out.prim_ids, options);
+  copy_leaf_triangles(scene, out, options.threads);
+  return out;
+}
+
 FlatBvh build_binned_bvh(const Scene& scene, const BvhBuildOptions& options) {
   FlatBvh out;
   {
@@ -65,11 +81,7 @@ FlatBvh build_binned_bvh(const Scene& scene, const BvhBuildOptions& options) {
     out.prim_ids.resize(refs.size());
     for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim;
   }  // the references (28 B per triangle) are gone before the triangles are copied
-  out.triangles.resize(out.prim_ids.size());
-  parallel_for_batched(out.prim_ids.size(), 65536, options.threads, [&](std::size_t i) {
-    const auto& t = scene.triangles[out.prim_ids[i]];
-    out.triangles[i] = {scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]};
-  });
+  copy_leaf_triangles(scene, out, options.threads);
   return out;
 }
 
@@ -118,11 +130,11 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
 
 FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
   if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
-  FlatBvh out = options.builder == BvhBuilder::kBinned
-                    ? build_binned_bvh(scene, options)
-                    : flatten_bvh(*build_bvh_tree(scene, options), scene, options);
-  if (options.builder == BvhBuilder::kBinned)
-    out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
+  if (options.builder == BvhBuilder::kSpatial)
+    return flatten_bvh(*build_bvh_tree(scene, options), scene, options);
+  FlatBvh out = options.builder == BvhBuilder::kBinned ? build_binned_bvh(scene, options)
+                                                       : build_sweep_bvh(scene, options);
+  out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
   return out;
 }
 

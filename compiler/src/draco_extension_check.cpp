@@ -1,5 +1,7 @@
 #include "draco_extension_check.hpp"
 
+#include "draco_counts_check.hpp"
+
 #include <draco/compression/decode.h>
 
 #include <cstring>
@@ -116,6 +118,13 @@ void check_draco_extensions(const std::string& path, std::string_view text,
               read_companion(path, base_dir, buffer["uri"].get<std::string>(), accessed);
         buffer_bytes = companions[buffer_index];
       }
+      // tinygltf keeps a buffer's declared byteLength (a GLB's BIN chunk may hold more) and
+      // hands Draco the view unchecked: the view must lie in both.
+      const auto declared = buffer.is_object() ? buffer.value("byteLength", json(-1)) : json(-1);
+      if (!declared.is_number_integer() || declared.get<std::int64_t>() < 0)
+        fail("buffer has no valid byteLength");
+      buffer_bytes = buffer_bytes.first(
+          std::min<std::uint64_t>(buffer_bytes.size(), declared.get<std::int64_t>()));
       const auto offset = view.value("byteOffset", json(0));
       const auto length = view.value("byteLength", json(0));
       if (!offset.is_number_unsigned() && !offset.is_number_integer()) fail("bad byteOffset");
@@ -125,6 +134,7 @@ void check_draco_extensions(const std::string& path, std::string_view text,
           std::uint64_t(n) > buffer_bytes.size() - std::uint64_t(o))
         fail("buffer view lies outside its buffer");
 
+      check_draco_counts(path, buffer_bytes.subspan(std::size_t(o), std::size_t(n)));
       draco::DecoderBuffer decoder_buffer;
       decoder_buffer.Init(reinterpret_cast<const char*>(buffer_bytes.data()) + o, std::size_t(n));
       draco::Decoder decoder;

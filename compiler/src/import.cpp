@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "import_ply.hpp"
+#include "import_stl.hpp"
 #include "kiln/runtime/checksum.hpp"
 
 namespace kiln {
@@ -143,6 +144,15 @@ std::string lower_extension(const std::string& name) {
   return ext;
 }
 
+// Kiln's STL reader (Assimp 5.2.5 leaks on malformed ASCII STL). A UTF-16 ASCII STL is
+// transcoded first, as it was for Assimp; a binary one is never (its header may start FF FE).
+std::vector<ImportedMesh> import_stl_text_or_binary(const std::string& path,
+                                                    std::span<const std::byte> bytes) {
+  if (!is_binary_stl(bytes))
+    if (const auto utf8 = utf16_to_utf8(bytes); !utf8.empty()) return import_stl(path, utf8);
+  return import_stl(path, bytes);
+}
+
 }  // namespace
 
 ImportedFile import_file(const std::string& path, const ImportLimits& limits) {
@@ -173,6 +183,8 @@ ImportedFile import_bytes(const std::string& path, std::span<const std::byte> st
       file.meshes = import_draco(inner_name, bytes);  // a single file, never a companion
     else if (ext == ".ply")
       file.meshes = import_ply(inner_name, bytes);  // Kiln's reader: Assimp misreads strips
+    else if (ext == ".stl")
+      file.meshes = import_stl_text_or_binary(inner_name, bytes);  // Assimp leaks on bad ASCII
     else if (auto utf8 = utf16_to_utf8(bytes); !utf8.empty())
       file.meshes = ext == ".obj"
                         ? import_obj(inner_name, utf8, false, limits, &file.accessed)

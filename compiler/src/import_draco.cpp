@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "draco_counts_check.hpp"
 #include "import_draco_mesh.hpp"
 #include "kiln/compiler/import.hpp"
 #include "rgba8.hpp"
@@ -53,8 +54,15 @@ ImportedMesh convert_draco_mesh(const draco::Mesh& mesh, const std::string& path
       mesh.GetNamedAttribute(draco::GeometryAttribute::POSITION);
   if (position == nullptr || position->num_components() != 3)
     throw ImportError(path + ": Draco mesh has no 3-component POSITION attribute");
+  // Draco converts bool attributes by loading each byte as a C++ bool: any byte but 0 or 1 is
+  // undefined behaviour (found by import_drc_fuzzer), and no mesh stores positions as bool.
+  auto numeric = [](const draco::PointAttribute& a) {
+    return a.data_type() != draco::DT_BOOL && a.data_type() != draco::DT_INVALID &&
+           a.data_type() < draco::DT_TYPES_COUNT;
+  };
+  if (!numeric(*position)) throw ImportError(path + ": Draco POSITION is not numeric data");
   const draco::PointAttribute* normal = mesh.GetNamedAttribute(draco::GeometryAttribute::NORMAL);
-  if (normal != nullptr && normal->num_components() != 3) normal = nullptr;
+  if (normal != nullptr && (normal->num_components() != 3 || !numeric(*normal))) normal = nullptr;
   const draco::PointAttribute* color = mesh.GetNamedAttribute(draco::GeometryAttribute::COLOR);
   if (color != nullptr && color->num_components() != 3 && color->num_components() != 4)
     throw ImportError(path + ": Draco COLOR has " + std::to_string(color->num_components()) +
@@ -98,6 +106,7 @@ std::vector<ImportedMesh> import_draco(const std::string& path, std::span<const 
     throw ImportError(path + ": not a Draco bitstream: " + type.status().error_msg_string());
   if (type.value() != draco::TRIANGULAR_MESH)
     throw ImportError(path + ": Draco point cloud has no triangles");
+  check_draco_counts(path, bytes);
   draco::Decoder decoder;
   auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
   if (!decoded.ok()) throw ImportError(path + ": Draco: " + decoded.status().error_msg_string());

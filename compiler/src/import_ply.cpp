@@ -32,7 +32,9 @@
 #include <type_traits>
 #include <utility>
 
+#include "join_vertices.hpp"
 #include "kiln/compiler/import.hpp"
+#include "parse_real.hpp"
 #include "rgba8.hpp"
 
 namespace kiln {
@@ -261,58 +263,6 @@ class BinaryBody {
   bool swap_;
   std::size_t at_ = 0, entry_start_ = 0;
 };
-
-// The digits at the front of `text`, consumed: the value of the first `max`, how many those
-// were, and how many there were in all.
-struct Digits {
-  std::uint64_t value = 0;
-  std::size_t used = 0, total = 0;
-};
-Digits leading_digits(std::string_view& text, std::size_t max) {
-  Digits d;
-  for (; !text.empty() && text[0] >= '0' && text[0] <= '9'; text.remove_prefix(1), ++d.total)
-    if (d.used < max) d.value = d.value * 10 + std::uint64_t(text[0] - '0'), ++d.used;
-  return d;
-}
-
-// A real as Assimp's fast_atoreal_move reads it (and still reads OBJ): the integer part, plus at
-// most 15 decimals scaled in double and rounded to Real, then times 10^exponent in Real. Not
-// always the nearest float, but ASCII PLYs import bit for bit as before, and as the same text in
-// an OBJ does.
-template <class Real>
-std::optional<Real> parse_real(std::string_view text) {
-  static constexpr double kScale[16] = {0,    1e-1, 1e-2,  1e-3,  1e-4,  1e-5,  1e-6,  1e-7,
-                                        1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15};
-  const bool negative = !text.empty() && text[0] == '-';
-  if (!text.empty() && (text[0] == '-' || text[0] == '+')) text.remove_prefix(1);
-  if (text == "nan" || text == "NaN" || text == "NAN")
-    return std::numeric_limits<Real>::quiet_NaN();
-  if (text == "inf" || text == "Inf" || text == "INF" || text == "infinity" || text == "Infinity")
-    return negative ? -std::numeric_limits<Real>::infinity()
-                    : std::numeric_limits<Real>::infinity();
-  const Digits integer = leading_digits(text, 19);  // more would overflow: refused
-  if (integer.total > 19) return std::nullopt;
-  Real value = Real(integer.value);
-  std::size_t digits = integer.total;
-  if (!text.empty() && text[0] == '.') {
-    text.remove_prefix(1);
-    const Digits decimals = leading_digits(text, 15);  // the rest ignored
-    value += Real(double(decimals.value) * kScale[decimals.used]);
-    digits += decimals.total;
-  }
-  if (digits == 0) return std::nullopt;
-  if (!text.empty() && (text[0] == 'e' || text[0] == 'E')) {
-    text.remove_prefix(1);
-    const bool negative_exponent = !text.empty() && text[0] == '-';
-    if (!text.empty() && (text[0] == '-' || text[0] == '+')) text.remove_prefix(1);
-    const Digits exponent = leading_digits(text, 19);
-    if (exponent.total == 0 || exponent.total > 19) return std::nullopt;
-    const Real e = Real(exponent.value);
-    value *= std::pow(Real(10), negative_exponent ? -e : e);
-  }
-  if (!text.empty()) return std::nullopt;
-  return negative ? -value : value;
-}
 
 // A token as a value of `type`: integers must be integers in the type's range.
 double parse_number(std::string_view token, Type type) {
@@ -590,74 +540,6 @@ PlyData read_elements(const std::string& path, const Header& header, Body body) 
   return data;
 }
 
-// ---------------------------------------------------------------------------------------------
-// Vertices as Assimp's JoinIdenticalVertices left them
-
-std::array<std::uint32_t, 3> position_key(const PlyData& data, std::uint32_t v) {
-  const format::Float3& p = data.mesh.positions[v];  // bits, -0 as +0
-  return {std::bit_cast<std::uint32_t>(p.x + 0.0f), std::bit_cast<std::uint32_t>(p.y + 0.0f),
-          std::bit_cast<std::uint32_t>(p.z + 0.0f)};
-}
-
-// Assimp's test for two vertices at the same position, in float: normals and texture
-// coordinates each within 1e-5. Kiln also keeps vertices of different colours apart, and never
-// joins distinct positions (Assimp did when they were within 1e-5 and its hash table happened
-// to put them in one bucket).
-bool joinable(const PlyData& data, std::uint32_t a, std::uint32_t b) {
-  constexpr float kEpsilon = 1e-5f;
-  auto close = [&](float x, float y, float z) {
-    return x * x + y * y + z * z <= kEpsilon * kEpsilon;
-  };
-  const ImportedMesh& mesh = data.mesh;
-  if (!mesh.colors.empty() && mesh.colors[a] != mesh.colors[b]) return false;
-  if (!mesh.normals.empty()) {
-    const format::Float3 &n = mesh.normals[a], &m = mesh.normals[b];
-    if (!close(n.x - m.x, n.y - m.y, n.z - m.z)) return false;
-  }
-  return data.uvs.empty() ||
-         close(data.uvs[a][0] - data.uvs[b][0], data.uvs[a][1] - data.uvs[b][1], 0.0f);
-}
-
-// At one position, in vertex order: a vertex joins the newest earlier kept vertex it is
-// joinable with (the order Assimp's hash map found them in), else is kept. Only the newest
-// kKeptScanned are tried, so that a hostile file cannot make this quadratic.
-void join_at_position(const PlyData& data, std::span<const std::uint32_t> group,
-                      std::vector<std::uint32_t>& first, std::vector<std::uint32_t>& kept) {
-  constexpr std::size_t kKeptScanned = 1024;
-  kept.clear();
-  for (const std::uint32_t v : group) {
-    first[v] = v;
-    for (std::size_t k = kept.size(); k-- > 0 && kept.size() - k <= kKeptScanned;)
-      if (joinable(data, v, kept[k])) {
-        first[v] = kept[k];
-        break;
-      }
-    if (first[v] == v) kept.push_back(v);
-  }
-}
-
-// Every triangle corner becomes the vertex Assimp's JoinIdenticalVertices kept for it (always a
-// used vertex numbered lower or equal); vertices no triangle uses are left to assemble_scene.
-void join_identical_vertices(PlyData& data) {
-  std::vector<std::uint32_t> first(data.mesh.positions.size(), 0);
-  for (const auto& t : data.mesh.triangles)
-    for (const auto v : t.v) first[v] = 1;
-  std::vector<std::uint32_t> used;
-  for (std::uint32_t v = 0; v < first.size(); ++v)
-    if (first[v] != 0) used.push_back(v);
-  std::stable_sort(used.begin(), used.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return position_key(data, a) < position_key(data, b);
-  });
-  std::vector<std::uint32_t> kept;
-  for (std::size_t begin = 0, end = 0; begin < used.size(); begin = end) {
-    const auto key = position_key(data, used[begin]);
-    for (end = begin + 1; end < used.size() && position_key(data, used[end]) == key;) ++end;
-    join_at_position(data, std::span(used).subspan(begin, end - begin), first, kept);
-  }
-  for (auto& t : data.mesh.triangles)
-    for (auto& v : t.v) v = first[v];
-}
-
 }  // namespace
 
 std::vector<ImportedMesh> import_ply(const std::string& path, std::span<const std::byte> bytes) {
@@ -667,7 +549,7 @@ std::vector<ImportedMesh> import_ply(const std::string& path, std::span<const st
       header.encoding == Encoding::ascii
           ? read_elements(path, header, AsciiBody(body, header.body_line))
           : read_elements(path, header, BinaryBody(body, header.encoding == Encoding::big_endian));
-  if (!data.mesh.triangles.empty()) join_identical_vertices(data);
+  if (!data.mesh.triangles.empty()) join_identical_vertices(data.mesh, data.uvs);
   data.mesh.point_cloud = data.mesh.triangles.empty() && !data.has_edges;
   std::vector<ImportedMesh> meshes;
   meshes.push_back(std::move(data.mesh));

@@ -10,7 +10,7 @@
 #include <string>
 
 #include "kiln/runtime/blob.hpp"
-#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/bvh_wide.hpp"
 #include "kiln/runtime/ray.hpp"
 
 namespace {
@@ -37,7 +37,9 @@ int main(int argc, char** argv) {
   try {
     // Maps the file and checks its structure in O(sections); the views below read the mapping.
     const kiln::Blob blob = kiln::Blob::open_file(path);
-    const kiln::BvhView bvh = kiln::BvhView::from_blob(blob, "bvh");
+    // `--accel bvh` stores the wide layout by default (kiln::BvhView reads --bvh-width 2 blobs;
+    // kiln::open_structure opens either without naming the layout).
+    const kiln::BvhWideView bvh = kiln::BvhWideView::from_blob(blob, "bvh");
     std::printf("%s: %zu meshes, %zu triangles\n", path.c_str(), blob.mesh_count(),
                 blob.triangles().size());
 

@@ -1,11 +1,15 @@
 // The BVH kinds of the runtime registry: "bvh" (binned or sweep SAH builder) and "sbvh" (spatial
-// splits), one layout and one BvhDesc. Their manifest checks, view, deep check and description.
+// splits), one BvhDesc and two layouts: binary (width 2, BvhView) and wide (width 4 or 8,
+// BvhWideView). Their manifest checks, view, deep check and description.
+#include <cmath>
 #include <cstring>
 #include <memory>
 #include <string>
 
 #include "kiln/formats/bvh.hpp"
+#include "kiln/formats/bvh_wide.hpp"
 #include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/bvh_wide.hpp"
 #include "kiln/runtime/manifest.hpp"
 #include "kiln/runtime/structure_registry.hpp"
 #include "text_format.hpp"
@@ -15,12 +19,31 @@ namespace kiln {
 
 namespace {
 
-constexpr std::uint32_t kSections[] = {format::kSectionBvhNodes, format::kSectionBvhTriangles,
-                                       format::kSectionBvhPrimIds};
+constexpr std::uint32_t kSections[] = {
+    format::kSectionBvhNodes,     format::kSectionBvhTriangles, format::kSectionBvhPrimIds,
+    format::kSectionBvhWideNodes, format::kSectionBvhPackets,   format::kSectionBvhQuantizedNodes};
+
+void check_wide(const Blob& blob, const schema::BvhDesc& d, const std::string& where) {
+  const bool q = d.quantized();
+  const std::uint32_t node_size =
+      q ? (d.width() == 4 ? sizeof(format::BvhQNode4) : sizeof(format::BvhQNode8))
+        : (d.width() == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8));
+  blob.check_section(where + "wide nodes", d.wide_nodes(),
+                     q ? format::kSectionBvhQuantizedNodes : format::kSectionBvhWideNodes,
+                     node_size, d.wide_node_count(), false);
+  blob.check_section(where + "packets", d.packets(), format::kSectionBvhPackets,
+                     sizeof(format::BvhTrianglePacket), d.packet_count(), false);
+  blob.check_section(where + "primitive ids", d.prim_ids(), format::kSectionBvhPrimIds,
+                     sizeof(std::uint32_t), d.packet_count() * format::kBvhPacketSize, false);
+  if (d.wide_node_count() == 0) blob.fail_section(0, where + "has no nodes");
+}
 
 void check(const Blob& blob, const StructureInfo& info) {
   const auto& d = desc_of<schema::BvhDesc>(blob, info);
   const auto where = "structure '" + info.name + "' ";
+  if (d.width() == 4 || d.width() == 8) return check_wide(blob, d, where);
+  if (d.width() != 2)
+    blob.fail(where + "has width " + std::to_string(d.width()) + " (this reader knows 2, 4, 8)");
   blob.check_section(where + "nodes", d.nodes(), format::kSectionBvhNodes, sizeof(format::BvhNode),
                      d.node_count(), false);
   blob.check_section(where + "triangles", d.triangles(), format::kSectionBvhTriangles,
@@ -30,7 +53,14 @@ void check(const Blob& blob, const StructureInfo& info) {
   if (d.node_count() == 0) blob.fail_section(0, where + "has no nodes");
 }
 
+bool is_wide(const Blob& blob, const StructureInfo& info) {
+  return desc_of<schema::BvhDesc>(blob, info).width() != 2;
+}
+
 std::unique_ptr<StructureView> open(const Blob& blob, const StructureInfo& info) {
+  if (is_wide(blob, info))
+    return std::make_unique<TriangleStructure<BvhWideView>>(
+        blob, BvhWideView::from_blob(blob, info.name));
   return std::make_unique<TriangleStructure<BvhView>>(blob, BvhView::from_blob(blob, info.name));
 }
 
@@ -40,9 +70,79 @@ bool contains(const format::BvhNode& outer, const format::BvhNode& inner) {
   return true;
 }
 
+// Every reference names a stored triangle and carries a bitwise copy of its corners.
+void check_reference(const Blob& blob, const schema::BvhDesc& d, const std::string& name,
+                     std::size_t r, std::uint32_t prim, const format::RayTriangle& stored) {
+  const auto positions = blob.positions();
+  const auto triangles = blob.triangles();
+  if (prim >= triangles.size())
+    blob.fail_section(d.prim_ids(), name + " reference " + std::to_string(r) + " names triangle " +
+                                        std::to_string(prim));
+  const auto& t = triangles[prim];
+  const format::RayTriangle expected{positions[t.v[0]], positions[t.v[1]], positions[t.v[2]]};
+  if (std::memcmp(&expected, &stored, sizeof(expected)) != 0)
+    blob.fail_section(d.prim_ids(), name + " reference " + std::to_string(r) +
+                                        " does not match its triangle's corners");
+}
+
+// Child boxes inside the box their parent slot gave them (the root's children are unchecked).
+// How far a child node's boxes may reach past its parent's slot box: none for float boxes; for
+// quantised ones, one quantisation step of the child plus rounding (each plane is rounded
+// outwards to the child's own grid, not clipped to the parent's).
+template <int W>
+float slack(const format::BvhWideNode<W>&, int, float) {
+  return 0.0f;
+}
+template <int W>
+float slack(const format::BvhQuantizedNode<W>& n, int axis, float at) {
+  return format::bvh_quantized_scale(n.exponent[axis]) + std::fabs(at) * 0x1p-21f;
+}
+
+template <int W, class Node>
+void verify_wide_nodes(const Blob& blob, const schema::BvhDesc& d, const std::string& name,
+                       std::span<const Node> nodes) {
+  for (std::size_t i = 0; i < nodes.size(); ++i)
+    for (int k = 0; k < W; ++k) {
+      if (nodes[i].child[k] & format::kBvhLeafFlag) continue;
+      float lo[3], hi[3];
+      format::bvh_child_box(nodes[i], k, lo, hi);
+      const auto& c = nodes[nodes[i].child[k]];
+      for (int j = 0; j < W; ++j) {
+        if (c.child[j] == format::kBvhLeafFlag && c.packets[j] == 0) continue;  // empty slot
+        float clo[3], chi[3];
+        format::bvh_child_box(c, j, clo, chi);
+        for (int a = 0; a < 3; ++a)
+          if (!(lo[a] - slack(c, a, lo[a]) <= clo[a] && chi[a] <= hi[a] + slack(c, a, hi[a])))
+            blob.fail_section(d.wide_nodes(), name + " node " + std::to_string(i) +
+                                                  " does not contain its children");
+      }
+    }
+}
+
+void verify_wide(const Blob& blob, const StructureInfo& info) {
+  const auto& d = desc_of<schema::BvhDesc>(blob, info);
+  const BvhWideView bvh = BvhWideView::from_blob(blob, info.name, BvhKernel::kScalar);
+  if (bvh.quantized())
+    bvh.width() == 4 ? verify_wide_nodes<4>(blob, d, info.name, bvh.qnodes4())
+                     : verify_wide_nodes<8>(blob, d, info.name, bvh.qnodes8());
+  else
+    bvh.width() == 4 ? verify_wide_nodes<4>(blob, d, info.name, bvh.nodes4())
+                     : verify_wide_nodes<8>(blob, d, info.name, bvh.nodes8());
+  const auto prims = bvh.prim_ids();
+  for (std::size_t r = 0; r < prims.size(); ++r) {
+    const auto& p = bvh.packets()[r / format::kBvhPacketSize];
+    const std::size_t lane = r % format::kBvhPacketSize;
+    const format::RayTriangle stored{{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]},
+                                     {p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]},
+                                     {p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]}};
+    check_reference(blob, d, info.name, r, prims[r], stored);
+  }
+}
+
 // Beyond the view's structural walk: every box inside its parent's, every reference naming a
 // stored triangle and carrying a bitwise copy of its corners.
 void verify(const Blob& blob, const StructureInfo& info) {
+  if (is_wide(blob, info)) return verify_wide(blob, info);
   const auto& d = desc_of<schema::BvhDesc>(blob, info);
   const std::string& name = info.name;
   const BvhView bvh = BvhView::from_blob(blob, name);
@@ -97,7 +197,17 @@ Description describe(const Blob& blob, const StructureInfo& info) {
   out.field("reference_count", b.reference_count()).field("max_depth", b.max_depth());
   out.field("largest_leaf", b.largest_leaf()).field("average_leaf_size", b.average_leaf_size());
   out.field("duplication_factor", b.duplication_factor()).field("sah_cost", b.sah_cost());
-  out.field("bytes_per_triangle", b.bytes_per_triangle());
+  out.field("bytes_per_triangle", b.bytes_per_triangle()).field("width", b.width());
+  if (b.width() == 2) return out;
+  out.lines.push_back(printf_string(
+      "%u-wide layout, %s child boxes: %llu nodes, %llu leaves, depth %u, %llu packets of 4, "
+      "%.1f%% packet fill",
+      b.width(), b.quantized() ? "8-bit" : "float", (unsigned long long)b.wide_node_count(),
+      (unsigned long long)b.wide_leaf_count(), b.wide_max_depth(),
+      (unsigned long long)b.packet_count(), 100.0 * b.packet_fill()));
+  out.field("wide_node_count", b.wide_node_count()).field("wide_leaf_count", b.wide_leaf_count());
+  out.field("packet_count", b.packet_count()).field("wide_max_depth", b.wide_max_depth());
+  out.field("packet_fill", b.packet_fill()).field("quantized", b.quantized());
   return out;
 }
 

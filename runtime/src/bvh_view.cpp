@@ -60,6 +60,9 @@ BvhView BvhView::from_blob(const Blob& blob, const std::string& name) {
   if (info == nullptr) blob.fail("has no structure '" + name + "'");
   const auto* d = structure_table(blob, *info).desc_as<schema::BvhDesc>();
   if (d == nullptr) blob.fail("structure '" + name + "' is a " + info->kind + ", not a BVH");
+  if (d->width() != 2)
+    blob.fail("structure '" + name + "' is a " + std::to_string(d->width()) +
+              "-wide BVH: open it with BvhWideView or open_structure");
   // Blob::open checked kinds, sizes and counts of these sections.
   return BvhView(blob.section_view<format::BvhNode>(d->nodes()),
                  blob.section_view<format::RayTriangle>(d->triangles()),

@@ -45,6 +45,19 @@ Camera frame_bounds(const RayScene& s) {
   return c;
 }
 
+Camera from_eye(const RayCamera& rc) {
+  Camera c;
+  c.eye = to_d(rc.eye);
+  c.forward = normalize(to_d(rc.target) - c.eye);
+  // Looking straight up or down: any right vector will do.
+  const format::Double3 up_hint =
+      std::fabs(c.forward.y) > 0.999 ? format::Double3{0, 0, 1} : format::Double3{0, 1, 0};
+  c.right = normalize(cross(c.forward, up_hint));
+  c.up = cross(c.right, c.forward);
+  c.tan_half_fov = std::tan(0.5 * double(rc.fov_degrees) * 3.14159265358979323846 / 180.0);
+  return c;
+}
+
 Ray primary_ray(const Camera& c, SplitMix64& rng) {
   const double sx = (2 * rng.uniform() - 1) * c.tan_half_fov;
   const double sy = (2 * rng.uniform() - 1) * c.tan_half_fov;
@@ -52,12 +65,9 @@ Ray primary_ray(const Camera& c, SplitMix64& rng) {
   return {to_f(c.eye), 0.0f, to_f(dir), std::numeric_limits<float>::infinity()};
 }
 
-}  // namespace
-
-std::vector<Ray> generate_rays(const RayScene& s, RayKind kind, std::size_t count,
-                               std::uint64_t seed, unsigned threads) {
+std::vector<Ray> generate_from(const RayScene& s, const Camera& camera, RayKind kind,
+                               std::size_t count, std::uint64_t seed, unsigned threads) {
   SplitMix64 rng(seed);
-  const Camera camera = frame_bounds(s);
   std::vector<Ray> rays;
   rays.reserve(count);
   if (kind == RayKind::kPrimary) {
@@ -113,6 +123,18 @@ std::vector<Ray> generate_rays(const RayScene& s, RayKind kind, std::size_t coun
     }
   }
   return rays;
+}
+
+}  // namespace
+
+std::vector<Ray> generate_rays(const RayScene& s, RayKind kind, std::size_t count,
+                               std::uint64_t seed, unsigned threads) {
+  return generate_from(s, frame_bounds(s), kind, count, seed, threads);
+}
+
+std::vector<Ray> generate_rays(const RayScene& s, const RayCamera& camera, RayKind kind,
+                               std::size_t count, std::uint64_t seed, unsigned threads) {
+  return generate_from(s, from_eye(camera), kind, count, seed, threads);
 }
 
 }  // namespace kiln

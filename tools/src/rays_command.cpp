@@ -5,6 +5,8 @@
 #include <cstring>
 #include <iostream>
 #include <memory>
+#include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,7 @@
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/structure_registry.hpp"
 #include "kiln/tools/ray_generator.hpp"
+#include "kiln/tools/render.hpp"
 
 namespace kiln::cli {
 
@@ -31,6 +34,7 @@ struct RaysArgs {
   std::uint64_t seed = 1;
   std::string out;
   unsigned threads = 0;
+  std::string camera;  // empty: frame the bounds
 };
 
 bool looks_like_blob(const std::string& path) {
@@ -49,7 +53,12 @@ std::vector<Ray> generate(const RaysArgs& args, const RayQueries& rays,
   const RayKind kind = args.kind == "primary"   ? RayKind::kPrimary
                        : args.kind == "diffuse" ? RayKind::kDiffuse
                                                 : RayKind::kShadow;
-  return generate_rays({rays, positions, triangles, bounds.min, bounds.max}, kind, args.count,
+  const RayScene scene{rays, positions, triangles, bounds.min, bounds.max};
+  if (args.camera.empty()) return generate_rays(scene, kind, args.count, args.seed, args.threads);
+  std::string error;
+  const std::optional<render::Camera> c = render::parse_camera(args.camera, error);
+  if (!c) throw std::invalid_argument("--camera: " + error);
+  return generate_rays(scene, RayCamera{c->eye, c->target, c->fov_degrees}, kind, args.count,
                        args.seed, args.threads);
 }
 
@@ -134,6 +143,10 @@ Command add_rays_command(CLI::App& app) {
       ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 28))
       ->capture_default_str();
   command->add_option("--seed", args->seed, "Random seed")->capture_default_str();
+  command->add_option("--camera", args->camera,
+                      "Primary rays from EX,EY,EZ,TX,TY,TZ,FOV (eye, target, vertical field of "
+                      "view in degrees; as kiln render), e.g. inside a scene; default: frame the "
+                      "bounds");
   command->add_option("-o,--output", args->out, "RAYS file to write")->required();
   add_threads_option(command, args->threads,
                      "Worker threads (0 = all cores); never changes the output");

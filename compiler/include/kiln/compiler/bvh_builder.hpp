@@ -28,6 +28,9 @@ struct BvhBuildOptions {
   float sbvh_alpha = 1e-5f;           // try spatial splits when child overlap > alpha * root area
   float sbvh_max_duplication = 1.0f;  // at most (1 + this) x triangles references
   unsigned threads = 0;               // never changes the result
+  std::uint32_t width = 2;            // stored layout: 2 (binary), 4 or 8 (bvh_collapse.hpp);
+                                      // build_bvh ignores it and always returns the binary tree
+  bool quantized = false;             // wide layouts: 8-bit child boxes (ignored by build_bvh)
 };
 
 // A reference to a triangle: its (possibly clipped) box and original triangle id.
@@ -69,13 +72,21 @@ FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuild
 std::vector<format::BvhNode> build_binned_nodes(std::vector<PrimRef>& refs,
                                                 const BvhBuildOptions& options);
 
+// The sweep builder (bvh_sweep_build.cpp) over `refs` (indexed by primitive id): returns the
+// nodes in the flat layout and, in `order`, the primitive ids in leaf order (leaf offsets index
+// it).
+std::vector<format::BvhNode> build_sweep_nodes(std::span<const PrimRef> refs,
+                                               std::vector<std::uint32_t>& order,
+                                               const BvhBuildOptions& options);
+
 // Counts, depth and SAH cost (normalised by the root's area, with the options' constants) of a
 // flat BVH over `triangles` input triangles.
 BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::size_t triangles,
                                   const BvhBuildOptions& options);
 
 /// The BVH of `options.builder` over every triangle of the scene, in the flat layout. The
-/// binned builder works in place on one reference array; sweep and SBVH build a temporary tree.
+/// binned builder works in place on one reference array, the sweep builder on presorted index
+/// arrays; SBVH (which adds references) builds a temporary tree.
 FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options);
 
 }  // namespace kiln

@@ -1,7 +1,8 @@
-// Mesh import: Kiln's own readers for PLY (strips included) and OBJ (with its .mtl base colours,
-// giving exactly what Assimp 5.2.5 gave, in 0.01 ms for a tiny file where Assimp took 0.7 ms);
-// Assimp for STL, FBX, DAE, 3DS, OFF, 3MF...; tinygltf (+ Draco) for glTF 2.0; Draco for raw
-// .drc bitstreams. A trailing .zst on any input is inflated first.
+// Mesh import: Kiln's own readers for PLY (strips included), STL (binary and ASCII; Assimp 5.2.5
+// leaks on malformed ASCII STL) and OBJ (with its .mtl base colours, giving exactly what Assimp
+// 5.2.5 gave, in 0.01 ms for a tiny file where Assimp took 0.7 ms); Assimp for FBX, DAE, 3DS,
+// OFF, 3MF...; tinygltf (+ Draco) for glTF 2.0; Draco for raw .drc bitstreams. A trailing .zst
+// on any input is inflated first.
 #pragma once
 
 #include <cstddef>

@@ -45,10 +45,20 @@ struct RayScene {
   format::Float3 bounds_min, bounds_max;
 };
 
+/// A pinhole camera for primary rays (as `kiln render --camera` takes one): eye, the point it
+/// looks at, vertical field of view in degrees (0 < fov < 180; eye apart from target).
+struct RayCamera {
+  format::Float3 eye, target;
+  float fov_degrees;
+};
+
 // Primary: a pinhole camera framing the bounds. Diffuse: cosine-weighted bounces from primary
 // hits. Shadow: from primary hits to a point light above the scene. Throws std::runtime_error
 // when too few primary rays hit the scene to make diffuse or shadow rays.
 std::vector<Ray> generate_rays(const RayScene& scene, RayKind kind, std::size_t count,
                                std::uint64_t seed, unsigned threads);
+// The same from `camera` instead of the camera framing the bounds (an interior view).
+std::vector<Ray> generate_rays(const RayScene& scene, const RayCamera& camera, RayKind kind,
+                               std::size_t count, std::uint64_t seed, unsigned threads);
 
 }  // namespace kiln

@@ -1,0 +1,43 @@
+// Collapse of a binary BVH (FlatBvh, kiln/compiler/bvh_builder.hpp) into the wide layout of
+// kiln/formats/bvh_wide.hpp: 4 or 8 children per node, leaf triangles in packets of four.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/formats/bvh_wide.hpp"
+
+namespace kiln {
+
+/// Statistics of a wide BVH, beside the binary tree's (BvhStatistics) it came from.
+struct WideBvhStatistics {
+  std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0;
+  std::uint32_t max_depth = 0;
+  double packet_fill = 0;         ///< references / (packets x 4)
+  double bytes_per_triangle = 0;  ///< nodes + packets + per-lane primitive ids
+};
+
+/// A collapsed BVH ready for the blob: `nodes` holds node_count nodes of `width` children as raw
+/// bytes (BvhNode4/8, or BvhQNode4/8 when quantized), `prim_ids` one original triangle id per
+/// packet lane.
+struct FlatWideBvh {
+  std::uint32_t width = 8;
+  bool quantized = false;  ///< nodes are BvhQNode4/8 (8-bit child boxes) instead of float ones
+  std::vector<std::byte> nodes;
+  std::vector<format::BvhTrianglePacket> packets;
+  std::vector<std::uint32_t> prim_ids;
+  WideBvhStatistics stats;
+};
+
+/// Collapses `binary` into `width` (4 or 8) children per node. Each wide node starts from one
+/// binary node and repeatedly opens the child of largest surface area until it has `width`
+/// children (greedy SAH-driven expansion); a binary subtree of at most four references becomes
+/// one leaf packet. Deterministic and serial. `triangle_count` is the scene's (for bytes per
+/// triangle). `quantized`: child boxes as bytes relative to the node (BvhQuantizedNode), each
+/// containing the float box. Throws std::invalid_argument for another width, a leaf over 1020
+/// references, or (quantized) coordinates beyond 1e38.
+FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
+                         bool quantized = false);
+
+}  // namespace kiln

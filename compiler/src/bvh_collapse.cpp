@@ -1,0 +1,197 @@
+// Greedy SAH-driven collapse of the binary BVH into 4- or 8-wide nodes with packet leaves.
+#include "kiln/compiler/bvh_collapse.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "kiln/formats/vector.hpp"
+
+namespace kiln {
+
+namespace {
+
+float half_area(const format::BvhNode& n) {
+  const float dx = n.max[0] - n.min[0], dy = n.max[1] - n.min[1], dz = n.max[2] - n.min[2];
+  return dx * dy + dy * dz + dz * dx;
+}
+
+// One axis of a quantised node: origin and exponent such that origin + 255 x 2^e reaches every
+// child's max, then per child the largest byte whose plane is <= min and the smallest whose plane
+// is >= max, checked with the traversal's own float arithmetic.
+template <int W>
+void quantize_axis(const format::BvhWideNode<W>& in, int a, format::BvhQuantizedNode<W>& out) {
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  for (int k = 0; k < W; ++k)
+    if (in.bounds[a][0][k] <= in.bounds[a][1][k])
+      lo = std::min(lo, in.bounds[a][0][k]), hi = std::max(hi, in.bounds[a][1][k]);
+  const double extent = double(hi) - double(lo);
+  int e = extent > 0 ? std::max(-126, int(std::ceil(std::log2(extent / 255.0)))) : -126;
+  auto plane = [&](int q) { return lo + float(q) * format::bvh_quantized_scale(std::int8_t(e)); };
+  while (e < 127 && plane(255) < hi) ++e;
+  if (!(plane(255) >= hi)) throw std::invalid_argument("BVH coordinates too large to quantise");
+  out.origin[a] = lo;
+  out.exponent[a] = std::int8_t(e);
+  const double scale = std::ldexp(1.0, e);
+  for (int k = 0; k < W; ++k) {
+    if (!(in.bounds[a][0][k] <= in.bounds[a][1][k])) {  // empty slot: inverted
+      out.q[a][0][k] = 255, out.q[a][1][k] = 0;
+      continue;
+    }
+    int qlo = int(std::clamp(std::floor((double(in.bounds[a][0][k]) - lo) / scale), 0.0, 255.0));
+    int qhi = int(std::clamp(std::ceil((double(in.bounds[a][1][k]) - lo) / scale), 0.0, 255.0));
+    while (qlo > 0 && plane(qlo) > in.bounds[a][0][k]) --qlo;
+    while (qhi < 255 && plane(qhi) < in.bounds[a][1][k]) ++qhi;
+    out.q[a][0][k] = std::uint8_t(qlo), out.q[a][1][k] = std::uint8_t(qhi);
+  }
+}
+
+template <int W>
+format::BvhQuantizedNode<W> quantize(const format::BvhWideNode<W>& in) {
+  format::BvhQuantizedNode<W> out{};
+  for (int a = 0; a < 3; ++a) quantize_axis(in, a, out);
+  for (int k = 0; k < W; ++k) out.child[k] = in.child[k], out.packets[k] = in.packets[k];
+  return out;
+}
+
+// Rewrites the float nodes as quantised ones, in place order.
+template <int W>
+std::vector<std::byte> quantize_all(const std::vector<std::byte>& nodes) {
+  const std::size_t count = nodes.size() / sizeof(format::BvhWideNode<W>);
+  std::vector<std::byte> out(count * sizeof(format::BvhQuantizedNode<W>));
+  for (std::size_t i = 0; i < count; ++i) {
+    format::BvhWideNode<W> node;
+    std::memcpy(&node, nodes.data() + i * sizeof node, sizeof node);
+    const format::BvhQuantizedNode<W> q = quantize(node);
+    std::memcpy(out.data() + i * sizeof q, &q, sizeof q);
+  }
+  return out;
+}
+
+template <int W>
+struct Collapser {
+  const FlatBvh& bin;
+  FlatWideBvh& out;
+  std::vector<std::uint32_t> refs;  // references under each binary node
+
+  explicit Collapser(const FlatBvh& b, FlatWideBvh& o) : bin(b), out(o), refs(b.nodes.size()) {
+    // Pre-order: children follow their parent, so a reverse sweep sees them first.
+    for (std::size_t i = bin.nodes.size(); i-- > 0;) {
+      const auto& n = bin.nodes[i];
+      refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
+    }
+  }
+
+  bool is_leaf(std::uint32_t i) const {
+    return bin.nodes[i].count > 0 || refs[i] <= format::kBvhPacketSize;
+  }
+
+  // The references of binary subtree `i`, in leaf order (contiguous by pre-order).
+  std::uint32_t first_ref(std::uint32_t i) const {
+    while (bin.nodes[i].count == 0) i += 1;
+    return bin.nodes[i].offset;
+  }
+
+  // Packs subtree `i`'s references into packets; returns the child word and packet count.
+  std::pair<std::uint32_t, std::uint8_t> emit_leaf(std::uint32_t i) {
+    const std::uint32_t first = first_ref(i), count = refs[i];
+    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+    if (packets > format::kBvhMaxLeafPackets)
+      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
+                                  " references does not fit a wide leaf");
+    const auto start = std::uint32_t(out.packets.size());
+    for (std::uint32_t p = 0; p < packets; ++p) {
+      format::BvhTrianglePacket packet{};
+      for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
+        // Unused lanes repeat the leaf's last triangle: every lane is a real triangle.
+        const std::uint32_t r = first + std::min(p * format::kBvhPacketSize + lane, count - 1);
+        const format::RayTriangle& t = bin.triangles[r];
+        const format::Float3 corners[3] = {t.v0, t.v1, t.v2};
+        for (int c = 0; c < 3; ++c)
+          for (int a = 0; a < 3; ++a) packet.v[c][a][lane] = format::at(corners[c], a);
+        out.prim_ids.push_back(bin.prim_ids[r]);
+      }
+      out.packets.push_back(packet);
+    }
+    out.stats.leaf_count += 1;
+    return {format::kBvhLeafFlag | start, std::uint8_t(packets)};
+  }
+
+  // The binary nodes that become node `i`'s children: open the largest child until W.
+  std::vector<std::uint32_t> gather(std::uint32_t i) const {
+    std::vector<std::uint32_t> kids;
+    if (is_leaf(i)) return {i};
+    kids = {i + 1, bin.nodes[i].offset};
+    while (kids.size() < std::size_t(W)) {
+      int best = -1;
+      float best_area = -1;
+      for (std::size_t k = 0; k < kids.size(); ++k)
+        if (!is_leaf(kids[k]) && half_area(bin.nodes[kids[k]]) > best_area)
+          best = int(k), best_area = half_area(bin.nodes[kids[k]]);
+      if (best < 0) break;
+      const std::uint32_t open = kids[best];
+      kids[best] = open + 1;
+      kids.insert(kids.begin() + best + 1, bin.nodes[open].offset);
+    }
+    return kids;
+  }
+
+  std::uint32_t emit(std::uint32_t i, std::uint32_t depth) {
+    const auto index = std::uint32_t(out.nodes.size() / sizeof(format::BvhWideNode<W>));
+    out.nodes.resize(out.nodes.size() + sizeof(format::BvhWideNode<W>));
+    out.stats.max_depth = std::max(out.stats.max_depth, depth);
+    format::BvhWideNode<W> node{};
+    for (int a = 0; a < 3; ++a)
+      for (int k = 0; k < W; ++k) {
+        node.bounds[a][0][k] = std::numeric_limits<float>::infinity();
+        node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
+      }
+    for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
+    const auto kids = gather(i);
+    for (std::size_t k = 0; k < kids.size(); ++k) {
+      const auto& b = bin.nodes[kids[k]];
+      for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
+      if (is_leaf(kids[k])) {
+        const auto [word, packets] = emit_leaf(kids[k]);
+        node.child[k] = word, node.packets[k] = packets;
+      } else {
+        node.child[k] = emit(kids[k], depth + 1);
+      }
+    }
+    std::memcpy(out.nodes.data() + index * sizeof node, &node, sizeof node);
+    return index;
+  }
+};
+
+}  // namespace
+
+FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
+                         bool quantized) {
+  FlatWideBvh out;
+  out.width = width;
+  out.quantized = quantized;
+  if (width == 4)
+    Collapser<4>(binary, out).emit(0, 1);
+  else if (width == 8)
+    Collapser<8>(binary, out).emit(0, 1);
+  else
+    throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4 or 8");
+  auto& s = out.stats;
+  const std::size_t node_size = width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
+  s.node_count = out.nodes.size() / node_size;
+  if (quantized) out.nodes = width == 4 ? quantize_all<4>(out.nodes) : quantize_all<8>(out.nodes);
+  s.packet_count = out.packets.size();
+  s.packet_fill = s.packet_count ? double(binary.prim_ids.size()) /
+                                       double(s.packet_count * format::kBvhPacketSize)
+                                 : 0;
+  s.bytes_per_triangle =
+      double(out.nodes.size() + out.packets.size() * sizeof(format::BvhTrianglePacket) +
+             out.prim_ids.size() * sizeof(std::uint32_t)) /
+      double(std::max<std::size_t>(triangle_count, 1));
+  return out;
+}
+
+}  // namespace kiln

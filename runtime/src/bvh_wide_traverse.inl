@@ -1,0 +1,270 @@
+// The wide BVH traversal, written once over a vector abstraction and compiled once per
+// instruction set by runtime/src/bvh_wide_kernel_<isa>.cpp. Not a header: each includer defines,
+// in an anonymous namespace and before including it,
+//   KILN_SIMD  the attributes of every function here (target instruction set, always_inline),
+//   F4, F8     float vectors of 4 and 8 lanes: T, load, set1, add, sub, mul, div, max, min
+//              (max(a, b) = a > b ? a : b and min(a, b) = a < b ? a : b, as x86 computes them, so
+//              NaN handling equals the scalar slab test's), and lt, gt, le, eq returning lane bits.
+// Everything here has internal linkage, so each instruction set's copy stays its own.
+//
+// The arithmetic per triangle is that of watertight.hpp operation for operation, per box that of
+// ray_box.hpp with the far scale folded into the reciprocal; the same in every kernel (no
+// contraction: -ffp-contract=off and no FMA target), so every kernel computes
+// bit-identical distances and hits.
+
+template <int W>
+struct NodeVec;
+template <>
+struct NodeVec<4> {
+  using V = F4;
+};
+template <>
+struct NodeVec<8> {
+  using V = F8;
+};
+
+/// Per-ray constants of the box test, splatted.
+template <class V>
+struct BoxLanes {
+  typename V::T org[3], inv[3], inv_far[3];  // inv_far = inv x kFarScale
+  int near[3];  // bounds[axis][near] is the entry plane (1 = max for a negative direction)
+};
+
+template <class V>
+KILN_SIMD BoxLanes<V> box_lanes(const BoxRay& r) {
+  BoxLanes<V> b;
+  for (int a = 0; a < 3; ++a) {
+    b.org[a] = V::set1(r.org[a]);
+    b.inv[a] = V::set1(r.inv_dir[a]);
+    // Scaling the reciprocal instead of each far distance: the same number of roundings, so
+    // pbrt's 1 + 2 gamma(3) still covers them (ray_box.hpp), one multiply less per axis.
+    b.inv_far[a] = V::set1(r.inv_dir[a] * kFarScale);
+    b.near[a] = r.negative[a];
+  }
+  return b;
+}
+
+// Entry distances of all W children into `dist`; returns the bits of the children entered.
+// One box plane of every child: side 0 min, 1 max.
+template <class V, int W>
+KILN_SIMD typename V::T plane(const format::BvhWideNode<W>& n, int axis, int side) {
+  return V::load(n.bounds[axis][side]);
+}
+template <class V, int W>
+KILN_SIMD typename V::T plane(const format::BvhQuantizedNode<W>& n, int axis, int side) {
+  const typename V::T scale = V::set1(format::bvh_quantized_scale(n.exponent[axis]));
+  return V::add(V::set1(n.origin[axis]), V::mul(V::load_u8(n.q[axis][side]), scale));
+}
+
+template <class Node, class V>
+KILN_SIMD unsigned test_children(const Node& n, const BoxLanes<V>& r, typename V::T tmin,
+                                 typename V::T tmax, float* dist) {
+  for (int a = 0; a < 3; ++a) {
+    const typename V::T lo = plane<V>(n, a, r.near[a]);
+    const typename V::T hi = plane<V>(n, a, 1 - r.near[a]);
+    const typename V::T t0 = V::mul(V::sub(lo, r.org[a]), r.inv[a]);
+    const typename V::T t1 = V::mul(V::sub(hi, r.org[a]), r.inv_far[a]);
+    tmin = V::max(t0, tmin);
+    tmax = V::min(t1, tmax);
+  }
+  V::store(dist, tmin);
+  return V::le(tmin, tmax);
+}
+
+// The closest (or, kAny, the first) lane of a packet hit in (tmin, tmax); -1 when none.
+template <bool kAny>
+KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRay& r, float tmin,
+                          float tmax, float& t_out, float& u_out, float& v_out) {
+  using T = F4::T;
+  const T ox = F4::set1(r.org[r.kx]), oy = F4::set1(r.org[r.ky]), oz = F4::set1(r.org[r.kz]);
+  const T sx = F4::set1(r.sx), sy = F4::set1(r.sy), sz = F4::set1(r.sz);
+  T x[3], y[3], z[3];
+  for (int c = 0; c < 3; ++c) {
+    const T px = F4::sub(F4::load(p.v[c][r.kx]), ox), py = F4::sub(F4::load(p.v[c][r.ky]), oy);
+    z[c] = F4::sub(F4::load(p.v[c][r.kz]), oz);
+    x[c] = F4::sub(px, F4::mul(sx, z[c]));
+    y[c] = F4::sub(py, F4::mul(sy, z[c]));
+  }
+  const T u = F4::sub(F4::mul(x[2], y[1]), F4::mul(y[2], x[1]));
+  const T v = F4::sub(F4::mul(x[0], y[2]), F4::mul(y[0], x[2]));
+  const T w = F4::sub(F4::mul(x[1], y[0]), F4::mul(y[1], x[0]));
+  const T zero = F4::set1(0.0f);
+  // Lanes with an exact zero edge function take the scalar test (double re-evaluation).
+  const unsigned exact = F4::eq(u, zero) | F4::eq(v, zero) | F4::eq(w, zero);
+  const unsigned negative = F4::lt(u, zero) | F4::lt(v, zero) | F4::lt(w, zero);
+  const unsigned positive = F4::gt(u, zero) | F4::gt(v, zero) | F4::gt(w, zero);
+  unsigned ok = ~(negative & positive) & ~exact & 0xFu;
+  if ((ok | exact) == 0) return -1;  // most packets: every lane outside an edge, no division
+  const T det = F4::add(F4::add(u, v), w);
+  ok &= ~F4::eq(det, zero);
+  const T t_scaled = F4::add(F4::add(F4::mul(u, F4::mul(sz, z[0])), F4::mul(v, F4::mul(sz, z[1]))),
+                             F4::mul(w, F4::mul(sz, z[2])));
+  const T t = F4::div(t_scaled, det);
+  ok &= F4::gt(t, F4::set1(tmin)) & F4::lt(t, F4::set1(tmax));
+  if ((ok | exact) == 0) return -1;
+  alignas(16) float ts[4], vs[4], ws[4], dets[4];
+  F4::store(ts, t), F4::store(vs, v), F4::store(ws, w), F4::store(dets, det);
+  int best = -1;
+  for (int lane = 0; lane < 4; ++lane) {
+    float lt, lu, lv;
+    if (exact >> lane & 1u) {
+      const format::Float3 a{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]};
+      const format::Float3 b{p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]};
+      const format::Float3 c{p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]};
+      if (!intersect_watertight(r, a, b, c, tmin, tmax, lt, lu, lv)) continue;
+    } else if (ok >> lane & 1u) {
+      if (!(ts[lane] < tmax)) continue;
+      lt = ts[lane], lu = vs[lane] / dets[lane], lv = ws[lane] / dets[lane];
+    } else {
+      continue;
+    }
+    // Lane order, strictly closer: the scalar BVH's order of triangle tests within a leaf.
+    tmax = lt, t_out = lt, u_out = lu, v_out = lv, best = lane;
+    if constexpr (kAny) return best;
+  }
+  return best;
+}
+
+/// A child to visit: its word, packet count and entry distance.
+struct WideEntry {
+  std::uint32_t word, packets;
+  float t;
+};
+
+// Float bits made to sort as unsigned integers (negative distances included).
+KILN_SIMD std::uint32_t sortable(float f) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &f, sizeof bits);
+  return bits ^ (std::uint32_t(std::int32_t(bits) >> 31) | 0x80000000u);
+}
+
+// Of the entered children of `n` (bits `mask`, at least one), returns the one to visit next and
+// pushes the others: kOrdered, nearest next and the rest farthest first (so nearer ones pop
+// first); otherwise the lowest slot next and the rest unordered.
+template <int W, bool kOrdered, class Node>
+KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, WideEntry* stack,
+                               std::uint32_t& top) {
+  int slot = __builtin_ctz(mask);
+  mask &= mask - 1;
+  if (mask == 0) return {n.child[slot], n.packets[slot], dist[slot]};
+  if constexpr (kOrdered) {
+    const int second = __builtin_ctz(mask);
+    mask &= mask - 1;
+    if (mask == 0) {  // two children, the common case: one compare
+      const int near = dist[second] < dist[slot] ? second : slot;
+      const int far = near == slot ? second : slot;
+      stack[top++] = {n.child[far], n.packets[far], dist[far]};
+      return {n.child[near], n.packets[near], dist[near]};
+    }
+    std::uint64_t keys[W];
+    keys[0] = std::uint64_t(sortable(dist[slot])) << 32 | std::uint32_t(slot);
+    int count = 1;
+    for (mask |= 1u << second; mask != 0; mask &= mask - 1) {
+      const int s = __builtin_ctz(mask);
+      const std::uint64_t key = std::uint64_t(sortable(dist[s])) << 32 | std::uint32_t(s);
+      int j = count++;
+      for (; j > 0 && keys[j - 1] < key; --j) keys[j] = keys[j - 1];  // farthest first
+      keys[j] = key;
+    }
+    for (int k = 0; k < count - 1; ++k) {
+      const int s = int(keys[k] & 0xFu);
+      stack[top++] = {n.child[s], n.packets[s], dist[s]};
+    }
+    slot = int(keys[count - 1] & 0xFu);
+  } else {
+    for (; mask != 0; mask &= mask - 1) {
+      const int s = __builtin_ctz(mask);
+      stack[top++] = {n.child[s], n.packets[s], dist[s]};
+    }
+  }
+  return {n.child[slot], n.packets[slot], dist[slot]};
+}
+
+// Starts loading every entered child (node or first packet) while the others are sorted and
+// visited: on meshes larger than the caches, traversal waits on memory more than it computes.
+template <class Node>
+KILN_SIMD void prefetch_children(const Node& n, unsigned mask, const Node* nodes,
+                                 const format::BvhTrianglePacket* packets) {
+  for (; mask != 0; mask &= mask - 1) {
+    const int slot = __builtin_ctz(mask);
+    const std::uint32_t word = n.child[slot];
+    const char* p = (word & format::kBvhLeafFlag)
+                        ? reinterpret_cast<const char*>(packets + (word & ~format::kBvhLeafFlag))
+                        : reinterpret_cast<const char*>(nodes + word);
+    for (std::size_t line = 0; line < sizeof(Node); line += 64) __builtin_prefetch(p + line);
+  }
+}
+
+/// The one traversal: kAny stops at the first hit and leaves children unordered.
+template <class Node, int W, bool kAny, bool kCount>
+KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost) {
+  using V = typename NodeVec<W>::V;
+  const auto* nodes = reinterpret_cast<const Node*>(view.node_bytes().data());
+  const format::BvhTrianglePacket* packets = view.packets().data();
+  const BoxLanes<V> box = box_lanes<V>(prepare_box_ray(ray));
+  const WatertightRay tri_ray = prepare_watertight(ray);
+  const typename V::T tmin = V::set1(ray.tmin);
+  Hit hit;
+  hit.t = ray.tmax;
+  std::uint32_t best_ref = kNoHit;
+  WideEntry stack[(W - 1) * format::kBvhMaxDepth + 1];
+  std::uint32_t top = 0;
+  alignas(32) float dist[W];
+  WideEntry e{0, 0, ray.tmin};
+  for (;;) {
+    while ((e.word & format::kBvhLeafFlag) == 0) {
+      const auto& n = nodes[e.word];
+      if constexpr (kCount) cost->nodes += 1;
+      const unsigned mask = test_children<Node, V>(n, box, tmin, V::set1(hit.t), dist);
+      if (mask == 0) goto pop;
+      prefetch_children(n, mask, nodes, packets);
+      e = next_child<W, !kAny>(n, mask, dist, stack, top);
+    }
+    {
+      const std::uint32_t first = e.word & ~format::kBvhLeafFlag;
+      for (std::uint32_t p = first; p < first + e.packets; ++p) {
+        if constexpr (kCount) cost->tests += format::kBvhPacketSize;
+        const int lane =
+            test_packet<kAny>(packets[p], tri_ray, ray.tmin, hit.t, hit.t, hit.u, hit.v);
+        if (lane < 0) continue;
+        best_ref = p * format::kBvhPacketSize + std::uint32_t(lane);
+        if constexpr (kAny) {
+          hit.prim = view.prim_ids()[best_ref];
+          return hit;
+        }
+      }
+    }
+  pop:  // the next subtree that can still hold a closer hit
+    do {
+      if (top == 0) {
+        if (best_ref == kNoHit) return Hit{};
+        hit.prim = view.prim_ids()[best_ref];
+        return hit;
+      }
+      e = stack[--top];
+    } while (e.t > hit.t);
+  }
+}
+
+// The entry points carry the target attribute but are not always_inline (they are called
+// through the table).
+#define KILN_WIDE_KERNEL_TABLE(NAME)                                                 \
+  template <class Node, int W>                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_closest(const BvhWideView& v, const Ray& r) {           \
+    return traverse_wide<Node, W, false, false>(v, r, nullptr);                      \
+  }                                                                                  \
+  template <class Node, int W>                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_any(const BvhWideView& v, const Ray& r) {               \
+    return traverse_wide<Node, W, true, false>(v, r, nullptr);                       \
+  }                                                                                  \
+  template <class Node, int W>                                                       \
+  KILN_SIMD_ENTRY Hit NAME##_counting(const BvhWideView& v, const Ray& r, Cost& c) { \
+    return traverse_wide<Node, W, false, true>(v, r, &c);                            \
+  }                                                                                  \
+  template <class Node, int W>                                                       \
+  constexpr BvhWideKernel table_of() {                                               \
+    return {NAME##_closest<Node, W>, NAME##_any<Node, W>, NAME##_counting<Node, W>}; \
+  }                                                                                  \
+  const BvhWideKernel k##NAME[2][2] = {                                              \
+      {table_of<format::BvhNode4, 4>(), table_of<format::BvhNode8, 8>()},            \
+      {table_of<format::BvhQNode4, 4>(), table_of<format::BvhQNode8, 8>()}};

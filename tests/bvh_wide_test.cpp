@@ -1,0 +1,253 @@
+// The wide BVH (bvh/sbvh with width 4 or 8): every kernel against brute force and watertight,
+// the collapse keeps every reference, proximity queries equal the binary BVH's, forged nodes and
+// a forced kernel the CPU lacks are refused. Kernel agreement on the corpus: corpus_test.cpp.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+#include <vector>
+
+#include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/bvh_collapse.hpp"
+#include "kiln/formats/bvh_wide.hpp"
+#include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/bvh_wide.hpp"
+#include "kiln/runtime/error.hpp"
+#include "kiln/runtime/manifest.hpp"
+#include "ray_fixtures.hpp"
+#include "test_support.hpp"
+
+namespace kiln {
+namespace {
+
+using format::Float3;
+
+constexpr BvhKernel kKernels[] = {BvhKernel::kScalar, BvhKernel::kSse, BvhKernel::kAvx2,
+                                  BvhKernel::kAvx512};
+constexpr BvhBuilder kBuilders[] = {BvhBuilder::kBinned, BvhBuilder::kSpatial};
+
+FlatWideBvh wide_of(const Scene& scene, BvhBuilder builder, std::uint32_t width,
+                    bool quantized = false) {
+  BvhBuildOptions o;
+  o.builder = builder;
+  return collapse_bvh(build_bvh(scene, o), width, scene.triangles.size(), quantized);
+}
+
+BvhWideView view_of(const FlatWideBvh& w, BvhKernel kernel) {
+  return BvhWideView(w.width, w.quantized, w.nodes, w.packets, w.prim_ids, "test", kernel);
+}
+
+// Runs `check(view)` for each width, box encoding, builder and kernel this CPU has (saying
+// which it skips).
+template <class Check>
+void for_each_layout(const Scene& scene, Check&& check) {
+  for (const std::uint32_t width : {4u, 8u})
+    for (const bool quantized : {false, true})
+      for (const BvhBuilder builder : kBuilders) {
+        const FlatWideBvh wide = wide_of(scene, builder, width, quantized);
+        for (const BvhKernel kernel : kKernels) {
+          if (!bvh_kernel_supported(kernel)) {
+            std::printf("skipped: this CPU cannot run the %s kernel\n", bvh_kernel_name(kernel));
+            continue;
+          }
+          SCOPED_TRACE(std::to_string(width) + "-wide " + (quantized ? "u8 " : "float ") +
+                       bvh_builder_name(builder) + " " + bvh_kernel_name(kernel));
+          check(view_of(wide, kernel));
+        }
+      }
+}
+
+TEST(WideBvh, EveryKernelAgreesWithBruteForceOnGeneratedWorstCases) {
+  for (const auto& [name, scene] : test::worst_cases()) {
+    SCOPED_TRACE(name);
+    const auto rays = test::box_rays(scene, 400);
+    for_each_layout(scene, [&](const BvhWideView& view) {
+      test::expect_agrees_with_brute_force(scene, view, rays);
+    });
+  }
+}
+
+TEST(WideBvh, EveryKernelIsWatertightThroughVerticesAndEdges) {
+  const Scene sphere = test::icosphere(4);
+  std::vector<Float3> targets = sphere.positions;
+  for (const auto& t : sphere.triangles)
+    for (int e = 0; e < 3; ++e) {
+      const Float3 a = sphere.positions[t.v[e]], b = sphere.positions[t.v[(e + 1) % 3]];
+      targets.push_back({(a.x + b.x) * 0.5f, (a.y + b.y) * 0.5f, (a.z + b.z) * 0.5f});
+    }
+  const Float3 origins[] = {{0, 0, 0}, {0.1f, -0.2f, 0.05f}, {-0.3f, 0.25f, 0.4f}};
+  for_each_layout(sphere, [&](const BvhWideView& view) {
+    std::size_t misses = 0;
+    for (const Float3& o : origins)
+      for (const Float3& target : targets) {
+        const Ray ray{o, 0.0f, {target.x - o.x, target.y - o.y, target.z - o.z}, INFINITY};
+        misses += !view.intersect(ray).hit();
+        misses += !view.occluded(ray);
+      }
+    EXPECT_EQ(misses, 0u);
+  });
+}
+
+TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
+  const Scene scene = test::icosphere(3);
+  for (const BvhBuilder builder : kBuilders) {
+    BvhBuildOptions o;
+    o.builder = builder;
+    const FlatBvh binary = build_bvh(scene, o);
+    for (const std::uint32_t width : {4u, 8u}) {
+      const FlatWideBvh wide = collapse_bvh(binary, width, scene.triangles.size());
+      ASSERT_EQ(wide.prim_ids.size(), wide.packets.size() * format::kBvhPacketSize);
+      std::vector<std::uint32_t> a = binary.prim_ids, b = wide.prim_ids;
+      std::sort(a.begin(), a.end());
+      std::sort(b.begin(), b.end());
+      b.erase(std::unique(b.begin(), b.end()), b.end());
+      a.erase(std::unique(a.begin(), a.end()), a.end());
+      EXPECT_EQ(a, b);
+      EXPECT_GT(wide.stats.packet_fill, 0.5);
+      EXPECT_LE(wide.stats.max_depth, binary.stats.max_depth);
+    }
+  }
+  EXPECT_THROW(collapse_bvh(build_bvh(scene, {}), 3, scene.triangles.size()),
+               std::invalid_argument);
+}
+
+// Every quantised child box contains the float box it encodes.
+TEST(WideBvh, QuantizedBoxesContainTheFloatBoxes) {
+  const Scene scene = test::icosphere(4);
+  for (const BvhBuilder builder : kBuilders) {
+    const FlatWideBvh exact = wide_of(scene, builder, 8), q = wide_of(scene, builder, 8, true);
+    ASSERT_EQ(exact.nodes.size(), 2 * q.nodes.size());
+    const auto* a = reinterpret_cast<const format::BvhNode8*>(exact.nodes.data());
+    const auto* b = reinterpret_cast<const format::BvhQNode8*>(q.nodes.data());
+    for (std::size_t i = 0; i < q.nodes.size() / sizeof(format::BvhQNode8); ++i)
+      for (int k = 0; k < 8; ++k) {
+        EXPECT_EQ(a[i].child[k], b[i].child[k]);
+        if (a[i].child[k] == format::kBvhLeafFlag && a[i].packets[k] == 0) continue;
+        float lo[3], hi[3], qlo[3], qhi[3];
+        format::bvh_child_box(a[i], k, lo, hi);
+        format::bvh_child_box(b[i], k, qlo, qhi);
+        for (int axis = 0; axis < 3; ++axis) {
+          EXPECT_LE(qlo[axis], lo[axis]);
+          EXPECT_GE(qhi[axis], hi[axis]);
+        }
+      }
+  }
+}
+
+TEST(WideBvh, ProximityQueriesEqualTheBinaryBvh) {
+  const Scene scene = test::icosphere(3);
+  const FlatBvh flat = build_bvh(scene, {});
+  const BvhView binary(flat.nodes, flat.triangles, flat.prim_ids);
+  for (const auto& [width, quantized] :
+       {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
+    const FlatWideBvh wide = collapse_bvh(flat, width, scene.triangles.size(), quantized);
+    const BvhWideView view = view_of(wide, BvhKernel::kScalar);
+    for (const Ray& r : test::box_rays(scene, 200)) {
+      const ClosestPoint a = closest_point(binary, r.org), b = closest_point(view, r.org);
+      EXPECT_EQ(a.prim, b.prim);
+      EXPECT_EQ(a.distance, b.distance);
+      EXPECT_EQ(point_inside(binary, r.org), point_inside(view, r.org));
+      const Float3 lo{r.org.x - 0.3f, r.org.y - 0.3f, r.org.z - 0.3f};
+      const Float3 hi{r.org.x + 0.3f, r.org.y + 0.3f, r.org.z + 0.3f};
+      std::vector<std::uint32_t> in_a, in_b;
+      triangles_in_box(binary, lo, hi, in_a);
+      triangles_in_box(view, lo, hi, in_b);
+      EXPECT_EQ(in_a, in_b);
+    }
+  }
+}
+
+// Nodes rewritten by hand: each forgery must be refused when the view is created.
+TEST(WideBvh, ForgedNodesAreRefused) {
+  const Scene scene = test::icosphere(3);
+  const FlatWideBvh wide = wide_of(scene, BvhBuilder::kBinned, 4);
+  ASSERT_GT(wide.nodes.size() / sizeof(format::BvhNode4), 2u);
+  auto node = [](FlatWideBvh& w, std::size_t i) {
+    return reinterpret_cast<format::BvhNode4*>(w.nodes.data()) + i;
+  };
+  auto expect_refused = [&](const char* what, auto&& forge) {
+    FlatWideBvh bad = wide;
+    forge(bad);
+    EXPECT_THROW(view_of(bad, BvhKernel::kScalar), BlobError) << what;
+  };
+  auto interior_slot = [&](FlatWideBvh& w) {
+    for (int k = 0; k < 4; ++k)
+      if (!(node(w, 0)->child[k] & format::kBvhLeafFlag)) return k;
+    return -1;
+  };
+  expect_refused("child out of range", [&](FlatWideBvh& w) { node(w, 0)->child[0] = 0x7FFFFFF0u; });
+  expect_refused("cycle to the root", [&](FlatWideBvh& w) { node(w, 0)->child[0] = 0; });
+  expect_refused("packets on an interior child",
+                 [&](FlatWideBvh& w) { node(w, 0)->packets[interior_slot(w)] = 1; });
+  expect_refused("leaf range out of range", [&](FlatWideBvh& w) {
+    for (std::size_t i = 0;; ++i)
+      for (int k = 0; k < 4; ++k)
+        if (node(w, i)->child[k] & format::kBvhLeafFlag && node(w, i)->packets[k] > 0) {
+          node(w, i)->packets[k] = 255;
+          return;
+        }
+  });
+  expect_refused("a packet in no leaf", [&](FlatWideBvh& w) {
+    w.packets.push_back(w.packets.back());
+    for (int lane = 0; lane < 4; ++lane) w.prim_ids.push_back(0);
+  });
+  expect_refused("unreachable node", [&](FlatWideBvh& w) {
+    w.nodes.resize(w.nodes.size() + sizeof(format::BvhNode4));
+  });
+  expect_refused("primitive ids short", [&](FlatWideBvh& w) { w.prim_ids.pop_back(); });
+  // A chain deeper than the traversal stack allows: node i's only child is node i + 1.
+  FlatWideBvh deep;
+  deep.width = 4;
+  deep.nodes.resize((format::kBvhMaxDepth + 1) * sizeof(format::BvhNode4));
+  deep.packets.resize(1);
+  deep.prim_ids.assign(4, 0);
+  for (std::uint32_t i = 0; i <= format::kBvhMaxDepth; ++i) {
+    auto* n = node(deep, i);
+    for (int k = 0; k < 4; ++k) n->child[k] = format::kBvhLeafFlag;
+    n->child[0] = i + 1;
+  }
+  node(deep, format::kBvhMaxDepth)->child[0] = format::kBvhLeafFlag;
+  node(deep, format::kBvhMaxDepth)->packets[0] = 1;
+  EXPECT_THROW(view_of(deep, BvhKernel::kScalar), BlobError) << "too deep";
+  deep.nodes.resize(format::kBvhMaxDepth * sizeof(format::BvhNode4));  // exactly the limit
+  node(deep, format::kBvhMaxDepth - 1)->child[0] = format::kBvhLeafFlag;
+  node(deep, format::kBvhMaxDepth - 1)->packets[0] = 1;
+  EXPECT_NO_THROW(view_of(deep, BvhKernel::kScalar));
+}
+
+// The same forgery through a blob with valid checksums: open cannot see it, the view refuses it.
+TEST(WideBvh, ForgedNodeInABlobIsRefusedWhenViewed) {
+  const Scene scene = test::icosphere(2);
+  const auto blob = test::blob_with(scene, "bvh:width=8", 2);
+  const AlignedBuffer clean = test::aligned_copy(blob);
+  const Blob original = Blob::open_memory(clean.bytes());
+  const auto& d = desc_of<schema::BvhDesc>(original, original.structures()[0]);
+  ASSERT_EQ(d.width(), 8u);
+  const AlignedBuffer forged =
+      test::forged_copy(blob, d.wide_nodes(), offsetof(format::BvhNode8, child), 0u);
+  const Blob b = Blob::open_memory(forged.bytes(), "forged.kiln");
+  EXPECT_THROW(BvhWideView::from_blob(b, "bvh"), BlobError);
+  EXPECT_THROW(BvhView::from_blob(original, "bvh"), BlobError) << "a binary view of a wide BVH";
+}
+
+TEST(WideBvh, KernelChoiceFollowsTheEnvironment) {
+  setenv("KILN_BVH_KERNEL", "scalar", 1);
+  EXPECT_EQ(bvh_auto_kernel(), BvhKernel::kScalar);
+  setenv("KILN_BVH_KERNEL", "mmx", 1);
+  EXPECT_THROW(bvh_auto_kernel(), std::invalid_argument);
+  unsetenv("KILN_BVH_KERNEL");
+  EXPECT_NE(bvh_auto_kernel(), BvhKernel::kAuto);
+  for (const BvhKernel k : kKernels)
+    if (!bvh_kernel_supported(k)) {
+      setenv("KILN_BVH_KERNEL", bvh_kernel_name(k), 1);
+      EXPECT_THROW(bvh_auto_kernel(), std::invalid_argument) << bvh_kernel_name(k);
+      unsetenv("KILN_BVH_KERNEL");
+    }
+}
+
+}  // namespace
+}  // namespace kiln
