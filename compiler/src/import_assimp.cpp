@@ -13,6 +13,7 @@
 #include <sstream>
 #include <utility>
 
+#include "import_obj.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/compiler/transform.hpp"
 #include "rgba8.hpp"
@@ -55,40 +56,6 @@ void check_off_counts(const std::string& path, std::span<const std::byte> bytes)
     throw ImportError(path + ": OFF header claims " + std::to_string(vertices) + " vertices and " +
                       std::to_string(faces) + " faces, more than its " +
                       std::to_string(bytes.size()) + " bytes can hold");
-}
-
-// Refuses an OBJ polygon with more corners than the limit before Assimp triangulates it (in worse
-// than quadratic time). One pass over the text; a trailing backslash continues a line, as in
-// Assimp's reader.
-void check_obj_faces(const std::string& path, std::span<const std::byte> bytes,
-                     std::uint32_t limit) {
-  const auto* text = reinterpret_cast<const char*>(bytes.data());
-  const std::size_t size = bytes.size();
-  std::size_t line = 1;
-  for (std::size_t i = 0; i < size;) {
-    const std::size_t first_line = line;
-    while (i < size && (text[i] == ' ' || text[i] == '\t')) ++i;
-    const bool face = i + 1 < size && text[i] == 'f' && (text[i + 1] == ' ' || text[i + 1] == '\t');
-    std::uint64_t corners = 0;
-    bool in_token = false;
-    for (i += face ? 1 : 0; i < size && text[i] != '\n'; ++i) {
-      if (text[i] == '\\' && i + 1 < size && (text[i + 1] == '\n' || text[i + 1] == '\r')) {
-        i += text[i + 1] == '\r' && i + 2 < size && text[i + 2] == '\n' ? 2 : 1;
-        ++line;
-        in_token = false;
-        continue;
-      }
-      const bool space = text[i] == ' ' || text[i] == '\t' || text[i] == '\r';
-      if (face && !space && !in_token) ++corners;
-      in_token = !space;
-    }
-    if (corners > limit)
-      throw ImportError(path + ":" + std::to_string(first_line) + ": a face with " +
-                        std::to_string(corners) + " corners; the limit is " +
-                        std::to_string(limit) + " (raise it with --max-face-vertices)");
-    ++i;
-    ++line;
-  }
 }
 
 // Assimp's default file access, recording what it opens and what it looks for in vain: an OBJ's
