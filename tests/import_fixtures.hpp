@@ -2,9 +2,11 @@
 // .bin), for the depfile and build-cache tests, and the check of an import's refusal.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "kiln/compiler/import.hpp"
 #include "test_support.hpp"
@@ -54,4 +56,33 @@ inline void write_gltf_with_bin(const std::filesystem::path& dir, const std::str
 })");
 }
 
+// The one-line ImportError that `bytes` give as the file `name` in a fresh folder, after the
+// "path: " it must start with; "no error" when they import.
+inline std::string import_refusal(const std::string& name, const std::vector<std::byte>& bytes) {
+  TempDir dir;
+  const std::string path = dir.file(name);
+  write_file(path, bytes);
+  try {
+    import_file(path);
+  } catch (const ImportError& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    return message.substr(path.size() + 2);
+  }
+  return "no error";
+}
+
+// A colour packed as ImportedMesh::colors holds it (RGBA8, red in the low byte).
+inline std::uint32_t rgba(std::uint32_t r, std::uint32_t g, std::uint32_t b, std::uint32_t a) {
+  return r | g << 8 | b << 16 | a << 24;
+}
+
 }  // namespace kiln::test
+
+// Expects the refusal of `bytes` (through the test file's own `import_error`) to contain `needle`.
+#define EXPECT_REFUSED(bytes, needle)                                       \
+  do {                                                                      \
+    const std::string reason = import_error(bytes);                         \
+    EXPECT_NE(reason.find(needle), std::string::npos) << "got: " << reason; \
+  } while (0)

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "import_fixtures.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/import.hpp"
 #include "test_support.hpp"
@@ -78,28 +79,7 @@ std::vector<Tri> triangles_of(const ImportedMesh& mesh) {
 
 // The one-line ImportError `bytes` give as mesh.ply; it must name the file.
 std::string import_error(const std::vector<std::byte>& bytes) {
-  test::TempDir dir;
-  const std::string path = dir.file("mesh.ply");
-  test::write_file(path, bytes);
-  try {
-    import_file(path);
-  } catch (const ImportError& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message.substr(path.size() + 2);
-  }
-  return "no error";
-}
-
-#define EXPECT_REFUSED(bytes, needle)                                       \
-  do {                                                                      \
-    const std::string reason = import_error(bytes);                         \
-    EXPECT_NE(reason.find(needle), std::string::npos) << "got: " << reason; \
-  } while (0)
-
-std::uint32_t rgba(std::uint32_t r, std::uint32_t g, std::uint32_t b, std::uint32_t a) {
-  return r | g << 8 | b << 16 | a << 24;
+  return test::import_refusal("mesh.ply", bytes);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -122,9 +102,10 @@ TEST(PlyImport, AsciiQuadAndTriangle) {
   EXPECT_EQ(mesh.positions[4].y, 0.5f);
   EXPECT_EQ(mesh.positions[4].z, -0.5f);
   EXPECT_TRUE(mesh.normals.empty());
-  EXPECT_EQ(mesh.colors, (std::vector<std::uint32_t>{rgba(255, 0, 0, 255), rgba(0, 255, 0, 255),
-                                                     rgba(0, 0, 255, 255), rgba(10, 20, 30, 255),
-                                                     rgba(1, 1, 1, 255)}));
+  EXPECT_EQ(mesh.colors,
+            (std::vector<std::uint32_t>{test::rgba(255, 0, 0, 255), test::rgba(0, 255, 0, 255),
+                                        test::rgba(0, 0, 255, 255), test::rgba(10, 20, 30, 255),
+                                        test::rgba(1, 1, 1, 255)}));
   EXPECT_FALSE(mesh.point_cloud);
 }
 
@@ -141,8 +122,9 @@ TEST(PlyImport, NormalsAndFloatColors) {
             faces + "0 0 0 0 0 1 1 0 0 1\n1 0 0 0 0 1 0 1 0 0.5\n0 1 0 0 0 1 0 0 1 0\n3 0 1 2\n"));
   ASSERT_EQ(all.normals.size(), 3u);
   EXPECT_EQ(all.normals[1].z, 1.0f);
-  EXPECT_EQ(all.colors, (std::vector<std::uint32_t>{rgba(255, 0, 0, 255), rgba(0, 255, 0, 128),
-                                                    rgba(0, 0, 255, 0)}));
+  EXPECT_EQ(all.colors,
+            (std::vector<std::uint32_t>{test::rgba(255, 0, 0, 255), test::rgba(0, 255, 0, 128),
+                                        test::rgba(0, 0, 255, 0)}));
   const ImportedMesh partial =
       import_ply_bytes(ascii(head + faces + "0 0 0 1\n1 0 0 1\n0 1 0 1\n3 0 1 2\n"));
   EXPECT_TRUE(partial.normals.empty());

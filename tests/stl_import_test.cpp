@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "import_fixtures.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/import.hpp"
 #include "test_support.hpp"
@@ -108,28 +109,7 @@ std::vector<ImportedMesh> import_stl_bytes(const std::vector<std::byte>& bytes) 
 
 // The one-line ImportError `bytes` give as mesh.stl (never shown to Assimp: it leaks on some).
 std::string import_error(const std::vector<std::byte>& bytes) {
-  test::TempDir dir;
-  const std::string path = dir.file("mesh.stl");
-  test::write_file(path, bytes);
-  try {
-    import_file(path);
-  } catch (const ImportError& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message.substr(path.size() + 2);
-  }
-  return "no error";
-}
-
-#define EXPECT_REFUSED(bytes, needle)                                       \
-  do {                                                                      \
-    const std::string reason = import_error(bytes);                         \
-    EXPECT_NE(reason.find(needle), std::string::npos) << "got: " << reason; \
-  } while (0)
-
-std::uint32_t rgba(std::uint32_t r, std::uint32_t g, std::uint32_t b, std::uint32_t a) {
-  return r | g << 8 | b << 16 | a << 24;
+  return test::import_refusal("mesh.stl", bytes);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -175,9 +155,9 @@ TEST(StlImport, BinaryFacetColors) {
                            .bytes());
   ASSERT_EQ(meshes.size(), 1u);
   ASSERT_EQ(meshes[0].colors.size(), 9u);
-  EXPECT_EQ(meshes[0].colors[0], rgba(153, 153, 153, 153));
-  EXPECT_EQ(meshes[0].colors[3], rgba(255, 0, 0, 255));
-  EXPECT_EQ(meshes[0].colors[8], rgba(0, 132, 255, 255));
+  EXPECT_EQ(meshes[0].colors[0], test::rgba(153, 153, 153, 153));
+  EXPECT_EQ(meshes[0].colors[3], test::rgba(255, 0, 0, 255));
+  EXPECT_EQ(meshes[0].colors[8], test::rgba(0, 132, 255, 255));
   // No coloured facet: no colours, whatever the other attribute bits say.
   const auto plain = import_stl_bytes(
       BinaryStl().facet({0, 0, 1}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 0x7FFF).bytes());
@@ -195,8 +175,8 @@ TEST(StlImport, BinaryMaterialiseColors) {
                            .facet({0, 0, 1}, {5, 0, 0}, {6, 0, 0}, {5, 1, 0}, 0x8000 | 31)
                            .bytes());
   ASSERT_EQ(meshes.at(0).colors.size(), 6u);
-  EXPECT_EQ(meshes[0].colors[0], rgba(10, 20, 30, 255));
-  EXPECT_EQ(meshes[0].colors[3], rgba(255, 0, 0, 255));
+  EXPECT_EQ(meshes[0].colors[0], test::rgba(10, 20, 30, 255));
+  EXPECT_EQ(meshes[0].colors[3], test::rgba(255, 0, 0, 255));
   // Assimp's header scan consumes the byte that fails to match: "CCOLOR=" is not found.
   const auto missed =
       import_stl_bytes(BinaryStl("CCOLOR=\x01\x02\x03\x04")
@@ -204,8 +184,8 @@ TEST(StlImport, BinaryMaterialiseColors) {
                            .facet({0, 0, 1}, {5, 0, 0}, {6, 0, 0}, {5, 1, 0})
                            .bytes());
   ASSERT_EQ(missed.at(0).colors.size(), 6u);
-  EXPECT_EQ(missed[0].colors[0], rgba(0, 0, 255, 255));
-  EXPECT_EQ(missed[0].colors[3], rgba(153, 153, 153, 153));
+  EXPECT_EQ(missed[0].colors[0], test::rgba(0, 0, 255, 255));
+  EXPECT_EQ(missed[0].colors[3], test::rgba(153, 153, 153, 153));
 }
 
 TEST(StlImport, BadBinaryCountsAreRefused) {
