@@ -176,6 +176,8 @@ ImportedFile import_bytes(const std::string& path, std::span<const std::byte> st
     if (bytes.empty()) throw ImportError(path + ": inflates to an empty file");
   }
   const std::string ext = lower_extension(inner_name);
+  // Companions are read beside a file read from its path; inflated bytes have no path.
+  const bool from_path = companions && inner_name == path;
   try {
     if (ext == ".gltf" || ext == ".glb")
       file.meshes = import_gltf(inner_name, bytes, ext == ".glb", &file.accessed);
@@ -190,11 +192,9 @@ ImportedFile import_bytes(const std::string& path, std::span<const std::byte> st
                         ? import_obj(inner_name, utf8, false, limits, &file.accessed)
                         : import_with_assimp(inner_name, utf8, ext, false, limits, &file.accessed);
     else if (ext == ".obj")  // Kiln's reader: Assimp's costs 0.66 ms per file, too slow to fuzz
-      file.meshes = import_obj(inner_name, bytes, companions && inflated.capacity() == 0, limits,
-                               &file.accessed);
+      file.meshes = import_obj(inner_name, bytes, from_path, limits, &file.accessed);
     else
-      file.meshes = import_with_assimp(
-          inner_name, bytes, ext, companions && inflated.capacity() == 0, limits, &file.accessed);
+      file.meshes = import_with_assimp(inner_name, bytes, ext, from_path, limits, &file.accessed);
   } catch (const ImportError& e) {
     // Importers name the inner file; report the path the user gave.
     const std::string message = e.what();
