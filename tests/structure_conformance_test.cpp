@@ -36,6 +36,7 @@ const char* const kRayStructures[] = {
     "bvh:builder=sweep",
     "sbvh",
     "kdtree",
+    "octree",
     "bvh:width=2",
     "sbvh:width=2",
     "bvh:width=4",

@@ -11,11 +11,13 @@ extern const StructureKind kKdTreeKind;          // kdtree_kind.cpp
 extern const StructureKind kPointTreeKind;       // point_tree_kind.cpp
 extern const StructureKind kVoxelDagKind;        // voxel_dag_kind.cpp
 extern const StructureKind kEsvoKind;            // esvo_kind.cpp
+extern const StructureKind kOctreeKind;          // octree_kind.cpp
 
 namespace {
 
 constexpr const StructureKind* kKinds[] = {
     &kBvhKind, &kSbvhKind, &kKdTreeKind, &kPointTreeKind, &kVoxelDagKind, &kEsvoKind,
+    &kOctreeKind,
 };
 
 }  // namespace
