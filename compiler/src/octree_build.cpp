@@ -1,23 +1,29 @@
 // Octree construction: each cell with more than leaf_size triangles is split at its centre into
 // eight (format::octree_child_cell, the very boxes the traversal computes), and each triangle
 // goes to every child its surface meets, by the exact separating-axis test (Akenine-Moller 2001;
-// triangle_overlaps_box). A temporary tree is built first (the root's eight subtrees in
-// parallel: each is a pure function of its cell and triangle list), then flattened breadth first
-// in octant order, so the blob never depends on the thread count.
+// triangle_overlaps_box).
 //
-// A cell stays a leaf when it has at most leaf_size triangles, at the depth limit, when its
-// centre no longer rounds strictly inside it (floats exhausted), or when splitting makes no
-// progress: some child would still hold all n of its triangles while the children together
-// would hold more than 2n references. That is the signature of many triangles meeting at one
-// point or crossing one small region (a fan around a vertex of high valence, or a vertex on the
-// cell's centre, which lies in all eight children): splitting further only copies them. A
-// cluster that merely lies inside one octant (a teapot in a stadium) is not duplicated and keeps
-// descending.
+// The tree is built one level at a time: every cell of a level is split on its own (in
+// parallel; each writes only its own slot), then the level is written out in cell order and its
+// children, in octant order, become the next level. That is breadth-first order, the layout's,
+// so nothing is re-ordered afterwards and the blob never depends on the thread count; and the
+// references of a whole level are known before it is committed, which is what the budget needs.
+//
+// A cell stays a leaf when
+// - it has at most leaf_size triangles;
+// - it is at the depth limit, or its centre no longer rounds strictly inside it;
+// - splitting makes no progress: some child would still hold all n of its triangles while the
+//   children together would hold more than 2n references. That is the signature of many
+//   triangles meeting at one point (a vertex of high valence, or one on the cell's centre,
+//   which lies in all eight children): splitting further only copies them. A cluster lying
+//   inside one octant (a teapot in a stadium) is not copied and keeps descending;
+// - the next level would take the references past the budget (reference_budget x triangles,
+//   counting the leaves already written): then every cell of the level stays a leaf. Large,
+//   mutually crossing triangles otherwise double their references at every level.
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
-#include <memory>
 #include <span>
 #include <stdexcept>
 
@@ -29,13 +35,18 @@ namespace kiln {
 
 namespace {
 
-enum class LeafReason : std::uint8_t { kSmall, kDepth, kStalled };
+enum class Outcome : std::uint8_t { kSmall, kDepth, kStalled, kBudget, kSplit };
 
-struct TempNode {
-  std::uint32_t mask = 0;            // present children
-  std::vector<TempNode> children;    // present children in octant order
-  std::vector<std::uint32_t> prims;  // a leaf's triangles, ascending
-  LeafReason reason = LeafReason::kSmall;
+struct Cell {
+  format::Box3f box;
+  std::vector<std::uint32_t> prims;  // ascending
+};
+
+// What splitting one cell gave: its outcome, and for kSplit its children's triangle lists.
+struct Split {
+  Outcome outcome = Outcome::kSmall;
+  std::vector<std::uint32_t> lists[8];
+  std::size_t references = 0;  // in the children
 };
 
 struct Context {
@@ -79,86 +90,93 @@ bool splittable(const format::Box3f& cell) {
   return true;
 }
 
-TempNode build_node(const Context& ctx, const format::Box3f& cell, std::vector<std::uint32_t> prims,
-                    std::uint32_t depth);
-
-// Splits `node`'s triangles among its eight children; false (node left a leaf) without progress.
-bool split(const Context& ctx, const format::Box3f& cell, std::uint32_t depth, TempNode& node) {
+Split split_cell(const Context& ctx, const Cell& cell, std::uint32_t depth, unsigned threads) {
+  Split out;
+  const std::size_t n = cell.prims.size();
+  if (n <= ctx.options.leaf_size) return out;
+  if (depth >= ctx.options.max_depth || !splittable(cell.box)) {
+    out.outcome = Outcome::kDepth;
+    return out;
+  }
   format::Box3f children[8];
-  for (std::uint32_t c = 0; c < 8; ++c) children[c] = format::octree_child_cell(cell, c);
-  const std::vector<std::uint32_t>& prims = node.prims;
-  std::vector<std::uint8_t> masks(prims.size());
-  const unsigned threads =
-      depth == 0 && prims.size() >= kParallelTriangles ? ctx.options.threads : 1;
-  parallel_for_batched(prims.size(), 4096, threads, [&](std::size_t i) {
-    masks[i] = std::uint8_t(child_mask_of(ctx.triangles[prims[i]], children));
+  for (std::uint32_t c = 0; c < 8; ++c) children[c] = format::octree_child_cell(cell.box, c);
+  std::vector<std::uint8_t> masks(n);
+  parallel_for_batched(n, 4096, n >= kParallelTriangles ? threads : 1, [&](std::size_t i) {
+    masks[i] = std::uint8_t(child_mask_of(ctx.triangles[cell.prims[i]], children));
   });
-  std::vector<std::uint32_t> lists[8];
-  std::size_t total = 0, largest = 0;
+  std::size_t largest = 0;
   for (std::uint32_t c = 0; c < 8; ++c) {
-    for (std::size_t i = 0; i < prims.size(); ++i)
-      if (masks[i] >> c & 1u) lists[c].push_back(prims[i]);
-    total += lists[c].size();
-    largest = std::max(largest, lists[c].size());
+    for (std::size_t i = 0; i < n; ++i)
+      if (masks[i] >> c & 1u) out.lists[c].push_back(cell.prims[i]);
+    out.references += out.lists[c].size();
+    largest = std::max(largest, out.lists[c].size());
   }
-  const std::size_t n = prims.size();
-  if (largest == n && total > 2 * n) return false;
-  node.prims = {};
-  std::uint32_t octants[8];
-  for (std::uint32_t c = 0; c < 8; ++c)
-    if (!lists[c].empty()) octants[node.children.size()] = c, node.children.emplace_back();
-  for (const std::uint32_t c : std::span(octants, node.children.size())) node.mask |= 1u << c;
-  parallel_for(node.children.size(), depth == 0 ? ctx.options.threads : 1, [&](std::size_t i) {
-    const std::uint32_t c = octants[i];
-    node.children[i] = build_node(ctx, children[c], std::move(lists[c]), depth + 1);
+  if (largest == n && 2 * out.references > 3 * n) {
+    out = Split{};
+    out.outcome = Outcome::kStalled;
+    return out;
+  }
+  out.outcome = Outcome::kSplit;
+  return out;
+}
+
+void write_leaf(const Cell& cell, Outcome outcome, FlatOctree& tree) {
+  if (cell.prims.size() > format::kOctreeMaxLeafReferences ||
+      tree.prim_ids.size() + cell.prims.size() > std::numeric_limits<std::uint32_t>::max())
+    throw std::runtime_error("octree: more references than the layout can address");
+  tree.nodes.push_back(format::OctreeNode::leaf(std::uint32_t(tree.prim_ids.size()),
+                                                std::uint32_t(cell.prims.size())));
+  tree.prim_ids.insert(tree.prim_ids.end(), cell.prims.begin(), cell.prims.end());
+  OctreeStatistics& s = tree.stats;
+  s.leaf_count += 1;
+  s.largest_leaf = std::max(s.largest_leaf, std::uint32_t(cell.prims.size()));
+  s.depth_limited_leaves += outcome == Outcome::kDepth || outcome == Outcome::kBudget;
+  s.stalled_leaves += outcome == Outcome::kStalled;
+}
+
+// Splits every cell of `level` (depth `depth`), writes the level's nodes to `tree` and returns
+// the next level.
+std::vector<Cell> build_level(const Context& ctx, std::vector<Cell>& level, std::uint32_t depth,
+                              FlatOctree& tree) {
+  const unsigned threads = ctx.options.threads;
+  std::vector<Split> splits(level.size());
+  // One cell (the root): its triangles are classified in parallel instead.
+  parallel_for(level.size(), level.size() == 1 ? 1 : threads, [&](std::size_t i) {
+    splits[i] = split_cell(ctx, level[i], depth, level.size() == 1 ? threads : 1);
   });
-  return true;
-}
-
-TempNode build_node(const Context& ctx, const format::Box3f& cell, std::vector<std::uint32_t> prims,
-                    std::uint32_t depth) {
-  TempNode node;
-  node.prims = std::move(prims);
-  if (node.prims.size() <= ctx.options.leaf_size) return node;
-  if (depth >= ctx.options.max_depth || !splittable(cell)) {
-    node.reason = LeafReason::kDepth;
-    return node;
+  // Written leaves, this level's leaves, and the next level: what the tree holds if it splits.
+  std::uint64_t next_references = 0, references = tree.prim_ids.size();
+  for (std::size_t i = 0; i < level.size(); ++i)
+    (splits[i].outcome == Outcome::kSplit ? next_references : references) +=
+        splits[i].outcome == Outcome::kSplit ? splits[i].references : level[i].prims.size();
+  const double budget = double(ctx.options.reference_budget) * double(ctx.triangles.size());
+  if (double(references) + double(next_references) > budget) {
+    tree.stats.budget_reached = next_references > 0;
+    for (Split& s : splits)
+      if (s.outcome == Outcome::kSplit) s = Split{}, s.outcome = Outcome::kBudget;
   }
-  if (!split(ctx, cell, depth, node)) node.reason = LeafReason::kStalled;
-  return node;
-}
-
-// Breadth first, children in octant order: node i's children start at the next free index, and
-// leaves take their references in node order.
-void flatten(const TempNode& root, FlatOctree& out) {
-  std::vector<const TempNode*> order{&root};
-  std::vector<std::uint8_t> depth{0};
-  OctreeStatistics& s = out.stats;
-  for (std::size_t i = 0; i < order.size(); ++i) {
-    const TempNode& t = *order[i];
-    s.max_depth = std::max<std::uint32_t>(s.max_depth, depth[i]);
-    if (t.children.empty()) {
-      if (t.prims.size() > format::kOctreeMaxLeafReferences ||
-          out.prim_ids.size() + t.prims.size() > std::numeric_limits<std::uint32_t>::max())
-        throw std::runtime_error("octree: more references than the layout can address");
-      out.nodes.push_back(format::OctreeNode::leaf(std::uint32_t(out.prim_ids.size()),
-                                                   std::uint32_t(t.prims.size())));
-      out.prim_ids.insert(out.prim_ids.end(), t.prims.begin(), t.prims.end());
-      s.leaf_count += 1;
-      s.largest_leaf = std::max(s.largest_leaf, std::uint32_t(t.prims.size()));
-      s.depth_limited_leaves += t.reason == LeafReason::kDepth;
-      s.stalled_leaves += t.reason == LeafReason::kStalled;
+  tree.stats.max_depth = depth;
+  std::vector<Cell> next;
+  std::uint64_t next_index = tree.nodes.size() + level.size();
+  for (std::size_t i = 0; i < level.size(); ++i) {
+    Split& s = splits[i];
+    if (s.outcome != Outcome::kSplit) {
+      write_leaf(level[i], s.outcome, tree);
       continue;
     }
-    if (order.size() + t.children.size() > std::numeric_limits<std::uint32_t>::max())
-      throw std::runtime_error("octree: more nodes than the layout can address");
-    out.nodes.push_back(format::OctreeNode::interior(t.mask, std::uint32_t(order.size())));
-    s.empty_cell_count += 8 - t.children.size();
-    for (const TempNode& child : t.children) {
-      order.push_back(&child);
-      depth.push_back(std::uint8_t(depth[i] + 1));
+    std::uint32_t mask = 0;
+    for (std::uint32_t c = 0; c < 8; ++c) {
+      if (s.lists[c].empty()) continue;
+      mask |= 1u << c;
+      next.push_back({format::octree_child_cell(level[i].box, c), std::move(s.lists[c])});
     }
+    if (next_index + std::popcount(mask) > std::numeric_limits<std::uint32_t>::max())
+      throw std::runtime_error("octree: more nodes than the layout can address");
+    tree.nodes.push_back(format::OctreeNode::interior(mask, std::uint32_t(next_index)));
+    tree.stats.empty_cell_count += 8 - std::popcount(mask);
+    next_index += std::popcount(mask);
   }
+  return next;
 }
 
 }  // namespace
@@ -182,8 +200,9 @@ format::Box3f octree_root_cell(const format::Box3f& scene_bounds) {
 
 FlatOctree build_octree(const Scene& scene, const OctreeBuildOptions& options) {
   if (scene.triangles.empty()) throw std::runtime_error("octree: the scene has no triangles");
-  if (options.max_depth > format::kOctreeMaxDepth || options.leaf_size == 0)
-    throw std::runtime_error("octree: leaf size or depth limit out of range");
+  if (options.max_depth > format::kOctreeMaxDepth || options.leaf_size == 0 ||
+      options.reference_budget == 0)
+    throw std::runtime_error("octree: leaf size, depth limit or reference budget out of range");
   FlatOctree tree;
   tree.bounds = octree_root_cell(scene.bounds);
   tree.triangles.reserve(scene.triangles.size());
@@ -191,11 +210,13 @@ FlatOctree build_octree(const Scene& scene, const OctreeBuildOptions& options) {
     const auto& v = scene.positions;
     tree.triangles.push_back({v[t.v[0]], v[t.v[1]], v[t.v[2]]});
   }
-  std::vector<std::uint32_t> all(scene.triangles.size());
-  for (std::uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+  std::vector<Cell> level(1);
+  level[0].box = tree.bounds;
+  level[0].prims.resize(scene.triangles.size());
+  for (std::uint32_t i = 0; i < level[0].prims.size(); ++i) level[0].prims[i] = i;
   const Context ctx{tree.triangles, options};
-  const TempNode root = build_node(ctx, tree.bounds, std::move(all), 0);
-  flatten(root, tree);
+  for (std::uint32_t depth = 0; !level.empty(); ++depth)
+    level = build_level(ctx, level, depth, tree);
 
   OctreeStatistics& s = tree.stats;
   s.node_count = tree.nodes.size();

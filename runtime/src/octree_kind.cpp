@@ -86,6 +86,7 @@ Description describe(const Blob& blob, const StructureInfo& info) {
       (unsigned long long)k.reference_count(), k.references_per_triangle(), k.bytes_per_triangle(),
       (unsigned long long)k.depth_limited_leaves(), (unsigned long long)k.stalled_leaves()));
   out.field("leaf_size", k.leaf_size()).field("depth_limit", k.depth_limit());
+  out.field("reference_budget", k.reference_budget()).field("budget_reached", k.budget_reached());
   out.field("node_count", k.node_count()).field("leaf_count", k.leaf_count());
   out.field("empty_cell_count", k.empty_cell_count());
   out.field("reference_count", k.reference_count()).field("max_depth", k.max_depth());

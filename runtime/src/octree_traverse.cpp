@@ -178,6 +178,26 @@ Hit traverse(const OctreeView& tree, const Ray& ray, Cost* cost) {
 
 }  // namespace
 
+void octree_leaves_along(const OctreeView& tree, const Ray& ray,
+                         const std::function<void(std::uint32_t, float, float)>& visit) {
+  const OctRay r = prepare(ray);
+  Frame stack[7 * format::kOctreeMaxDepth + 8];
+  std::uint32_t top = 0;
+  if (!root_frame(r, tree.bounds(), stack[top])) return;
+  ++top;
+  Frame children[8];
+  while (top > 0) {
+    const Frame f = stack[--top];
+    const format::OctreeNode n = tree.nodes()[f.node];
+    if (n.is_leaf()) {
+      visit(f.node, f.entry, f.exit);
+      continue;
+    }
+    const int count = enter_children(r, f, n, ray.tmax, children);
+    for (int i = count; i-- > 0;) stack[top++] = children[i];
+  }
+}
+
 Hit OctreeView::intersect(const Ray& ray) const {
   return traverse<false, false>(*this, ray, nullptr);
 }

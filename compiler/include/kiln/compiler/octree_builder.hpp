@@ -15,13 +15,17 @@ namespace kiln {
 struct OctreeBuildOptions {
   std::uint32_t leaf_size = 8;   // a cell with at most this many triangles stays a leaf
   std::uint32_t max_depth = 16;  // no leaf deeper (root = 0); at most kOctreeMaxDepth
-  unsigned threads = 0;          // never changes the result
+  // At most this many references per triangle on average: the level that would pass it is not
+  // split (bounds memory when large triangles cross each other everywhere).
+  std::uint32_t reference_budget = 32;
+  unsigned threads = 0;  // never changes the result
 };
 
 struct OctreeStatistics {
   std::uint64_t node_count = 0, leaf_count = 0, empty_cell_count = 0, reference_count = 0;
   std::uint64_t depth_limited_leaves = 0, stalled_leaves = 0;
   std::uint32_t max_depth = 0, largest_leaf = 0;
+  bool budget_reached = false;  // a level was left unsplit by the reference budget
   double references_per_triangle = 0, bytes_per_triangle = 0;
 };
 

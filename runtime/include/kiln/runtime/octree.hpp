@@ -4,6 +4,7 @@
 
 #include <bit>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <span>
 #include <string>
@@ -60,6 +61,12 @@ class OctreeView {
   format::Box3f bounds_;
   std::uint32_t depth_ = 0;
 };
+
+/// Calls visit(leaf node index, entry, exit) for every leaf whose cell the ray meets in
+/// [tmin, tmax], in the order the ray traversal reaches them (front to back by entry distance),
+/// with the cell's unpadded entry and exit distances; no pruning by hits. For tests and tools.
+void octree_leaves_along(const OctreeView& tree, const Ray& ray,
+                         const std::function<void(std::uint32_t, float, float)>& visit);
 
 /// Calls leaf(node, cell) for every leaf, depth first in octant order, with the cell that the
 /// builder and the traversal give it (format::octree_child_cell from the root cell down).
