@@ -16,6 +16,7 @@
 // only when it starts after the best hit so far (the paper's "stop when the best hit lies before
 // the leaf's exit", applied to each waiting cell), so the hit found is the closest.
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -68,10 +69,14 @@ OctRay prepare(const Ray& ray) {
 }
 
 // Entry and exit of a frame from its per-axis distances; false when the padded range is empty.
-bool close_frame(const OctRay& r, Frame& f) {
-  f.entry = std::max({r.tmin, f.t_near[0], f.t_near[1], f.t_near[2]});
-  f.exit = std::min({r.tmax, f.t_far[0], f.t_far[1], f.t_far[2]});
-  return pad_down(f.entry) <= pad_up(f.exit);
+inline bool close_frame(const OctRay& r, Frame& f) {
+  float entry = r.tmin, exit = r.tmax;
+  for (int a = 0; a < 3; ++a) {
+    entry = f.t_near[a] > entry ? f.t_near[a] : entry;
+    exit = f.t_far[a] < exit ? f.t_far[a] : exit;
+  }
+  f.entry = entry, f.exit = exit;
+  return pad_down(entry) <= pad_up(exit);
 }
 
 bool root_frame(const OctRay& r, const format::Box3f& b, Frame& f) {
@@ -92,47 +97,68 @@ bool root_frame(const OctRay& r, const format::Box3f& b, Frame& f) {
   return close_frame(r, f);
 }
 
-// The children of `f` (interior node `n`) the ray enters before `limit`, nearest first, into
-// `out`; returns how many.
-int enter_children(const OctRay& r, const Frame& f, const format::OctreeNode& n, float limit,
-                   Frame out[8]) {
+// Set bits of a byte (the library targets baseline x86-64, whose popcount is a library call).
+constexpr auto kBitCount = [] {
+  std::array<std::uint8_t, 256> table{};
+  for (std::uint32_t i = 0; i < 256; ++i) table[i] = std::uint8_t(std::popcount(i));
+  return table;
+}();
+
+// Pushes the children of `f` (interior node `n`) the ray enters before `limit` onto `stack`,
+// farthest first, so the nearest is expanded next.
+void push_children(const OctRay& r, const Frame& f, const format::OctreeNode& n, float limit,
+                   Frame* stack, std::uint32_t& top) {
   const std::uint32_t mask = n.child_mask();
-  float mid[3], t_mid[3];
+  // Per axis, the child's slab distances by its half (0 lower, 1 upper): the near half gets
+  // (t_near, t_mid), the far one (t_mid, t_far); parallel to the axis, both (-inf, inf) but only
+  // on the origin's side of the centre plane (both sides when on it).
+  float mid[3], near_t[3][2], far_t[3][2];
   std::uint32_t allowed = mask;
   for (int a = 0; a < 3; ++a) {
     mid[a] = format::octree_mid(f.lo[a], f.hi[a]);
-    t_mid[a] = (mid[a] - r.org[a]) * r.inv_dir[a];
-    if (!r.flat[a]) continue;
-    // Parallel to the centre plane: only the origin's side (both when on the plane).
-    const std::uint32_t upper = a == 0 ? 0xAAu : a == 1 ? 0xCCu : 0xF0u;
-    if (r.org[a] < mid[a]) allowed &= ~upper;
-    if (r.org[a] > mid[a]) allowed &= upper;
+    if (r.flat[a]) {
+      near_t[a][0] = near_t[a][1] = -kInf, far_t[a][0] = far_t[a][1] = kInf;
+      const std::uint32_t upper = a == 0 ? 0xAAu : a == 1 ? 0xCCu : 0xF0u;
+      if (r.org[a] < mid[a]) allowed &= ~upper;
+      if (r.org[a] > mid[a]) allowed &= upper;
+      continue;
+    }
+    const float t_mid = (mid[a] - r.org[a]) * r.inv_dir[a];
+    const std::uint32_t near_half = r.near_bits >> a & 1u;
+    near_t[a][near_half] = f.t_near[a], far_t[a][near_half] = t_mid;
+    near_t[a][near_half ^ 1u] = t_mid, far_t[a][near_half ^ 1u] = f.t_far[a];
   }
   const float padded_limit = pad_up(limit);
+  struct Candidate {
+    float entry, exit;
+    std::uint32_t octant;
+  } order[8];
   int count = 0;
   for (std::uint32_t j = 0; j < 8; ++j) {
     const std::uint32_t c = j ^ r.near_bits;  // the j-th octant along the ray
     if ((allowed >> c & 1u) == 0) continue;
-    Frame child;
-    child.node = n.first_child() + std::uint32_t(std::popcount(mask & ((1u << c) - 1u)));
+    const std::uint32_t x = c & 1u, y = c >> 1 & 1u, z = c >> 2 & 1u;
+    const float entry =
+        std::max(std::max(r.tmin, near_t[0][x]), std::max(near_t[1][y], near_t[2][z]));
+    const float exit = std::min(std::min(r.tmax, far_t[0][x]), std::min(far_t[1][y], far_t[2][z]));
+    if (pad_down(entry) > pad_up(exit) || pad_down(entry) > padded_limit) continue;
+    int i = count++;
+    for (; i > 0 && order[i - 1].entry > entry; --i) order[i] = order[i - 1];
+    order[i] = {entry, exit, c};
+  }
+  for (int i = count; i-- > 0;) {
+    const std::uint32_t c = order[i].octant;
+    Frame& child = stack[top++];
+    child.node = n.first_child() + kBitCount[mask & ((1u << c) - 1u)];
+    child.entry = order[i].entry, child.exit = order[i].exit;
     for (int a = 0; a < 3; ++a) {
-      const bool upper = c >> a & 1u;
+      const std::uint32_t upper = c >> a & 1u;
       child.lo[a] = upper ? mid[a] : f.lo[a];
       child.hi[a] = upper ? f.hi[a] : mid[a];
-      if (r.flat[a]) {
-        child.t_near[a] = -kInf, child.t_far[a] = kInf;
-        continue;
-      }
-      const bool near_half = upper == bool(r.near_bits >> a & 1u);
-      child.t_near[a] = near_half ? f.t_near[a] : t_mid[a];
-      child.t_far[a] = near_half ? t_mid[a] : f.t_far[a];
+      child.t_near[a] = near_t[a][upper];
+      child.t_far[a] = far_t[a][upper];
     }
-    if (!close_frame(r, child) || pad_down(child.entry) > padded_limit) continue;
-    int i = count++;
-    for (; i > 0 && out[i - 1].entry > child.entry; --i) out[i] = out[i - 1];
-    out[i] = child;
   }
-  return count;
 }
 
 template <bool kAnyHit, bool kCount>
@@ -149,7 +175,6 @@ Hit traverse(const OctreeView& tree, const Ray& ray, Cost* cost) {
   const WatertightRay tri_ray = prepare_watertight(ray);
   Hit hit;
   hit.t = ray.tmax;
-  Frame children[8];
   while (top > 0) {
     const Frame f = stack[--top];
     // Cells are skipped once they start after the best hit: nothing in them can be closer.
@@ -157,8 +182,7 @@ Hit traverse(const OctreeView& tree, const Ray& ray, Cost* cost) {
     const format::OctreeNode n = nodes[f.node];
     if constexpr (kCount) cost->nodes += 1;
     if (!n.is_leaf()) {
-      const int count = enter_children(r, f, n, hit.t, children);
-      for (int i = count; i-- > 0;) stack[top++] = children[i];
+      push_children(r, f, n, hit.t, stack, top);
       continue;
     }
     for (std::uint32_t i = n.first_reference(), end = i + n.reference_count(); i < end; ++i) {
@@ -185,7 +209,6 @@ void octree_leaves_along(const OctreeView& tree, const Ray& ray,
   std::uint32_t top = 0;
   if (!root_frame(r, tree.bounds(), stack[top])) return;
   ++top;
-  Frame children[8];
   while (top > 0) {
     const Frame f = stack[--top];
     const format::OctreeNode n = tree.nodes()[f.node];
@@ -193,8 +216,7 @@ void octree_leaves_along(const OctreeView& tree, const Ray& ray,
       visit(f.node, f.entry, f.exit);
       continue;
     }
-    const int count = enter_children(r, f, n, ray.tmax, children);
-    for (int i = count; i-- > 0;) stack[top++] = children[i];
+    push_children(r, f, n, ray.tmax, stack, top);
   }
 }
 
