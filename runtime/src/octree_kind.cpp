@@ -74,8 +74,9 @@ void verify(const Blob& blob, const StructureInfo& info) {
 Description describe(const Blob& blob, const StructureInfo& info) {
   const auto& k = desc_of<schema::OctreeDesc>(blob, info);
   Description out;
-  out.lines.push_back(
-      printf_string("leaf size %u, depth limit %u", k.leaf_size(), k.depth_limit()));
+  out.lines.push_back(printf_string("leaf size %u, depth limit %u, reference budget %u%s",
+                                    k.leaf_size(), k.depth_limit(), k.reference_budget(),
+                                    k.budget_reached() ? " (reached)" : ""));
   out.lines.push_back(
       printf_string("%llu nodes, %llu leaves, %llu empty cells, depth %u, largest leaf %u",
                     (unsigned long long)k.node_count(), (unsigned long long)k.leaf_count(),

@@ -161,6 +161,21 @@ void push_children(const OctRay& r, const Frame& f, const format::OctreeNode& n,
   }
 }
 
+// The triangles tested last for this ray (Amanatides & Woo's mailbox, as a small ring): a
+// triangle spanning neighbouring leaves is met again at once, and testing it again could not
+// change the hit (its t is either the best already or not in range), so it is skipped.
+struct Mailbox {
+  std::uint32_t ids[8] = {kNoHit, kNoHit, kNoHit, kNoHit, kNoHit, kNoHit, kNoHit, kNoHit};
+  std::uint32_t next = 0;
+  // Whether `prim` was tested lately; records it otherwise.
+  bool seen(std::uint32_t prim) {
+    for (const std::uint32_t id : ids)
+      if (id == prim) return true;
+    ids[next++ & 7u] = prim;
+    return false;
+  }
+};
+
 template <bool kAnyHit, bool kCount>
 Hit traverse(const OctreeView& tree, const Ray& ray, Cost* cost) {
   const OctRay r = prepare(ray);
@@ -175,6 +190,7 @@ Hit traverse(const OctreeView& tree, const Ray& ray, Cost* cost) {
   const WatertightRay tri_ray = prepare_watertight(ray);
   Hit hit;
   hit.t = ray.tmax;
+  Mailbox recent;
   while (top > 0) {
     const Frame f = stack[--top];
     // Cells are skipped once they start after the best hit: nothing in them can be closer.
@@ -186,8 +202,9 @@ Hit traverse(const OctreeView& tree, const Ray& ray, Cost* cost) {
       continue;
     }
     for (std::uint32_t i = n.first_reference(), end = i + n.reference_count(); i < end; ++i) {
-      if constexpr (kCount) cost->tests += 1;
       const std::uint32_t prim = prim_ids[i];
+      if (recent.seen(prim)) continue;
+      if constexpr (kCount) cost->tests += 1;
       const format::RayTriangle& tri = triangles[prim];
       float t, u, v;
       if (intersect_watertight(tri_ray, tri.v0, tri.v1, tri.v2, ray.tmin, hit.t, t, u, v)) {
