@@ -233,6 +233,23 @@ TEST(Octree, AgreesWithBruteForceWithTinyLeavesAndShallowTrees) {
   }
 }
 
+// Large triangles crossing each other everywhere double their references at every level: the
+// budget stops the descent there, and rays still agree with brute force.
+TEST(Octree, ReferenceBudgetBoundsReferences) {
+  const Scene scene = worst_cases().at("overlapping");
+  for (const std::uint32_t budget : {2u, 6u, 32u}) {
+    SCOPED_TRACE(budget);
+    OctreeBuildOptions o;
+    o.reference_budget = budget;
+    o.threads = 2;
+    const Built b{build_octree(scene, o)};
+    EXPECT_LE(b.flat.stats.reference_count, std::uint64_t(budget) * scene.triangles.size());
+    EXPECT_TRUE(b.flat.stats.budget_reached);
+    expect_agrees_with_brute_force(scene, b.view(), box_rays(scene, 300));
+  }
+  EXPECT_FALSE(build(scattered(2000, 0.02f, 4)).flat.stats.budget_reached);
+}
+
 TEST(Octree, SurfaceQueriesMatchBruteForce) {
   auto scenes = worst_cases();
   scenes.emplace("sphere", icosphere(3));
