@@ -289,6 +289,7 @@ Scene advise_sample(const Scene& scene, std::uint64_t cap) {
   sample.triangle_mesh.assign(sample.triangles.size(), 0);
   sample.meshes.push_back({"sample", 0, 0, sample.triangles.size(), 0, sample.positions.size()});
   sample.sources = scene.sources;
+  if (sample.sources.empty()) sample.sources.push_back({"<sample>", 0, 0});  // the mesh names one
   sample.input_triangle_count = sample.triangles.size();
   sample.bounds = bounds_of(sample.positions);
   return sample;
