@@ -39,7 +39,7 @@ void print_table(const Advice& advice, std::ostream& out) {
   const std::string sample =
       advice.sampled()
           ? printf_string(
-                "a sample of %llu of its %llu triangles (every %lluth)",
+                "a sample of %llu of its %llu triangles (1 in %llu)",
                 (unsigned long long)advice.sample_triangles,
                 (unsigned long long)advice.scene_triangles,
                 (unsigned long long)((advice.scene_triangles + advice.sample_triangles - 1) /
