@@ -60,6 +60,19 @@ const StructureBuilder& reference_builder() {
   throw std::runtime_error("no structure kind is built over triangles");
 }
 
+CompiledCandidate compile_reference(const Scene& sample, unsigned threads) {
+  return compile_candidate(sample, resolve_structure_request(reference_builder().kind, {}),
+                           threads);
+}
+
+std::vector<Ray> rays_with(const RayQueries& reference, const Scene& sample, bool diffuse,
+                           std::size_t count, std::uint64_t seed, unsigned threads) {
+  const RayScene scene{reference, sample.positions, sample.triangles, sample.bounds.min,
+                       sample.bounds.max};
+  return generate_rays(scene, diffuse ? RayKind::kDiffuse : RayKind::kPrimary, count, seed,
+                       threads);
+}
+
 double median(std::vector<double> values) {
   std::sort(values.begin(), values.end());
   const std::size_t n = values.size();
@@ -297,13 +310,8 @@ Scene advise_sample(const Scene& scene, std::uint64_t cap) {
 
 std::vector<Ray> advise_rays(const Scene& sample, bool diffuse, std::size_t count,
                              std::uint64_t seed, unsigned threads) {
-  const StructureBuilder& builder = reference_builder();
-  CompiledCandidate reference =
-      compile_candidate(sample, resolve_structure_request(builder.kind, {}), threads);
-  const RayScene scene{*reference.view->rays(), sample.positions, sample.triangles,
-                       sample.bounds.min, sample.bounds.max};
-  return generate_rays(scene, diffuse ? RayKind::kDiffuse : RayKind::kPrimary, count, seed,
-                       threads);
+  const CompiledCandidate reference = compile_reference(sample, threads);
+  return rays_with(*reference.view->rays(), sample, diffuse, count, seed, threads);
 }
 
 Advice advise(const Scene& scene, const AdviseOptions& options) {
@@ -322,13 +330,14 @@ Advice advise(const Scene& scene, const AdviseOptions& options) {
   const std::uint64_t steps = specs.size() + 1;
   if (options.progress) options.progress("rays", 0, steps);
   std::vector<RaySet> sets;
+  const CompiledCandidate reference = compile_reference(sample, options.threads);
   for (const bool diffuse : {false, true}) {
     if ((diffuse && options.rays == AdviseRays::kPrimary) ||
         (!diffuse && options.rays == AdviseRays::kDiffuse))
       continue;
-    sets.push_back(
-        {diffuse ? "diffuse" : "primary",
-         advise_rays(sample, diffuse, options.rays_per_kind, options.seed, options.threads)});
+    sets.push_back({diffuse ? "diffuse" : "primary",
+                    rays_with(*reference.view->rays(), sample, diffuse, options.rays_per_kind,
+                              options.seed, options.threads)});
     advice.ray_kinds.push_back(sets.back().kind);
   }
   for (std::size_t i = 0; i < specs.size(); ++i) {

@@ -124,7 +124,12 @@ CompiledBlob compile_blob_pieces(const Scene& scene, const BuildOptions& given,
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const BuiltStructure& built = blob.structures.back();
-    if (reports) reports->push_back({request.name, request.kind, built.summary, seconds});
+    std::string summary = built.summary;
+    for (const AutoChoice& choice : advice)
+      if (&options.structures[choice.structure] == &request)
+        summary =
+            "chosen by --accel auto (" + choice.advice.recommendation.reason + "); " + summary;
+    if (reports) reports->push_back({request.name, request.kind, summary, seconds});
     auto& owned = owned_sections.emplace_back();
     for (const SectionPayload& section : built.sections) {
       sections.push_back(section);
