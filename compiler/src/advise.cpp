@@ -335,9 +335,16 @@ Advice advise(const Scene& scene, const AdviseOptions& options) {
     if ((diffuse && options.rays == AdviseRays::kPrimary) ||
         (!diffuse && options.rays == AdviseRays::kDiffuse))
       continue;
-    sets.push_back({diffuse ? "diffuse" : "primary",
-                    rays_with(*reference.view->rays(), sample, diffuse, options.rays_per_kind,
-                              options.seed, options.threads)});
+    try {
+      sets.push_back({diffuse ? "diffuse" : "primary",
+                      rays_with(*reference.view->rays(), sample, diffuse, options.rays_per_kind,
+                                options.seed, options.threads)});
+    } catch (const std::runtime_error& e) {
+      // Too few primary hits to bounce from: with both kinds asked, primary rays still decide.
+      if (options.rays != AdviseRays::kBoth) throw;
+      advice.notes.push_back(std::string("no diffuse rays: ") + e.what());
+      continue;
+    }
     advice.ray_kinds.push_back(sets.back().kind);
   }
   for (std::size_t i = 0; i < specs.size(); ++i) {

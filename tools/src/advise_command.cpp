@@ -59,6 +59,7 @@ void print_table(const Advice& advice, std::ostream& out) {
     for (const AdviseRayMeasure& m : r.rays) line += printf_string(" %10.2f", m.mrays_per_s);
     out << line << printf_string(" %9.1f %6.0f%%\n", r.cost_per_ray, r.noise * 100);
   }
+  for (const std::string& note : advice.notes) out << "note: " << note << "\n";
   out << "\ncost/ray: mean node visits + triangle tests per ray (deterministic); noise: spread "
          "of the timed runs\n";
   out << "recommended for " << priority_name(advice.priority) << ": "
@@ -92,6 +93,7 @@ nlohmann::ordered_json advice_json(const Advice& advice) {
           {"rays_per_kind", advice.rays_per_kind},
           {"seed", advice.seed},
           {"ray_kinds", advice.ray_kinds},
+          {"notes", advice.notes},
           {"rows", std::move(rows)},
           {"recommendation",
            {{"priority", std::string(priority_name(advice.priority))},

@@ -57,7 +57,7 @@ struct AdviseRayMeasure {
 struct AdviceRow {
   std::string spec;  ///< the `--accel` spec tried
   std::string kind;
-  double build_ms = 0;  ///< build time: one build, the median of the repetitions for kBuild
+  double build_ms = 0;      ///< build time: one build, the median of the repetitions for kBuild
   std::uint64_t bytes = 0;  ///< raw bytes of the structure's own sections in the blob
   double bytes_per_triangle = 0;
   std::vector<AdviseRayMeasure> rays;  ///< one per traced ray kind
@@ -82,6 +82,7 @@ struct Advice {
   AdvisePriority priority = AdvisePriority::kTrace;
   bool timed = true;
   Recommendation recommendation;
+  std::vector<std::string> notes;  ///< what was left out, one line each
   bool sampled() const { return sample_triangles < scene_triangles; }
 };
 
