@@ -228,6 +228,18 @@ TEST(AdviseCli, BadInputAndOptionsFailWithOneLine) {
   const auto bad = test::run_kiln("advise " + quoted(mesh) + " --candidate nosuch");
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_NE(bad.err.find("unknown structure kind"), std::string::npos) << bad.err;
+  // A kind without triangle hits is left out, saying so; alone, it is an error.
+  const auto mixed = test::run_kiln(
+      "advise " + quoted(mesh) + " --candidate points --candidate bvh:width=4 --count 200 --json");
+  ASSERT_EQ(mixed.exit_code, 0) << mixed.err;
+  const auto json = nlohmann::json::parse(mixed.out);
+  ASSERT_EQ(json["rows"].size(), 1u);
+  EXPECT_EQ(json["rows"][0]["spec"], "bvh:width=4");
+  ASSERT_EQ(json["notes"].size(), 1u);
+  EXPECT_NE(json["notes"][0].get<std::string>().find("points left out"), std::string::npos);
+  const auto alone = test::run_kiln("advise " + quoted(mesh) + " --candidate points");
+  EXPECT_EQ(alone.exit_code, 1);
+  EXPECT_EQ(std::count(alone.err.begin(), alone.err.end(), '\n'), 1) << alone.err;
 }
 
 TEST(AdviseAuto, RecordsItsChoiceAndIsTheSameOnAnyThreadCount) {

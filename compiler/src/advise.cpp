@@ -349,9 +349,19 @@ Advice advise(const Scene& scene, const AdviseOptions& options) {
   }
   for (std::size_t i = 0; i < specs.size(); ++i) {
     if (options.progress) options.progress(specs[i], i + 1, steps);
-    advice.rows.push_back(measure(sample, specs[i], sets, options));
+    try {
+      advice.rows.push_back(measure(sample, specs[i], sets, options));
+    } catch (const std::bad_alloc&) {
+      throw;
+    } catch (const std::exception& e) {
+      // One structure that cannot be built here (or traces no triangles) leaves the others.
+      advice.notes.push_back(specs[i] + " left out: " + e.what());
+    }
   }
   if (options.progress) options.progress("done", steps, steps);
+  if (advice.rows.empty())
+    throw std::invalid_argument("no candidate could be measured" +
+                                (advice.notes.empty() ? "" : " (" + advice.notes.front() + ")"));
   advice.recommendation = recommend(advice.rows, options.priority, advice.timed);
   return advice;
 }

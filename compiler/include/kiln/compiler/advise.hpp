@@ -103,8 +103,9 @@ std::vector<Ray> advise_rays(const Scene& sample, bool diffuse, std::size_t coun
                              std::uint64_t seed, unsigned threads);
 
 /// Builds, traces and measures every candidate on a sample of `scene`, and recommends one for
-/// `options.priority` (recommend()). Throws std::invalid_argument for a bad candidate spec or an
-/// input without triangles, std::runtime_error when the rays cannot be made (nothing hit).
+/// `options.priority` (recommend()). A candidate that fails to build or to trace triangle hits
+/// is left out with a note. Throws std::invalid_argument for a bad candidate spec, an input
+/// without triangles or no candidate left, std::runtime_error when the rays cannot be made.
 Advice advise(const Scene& scene, const AdviseOptions& options);
 
 /// The documented rules (README "Which ray structure"). `kNoiseFloor` and `kWithinTrace` below.
