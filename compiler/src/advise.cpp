@@ -47,7 +47,7 @@ CompiledCandidate compile_candidate(const Scene& sample, const StructureRequest&
   c.view = open_structure(*c.blob, info.name);
   const RayQueries* rays = c.view->rays();
   if (rays == nullptr || rays->record_size() != sizeof(Hit))
-    throw std::invalid_argument("advise: " + request.kind +
+    throw std::invalid_argument(request.kind +
                                 " does not find triangle hits (not a triangle ray structure)");
   return c;
 }
