@@ -1,9 +1,13 @@
-// kiln_make_scene: writes a procedural scene of many displaced grids as a binary little-endian
-// PLY, for builds at scale (10^7-10^8 triangles) without downloading anything. The file is
-// streamed out grid by grid, so the generator itself needs almost no memory, and the scene is a
-// pure function of its arguments (the same bytes on every machine).
+// kiln_make_scene: writes a procedural scene as a binary little-endian PLY, a pure function of
+// its arguments (the same bytes on every machine), without downloading anything:
+//  - grids (default): many displaced grids, for builds at scale (10^7-10^8 triangles), streamed
+//    out grid by grid so the generator itself needs almost no memory;
+//  - uniform: small triangles scattered uniformly in a cube (uniform grids should win);
+//  - stadium: the "teapot in a stadium", a dense sphere inside a huge sparse bowl (uniform grids
+//    should lose badly). Both from kiln/bench/generated_scenes.hpp, built in memory.
 //
 //   kiln_make_scene --triangles 50000000 -o /tmp/huge.ply
+//   kiln_make_scene --kind stadium --triangles 1000000 --seed 7 -o /tmp/stadium.ply
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -14,21 +18,30 @@
 #include <utility>
 #include <vector>
 
+#include "kiln/bench/generated_scenes.hpp"
+
 namespace {
 
 struct Args {
   std::uint64_t triangles = 10'000'000;
   std::uint32_t grid = 256;  // quads per grid side: 2 * grid^2 triangles per grid
+  std::string kind = "grids";
+  std::uint64_t seed = 1;
   std::string output;
 };
 
 void usage(std::FILE* to) {
   std::fprintf(to,
-               "Usage: kiln_make_scene [--triangles N] [--grid K] -o OUT.ply\n"
-               "Writes about N triangles (rounded up to whole grids) as many K x K displaced\n"
-               "grids scattered over a lattice, as a binary little-endian PLY.\n"
+               "Usage: kiln_make_scene [--kind grids|uniform|stadium] [--triangles N] [--grid K]\n"
+               "                       [--seed S] -o OUT.ply\n"
+               "Writes about N triangles as a binary little-endian PLY:\n"
+               "  grids    many K x K displaced grids over a lattice (rounded up to whole grids)\n"
+               "  uniform  small triangles scattered uniformly in the unit cube (seeded)\n"
+               "  stadium  a dense sphere (98%%) inside a huge sparse bowl: the teapot in a\n"
+               "           stadium (seeded jitter)\n"
                "  --triangles N  triangles wanted (default 10000000)\n"
-               "  --grid K       quads per grid side, 1..4096 (default 256)\n");
+               "  --grid K       grids: quads per grid side, 1..4096 (default 256)\n"
+               "  --seed S       uniform, stadium: the seed (default 1)\n");
 }
 
 Args parse(int argc, char** argv) {
@@ -46,6 +59,10 @@ Args parse(int argc, char** argv) {
       a.triangles = std::stoull(value());
     } else if (arg == "--grid") {
       a.grid = std::uint32_t(std::stoul(value()));
+    } else if (arg == "--kind") {
+      a.kind = value();
+    } else if (arg == "--seed") {
+      a.seed = std::stoull(value());
     } else if (arg == "-o" || arg == "--output") {
       a.output = value();
     } else {
@@ -54,6 +71,8 @@ Args parse(int argc, char** argv) {
   }
   if (a.output.empty()) throw std::invalid_argument("-o OUT.ply is required");
   if (a.grid < 1 || a.grid > 4096) throw std::invalid_argument("--grid must be 1..4096");
+  if (a.kind != "grids" && a.kind != "uniform" && a.kind != "stadium")
+    throw std::invalid_argument("--kind must be grids, uniform or stadium");
   if (a.triangles < 1 || a.triangles > (std::uint64_t{1} << 31))
     throw std::invalid_argument("--triangles must be 1..2^31");
   return a;
@@ -134,11 +153,33 @@ void write_grid_faces(Writer& out, std::uint64_t first_vertex, std::uint32_t k) 
     }
 }
 
+// A generated scene held in memory (uniform, stadium), written whole.
+void write_mesh(const Args& a, const kiln::bench::GeneratedMesh& mesh) {
+  Writer out(a.output);
+  out.text("ply\nformat binary_little_endian 1.0\ncomment kiln_make_scene --kind " + a.kind +
+           " --triangles " + std::to_string(a.triangles) + " --seed " + std::to_string(a.seed) +
+           "\nelement vertex " + std::to_string(mesh.positions.size()) +
+           "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+           std::to_string(mesh.triangles.size()) +
+           "\nproperty list uchar uint vertex_indices\nend_header\n");
+  for (const auto& p : mesh.positions) out.put(p.x), out.put(p.y), out.put(p.z);
+  for (const auto& t : mesh.triangles)
+    out.put(std::uint8_t(3)), out.put(t.v[0]), out.put(t.v[1]), out.put(t.v[2]);
+  out.close();
+  std::fprintf(stderr, "kiln_make_scene: %s: %zu triangles, %zu vertices (%s)\n", a.output.c_str(),
+               mesh.triangles.size(), mesh.positions.size(), a.kind.c_str());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   try {
     const Args a = parse(argc, argv);
+    if (a.kind != "grids") {
+      write_mesh(a, a.kind == "uniform" ? kiln::bench::uniform_triangles(a.triangles, a.seed)
+                                        : kiln::bench::teapot_in_stadium(a.triangles, a.seed));
+      return 0;
+    }
     const std::uint64_t per_grid = 2ull * a.grid * a.grid;
     const std::uint64_t grids = (a.triangles + per_grid - 1) / per_grid;
     const std::uint64_t vertices = grids * (a.grid + 1ull) * (a.grid + 1ull);

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "kiln/compiler/advise.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
@@ -102,8 +103,12 @@ Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
   return scene;
 }
 
-CompiledBlob compile_blob_pieces(const Scene& scene, const BuildOptions& options,
+CompiledBlob compile_blob_pieces(const Scene& scene, const BuildOptions& given,
                                  std::vector<AccelReport>* reports) {
+  // `--accel auto` becomes the structure advise recommends on this scene (advise.hpp).
+  BuildOptions options = given;
+  const std::vector<AutoChoice> advice =
+      resolve_auto_requests(scene, options.structures, options.threads);
   check_requests(scene, options);
   CompiledBlob blob;
   std::vector<SectionPayload> sections;
@@ -119,14 +124,19 @@ CompiledBlob compile_blob_pieces(const Scene& scene, const BuildOptions& options
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const BuiltStructure& built = blob.structures.back();
-    if (reports) reports->push_back({request.name, request.kind, built.summary, seconds});
+    std::string summary = built.summary;
+    for (const AutoChoice& choice : advice)
+      if (&options.structures[choice.structure] == &request)
+        summary =
+            "chosen by --accel auto (" + choice.advice.recommendation.reason + "); " + summary;
+    if (reports) reports->push_back({request.name, request.kind, summary, seconds});
     auto& owned = owned_sections.emplace_back();
     for (const SectionPayload& section : built.sections) {
       sections.push_back(section);
       owned.push_back(std::uint32_t(sections.size() - 1));
     }
   }
-  blob.manifest = build_manifest(scene, options, input, blob.structures, owned_sections);
+  blob.manifest = build_manifest(scene, options, input, blob.structures, owned_sections, advice);
   sections[0] = {format::kSectionManifest,
                  std::uint16_t(format::SectionFlag::kRequired),
                  1,

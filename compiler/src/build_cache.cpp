@@ -89,8 +89,13 @@ void hash_request(Hasher& h, const StructureRequest& request) {
   h.text(request.kind);
   const StructureBuilder* builder = find_structure_builder(request.kind);
   if (!builder) {
-    // An unknown kind fails the build anyway; nothing is stored under this key.
-    h.text("unknown");
+    // "auto" (advise.hpp): its options choose the structure. Any other unknown kind fails the
+    // build anyway; nothing is stored under its key.
+    h.text("unregistered");
+    for (const auto& [key, value] : request.options) {
+      h.text(key);
+      h.text(value);
+    }
     return;
   }
   for (const StructureOption& option : builder->options)

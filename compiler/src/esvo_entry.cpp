@@ -100,7 +100,12 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
 
 }  // namespace
 
-const StructureBuilder kEsvoBuilder{"esvo", "Efficient sparse voxel octree (Laine & Karras 2010)",
-                                    InputKind::kTriangles, esvo_options(), build};
+const StructureBuilder kEsvoBuilder{"esvo",
+                                    "Efficient sparse voxel octree (Laine & Karras 2010)",
+                                    InputKind::kTriangles,
+                                    esvo_options(),
+                                    build,
+                                    /*advise_variants=*/{},
+                                    /*advise_skip=*/true};
 
 }  // namespace kiln

@@ -2,6 +2,7 @@
 
 #include <zstd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <map>
 
@@ -67,12 +68,39 @@ std::vector<Offset<schema::Structure>> structures(
   return offsets;
 }
 
+// Each `--accel auto`'s choice and table: deterministic columns only (no timing).
+std::vector<Offset<schema::Advice>> advice_tables(FlatBufferBuilder& fbb,
+                                                  const BuildOptions& options,
+                                                  std::span<const AutoChoice> choices) {
+  std::vector<Offset<schema::Advice>> offsets;
+  for (const AutoChoice& choice : choices) {
+    const Advice& a = choice.advice;
+    std::vector<Offset<schema::AdviceRow>> rows;
+    for (const AdviceRow& row : a.rows) {
+      double nodes = 0, tests = 0;
+      for (const AdviseRayMeasure& m : row.rays) nodes += m.nodes_per_ray, tests += m.tests_per_ray;
+      const double kinds = double(std::max<std::size_t>(row.rays.size(), 1));
+      rows.push_back(schema::CreateAdviceRowDirect(fbb, row.spec.c_str(), row.kind.c_str(),
+                                                   row.bytes, row.bytes_per_triangle, nodes / kinds,
+                                                   tests / kinds));
+    }
+    const std::string rays = a.ray_kinds.size() == 1 ? a.ray_kinds.front() : "both";
+    offsets.push_back(schema::CreateAdviceDirect(
+        fbb, options.structures[choice.structure].name.c_str(), choice.spec.c_str(),
+        std::string(priority_name(a.priority)).c_str(), rays.c_str(),
+        a.recommendation.reason.c_str(), a.scene_triangles, a.sample_triangles, a.rays_per_kind,
+        a.seed, &rows));
+  }
+  return offsets;
+}
+
 }  // namespace
 
 std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& options,
                                       const InputSectionIndices& input,
                                       std::span<const BuiltStructure> built,
-                                      std::span<const std::vector<std::uint32_t>> sections) {
+                                      std::span<const std::vector<std::uint32_t>> sections,
+                                      std::span<const AutoChoice> advice) {
   FlatBufferBuilder fbb(1024);
   const auto option_offsets = recorded_options(fbb, options);
   std::vector<Offset<schema::SourceFile>> sources;
@@ -82,10 +110,11 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
   const Offset<void> input_table =
       triangles ? triangle_scene(fbb, scene, input) : point_set(fbb, scene, input);
   const auto structure_offsets = structures(fbb, options, built, sections);
+  const auto advice_offsets = advice_tables(fbb, options, advice);
   const auto manifest = schema::CreateManifestDirect(
       fbb, kToolName, kToolVersion, &option_offsets, &sources,
       triangles ? schema::Input::TriangleScene : schema::Input::PointCloud, input_table,
-      &structure_offsets);
+      &structure_offsets, advice.empty() ? nullptr : &advice_offsets);
   schema::FinishManifestBuffer(fbb, manifest);
   std::vector<std::byte> bytes(fbb.GetSize());
   std::memcpy(bytes.data(), fbb.GetBufferPointer(), bytes.size());

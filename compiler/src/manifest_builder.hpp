@@ -5,6 +5,7 @@
 #include <span>
 #include <vector>
 
+#include "kiln/compiler/advise.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/runtime/blob.hpp"
 
@@ -17,11 +18,12 @@ struct InputSectionIndices {
 };
 
 /// The manifest FlatBuffer for a scene. `built[i]` is the structure `options.structures[i]` asked
-/// for, and `sections[i]` the blob's indices of its sections. Deterministic: same scene and
-/// options, same bytes.
+/// for, and `sections[i]` the blob's indices of its sections; `advice`, what each `--accel auto`
+/// chose (its untimed columns only). Deterministic: same scene and options, same bytes.
 std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& options,
                                       const InputSectionIndices& input,
                                       std::span<const BuiltStructure> built,
-                                      std::span<const std::vector<std::uint32_t>> sections);
+                                      std::span<const std::vector<std::uint32_t>> sections,
+                                      std::span<const AutoChoice> advice = {});
 
 }  // namespace kiln

@@ -94,7 +94,12 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
 
 }  // namespace
 
-const StructureBuilder kVoxelDagBuilder{"dag", "Sparse voxel DAG (Kampe et al. 2013)",
-                                        InputKind::kTriangles, voxel_dag_options(), build};
+const StructureBuilder kVoxelDagBuilder{"dag",
+                                        "Sparse voxel DAG (Kampe et al. 2013)",
+                                        InputKind::kTriangles,
+                                        voxel_dag_options(),
+                                        build,
+                                        /*advise_variants=*/{},
+                                        /*advise_skip=*/true};
 
 }  // namespace kiln

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "kiln/compiler/advise.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/build_job.hpp"
 #include "kiln/compiler/structure_builder.hpp"
@@ -64,6 +65,10 @@ std::string kinds_footer() {
           ", " + option.key + "=" + (option.default_value.empty() ? "..." : option.default_value);
     text += "\n           keys: " + keys;
   }
+  text +=
+      "\n  auto     The structure kiln advise recommends on this input, chosen from deterministic"
+      "\n           measures (traversal cost, bytes); recorded in the manifest"
+      "\n           keys: name, for=trace (or memory), rays=both (or primary, diffuse)";
   return text;
 }
 
@@ -123,7 +128,8 @@ BuildOptions build_options(const BuildArgs& args) {
   options.inputs = args.inputs;
   const auto flags = given_flags(args);
   for (const auto& spec : args.accels)
-    options.structures.push_back(resolve_structure_request(spec, flags));
+    options.structures.push_back(is_auto_spec(spec) ? resolve_auto_request(spec)
+                                                    : resolve_structure_request(spec, flags));
   options.compression = {args.compress, args.level};
   options.threads = args.threads;
   options.limits = args.limits;

@@ -122,6 +122,11 @@ Json manifest_json(const Blob& blob) {
   manifest[triangles ? "scene" : "point_set"] = input_json(blob);
   manifest["meshes"] = meshes_json(blob);
   manifest["structures"] = structures_json(blob);
+  const std::vector<Description> advice = describe_advice(blob);
+  if (!advice.empty()) {
+    manifest["advice"] = Json::array();
+    for (const Description& d : advice) manifest["advice"].push_back(description_json(d));
+  }
   return manifest;
 }
 

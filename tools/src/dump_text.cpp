@@ -108,6 +108,10 @@ void write_human(const Blob& blob, const DumpOptions& options, std::ostream& out
   write_input(blob, out);
   if (blob.input().kind == InputKind::kTriangles) write_meshes(blob, options, out);
   write_structures(blob, out);
+  const std::vector<Description> advice = describe_advice(blob);
+  if (!advice.empty()) out << "\nadvice\n";
+  for (const Description& d : advice)
+    for (const auto& line : d.lines) out << "  " << line << "\n";
 }
 
 }  // namespace kiln::dump

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/description.hpp"
@@ -22,5 +23,7 @@ const char* codec_name(std::uint8_t codec);
 bool is_required(const format::SectionEntry& section);
 /// The structure's description by its kind in the runtime's registry.
 Description describe(const Blob& blob, const StructureInfo& info);
+/// What each `kiln build --accel auto` recorded (advise_dump.cpp); empty without one.
+std::vector<Description> describe_advice(const Blob& blob);
 
 }  // namespace kiln::dump

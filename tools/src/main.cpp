@@ -16,7 +16,7 @@ int main(int argc, char** argv) {
   const std::vector<Command> commands = {add_build_command(app),  add_dump_command(app),
                                          add_verify_command(app), add_trace_command(app),
                                          add_rays_command(app),   add_query_command(app),
-                                         add_render_command(app)};
+                                         add_render_command(app), add_advise_command(app)};
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -72,6 +72,11 @@ struct StructureBuilder {
   std::vector<StructureOption> options;  ///< in help and cache-key order
   /// Builds from a request resolved for this kind; `threads` never changes the result.
   BuiltStructure (*build)(const Scene& scene, const StructureRequest& request, unsigned threads);
+  /// `kiln advise` (advise.hpp) tries every triangle kind with its default options, then these
+  /// `--accel` specs of the same kind worth comparing (e.g. another width).
+  std::vector<std::string> advise_variants{};
+  /// Hits only approximate the surface (voxels): advise and `--accel auto` skip the kind.
+  bool advise_skip = false;
 };
 
 /// Every registered kind, in registration order (the first triangle kind is the default ray
