@@ -17,6 +17,7 @@
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/build_cache.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/bvh_collapse.hpp"
 #include "kiln/compiler/structure_builder.hpp"
 #include "kiln/runtime/bvh.hpp"
 #include "kiln/tools/inspect.hpp"
@@ -186,6 +187,36 @@ TEST(BvhEvh, EveryTriangleIsStillFound) {
       }
       EXPECT_GT(own, rays.size() * 9 / 10);
     }
+  }
+}
+
+// The wide collapse merges binary leaves: a triangle whose pieces sit in two of them is still
+// stored once per packet (lanes past the leaf's end repeat its last triangle).
+TEST(BvhEvh, WideLeavesStoreATriangleOnce) {
+  const Scene scene = sliver_scene();
+  for (const std::uint32_t width : {4u, 8u}) {
+    BvhBuildOptions o = evh_options(BvhBuilder::kBinned);
+    o.leaf_triangles = false;
+    const FlatBvh flat = build_bvh(scene, o);
+    const FlatWideBvh wide = collapse_bvh(flat, width, scene.triangles.size(), false, &scene);
+    EXPECT_LE(wide.stats.packet_fill, 1.0);
+    std::vector<bool> present(scene.triangles.size(), false);
+    std::size_t distinct = 0;
+    for (std::size_t p = 0; p < wide.packets.size(); ++p) {
+      const std::uint32_t* id = wide.prim_ids.data() + p * format::kBvhPacketSize;
+      for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
+        present[id[lane]] = true;
+        const bool repeated = std::find(id, id + lane, id[lane]) != id + lane;
+        distinct += !repeated;
+        if (repeated) {  // padding only: equal to the lane before, and so are the rest
+          EXPECT_TRUE(std::all_of(id + lane - 1, id + format::kBvhPacketSize,
+                                  [&](std::uint32_t x) { return x == id[lane]; }))
+              << "packet " << p;
+        }
+      }
+    }
+    EXPECT_LT(distinct, flat.prim_ids.size());  // some binary leaves shared a triangle
+    EXPECT_EQ(std::count(present.begin(), present.end(), true), std::ptrdiff_t(present.size()));
   }
 }
 

@@ -83,10 +83,8 @@ void dedupe_leaf_references(std::vector<format::BvhNode>& nodes,
     if (node.count == 0) continue;
     const std::uint32_t start = write;
     for (std::uint32_t i = node.offset, end = node.offset + node.count; i < end; ++i) {
-      const auto kept = prim_ids.begin() + std::ptrdiff_t(start);
-      if (std::find(kept, prim_ids.begin() + std::ptrdiff_t(write), prim_ids[i]) ==
-          prim_ids.begin() + std::ptrdiff_t(write))
-        prim_ids[write++] = prim_ids[i];
+      const auto kept_begin = prim_ids.begin() + start, kept_end = prim_ids.begin() + write;
+      if (std::find(kept_begin, kept_end, prim_ids[i]) == kept_end) prim_ids[write++] = prim_ids[i];
     }
     node.offset = start;
     node.count = std::uint16_t(write - start);
@@ -106,8 +104,8 @@ std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
     out.prim_ids.resize(refs.size());
     for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim;
   }
-  return refs.size();
-}  // the references (28 B each) are gone before the triangles are copied
+  return refs.size();  // the references (28 B each) go before the triangles are copied
+}
 
 }  // namespace
 
