@@ -47,7 +47,11 @@ std::vector<StructureOption> common_options() {
 std::function<std::string(std::string_view)> parse_presplit() {
   return [](std::string_view text) -> std::string {
     if (text == "none") return "none";
-    if (text == "evh") text = "evh=6.103515625e-05";  // 2^-14: docs/BENCHMARKS.md
+    if (text == "evh") {
+      char fraction[32];
+      const auto end = std::to_chars(fraction, fraction + sizeof fraction, kEvhDefaultThreshold);
+      return "evh=" + std::string(fraction, end.ptr);
+    }
     if (text.substr(0, 4) != "evh=")
       throw std::invalid_argument("must be none, evh or evh=FRACTION");
     return "evh=" + parse_float_in(0, 1)(text.substr(4));

@@ -29,6 +29,10 @@ enum class BvhPresplit {
 
 const char* bvh_builder_name(BvhBuilder builder);
 
+/// The EVH threshold `--bvh-presplit evh` means, as a fraction of the scene box's volume: 2^-14
+/// (docs/BENCHMARKS.md, "Edge volume heuristic", says why).
+inline constexpr double kEvhDefaultThreshold = 1.0 / 16384;
+
 struct BvhBuildOptions {
   BvhBuilder builder = BvhBuilder::kBinned;
   std::uint32_t bins = 32;            // binned SAH and SBVH spatial bins
@@ -46,8 +50,8 @@ struct BvhBuildOptions {
   // and sweep builders honour it; SBVH's tree flattening always copies them).
   bool leaf_triangles = true;
   BvhPresplit presplit = BvhPresplit::kNone;
-  double evh_threshold = 1.0 / 16384;  // fraction of the scene box's volume (2^-14)
-  std::uint32_t evh_max_refs = 8;      // references per triangle at most (>= 1)
+  double evh_threshold = kEvhDefaultThreshold;  // fraction of the scene box's volume
+  std::uint32_t evh_max_refs = 8;               // references per triangle at most (>= 1)
 };
 
 // A reference to a triangle: its (possibly clipped) box and original triangle id.
