@@ -55,6 +55,8 @@ const char* const kRayStructures[] = {
     "bvh:boxes=u8@sse",
     "bvh:width=4,boxes=u8@avx2",
     "bvh:boxes=u8@avx512",
+    "bvh:presplit=evh",
+    "bvh:presplit=evh,builder=sweep,width=2",
 };
 const char* const kPointStructures[] = {
     "points",

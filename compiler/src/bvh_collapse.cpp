@@ -76,7 +76,9 @@ struct Collapser {
   const FlatBvh& bin;
   const Scene* scene;  // corners from here when bin.triangles is empty
   FlatWideBvh& out;
-  std::vector<std::uint32_t> refs;  // references under each binary node
+  std::vector<std::uint32_t> refs;       // references under each binary node
+  std::uint64_t lanes_used = 0;          // packet lanes holding a distinct reference
+  std::vector<std::uint32_t> leaf_refs;  // scratch: the leaf being packed
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o)
       : bin(b), scene(s), out(o), refs(b.nodes.size()) {
@@ -105,9 +107,25 @@ struct Collapser {
     return {scene->positions[t.v[0]], scene->positions[t.v[1]], scene->positions[t.v[2]]};
   }
 
+  // Subtree `i`'s references, one per triangle: binary leaves are deduplicated, but a presplit
+  // (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
+  const std::vector<std::uint32_t>& distinct_refs(std::uint32_t i) {
+    std::vector<std::uint32_t>& list = leaf_refs;
+    list.clear();
+    for (std::uint32_t r = first_ref(i), end = r + refs[i]; r < end; ++r) {
+      const bool seen = std::any_of(list.begin(), list.end(), [&](std::uint32_t k) {
+        return bin.prim_ids[k] == bin.prim_ids[r];
+      });
+      if (!seen) list.push_back(r);
+    }
+    return list;
+  }
+
   // Packs subtree `i`'s references into packets; returns the child word and packet count.
   std::pair<std::uint32_t, std::uint8_t> emit_leaf(std::uint32_t i) {
-    const std::uint32_t first = first_ref(i), count = refs[i];
+    const std::vector<std::uint32_t>& list = distinct_refs(i);
+    const auto count = std::uint32_t(list.size());
+    lanes_used += count;
     const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
     if (packets > format::kBvhMaxLeafPackets)
       throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
@@ -117,7 +135,7 @@ struct Collapser {
       format::BvhTrianglePacket packet{};
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
         // Unused lanes repeat the leaf's last triangle: every lane is a real triangle.
-        const std::uint32_t r = first + std::min(p * format::kBvhPacketSize + lane, count - 1);
+        const std::uint32_t r = list[std::min(p * format::kBvhPacketSize + lane, count - 1)];
         const format::RayTriangle t = corners_of(r);
         const format::Float3 corners[3] = {t.v0, t.v1, t.v2};
         for (int c = 0; c < 3; ++c)
@@ -183,20 +201,25 @@ FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t
   FlatWideBvh out;
   out.width = width;
   out.quantized = quantized;
-  if (width == 4)
-    Collapser<4>(binary, scene, out).emit(0, 1);
-  else if (width == 8)
-    Collapser<8>(binary, scene, out).emit(0, 1);
-  else
+  std::uint64_t lanes_used = 0;
+  if (width == 4) {
+    Collapser<4> collapser(binary, scene, out);
+    collapser.emit(0, 1);
+    lanes_used = collapser.lanes_used;
+  } else if (width == 8) {
+    Collapser<8> collapser(binary, scene, out);
+    collapser.emit(0, 1);
+    lanes_used = collapser.lanes_used;
+  } else {
     throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4 or 8");
+  }
   auto& s = out.stats;
   const std::size_t node_size = width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
   s.node_count = out.nodes.size() / node_size;
   if (quantized) out.nodes = width == 4 ? quantize_all<4>(out.nodes) : quantize_all<8>(out.nodes);
   s.packet_count = out.packets.size();
-  s.packet_fill = s.packet_count ? double(binary.prim_ids.size()) /
-                                       double(s.packet_count * format::kBvhPacketSize)
-                                 : 0;
+  s.packet_fill =
+      s.packet_count ? double(lanes_used) / double(s.packet_count * format::kBvhPacketSize) : 0;
   s.bytes_per_triangle =
       double(out.nodes.size() + out.packets.size() * sizeof(format::BvhTrianglePacket) +
              out.prim_ids.size() * sizeof(std::uint32_t)) /

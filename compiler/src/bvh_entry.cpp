@@ -1,6 +1,7 @@
 // The BVH family as the compiler registers it: "bvh" (binned or sweep SAH builder) and "sbvh"
 // (spatial splits), their options, and their contribution to a blob: nodes, leaf triangles,
 // primitive ids, BvhDesc.
+#include <charconv>
 #include <cstdio>
 
 #include "kiln/compiler/bvh_builder.hpp"
@@ -41,10 +42,33 @@ std::vector<StructureOption> common_options() {
   };
 }
 
+// "none", or "evh[=FRACTION]" canonicalised with the fraction written out (so the default's
+// value enters the cache key).
+std::function<std::string(std::string_view)> parse_presplit() {
+  return [](std::string_view text) -> std::string {
+    if (text == "none") return "none";
+    if (text == "evh") {
+      char fraction[32];
+      const auto end = std::to_chars(fraction, fraction + sizeof fraction, kEvhDefaultThreshold);
+      return "evh=" + std::string(fraction, end.ptr);
+    }
+    if (text.substr(0, 4) != "evh=")
+      throw std::invalid_argument("must be none, evh or evh=FRACTION");
+    return "evh=" + parse_float_in(0, 1)(text.substr(4));
+  };
+}
+
 std::vector<StructureOption> bvh_options() {
   std::vector<StructureOption> options = common_options();
   options.insert(options.begin(), {"builder", "--bvh-builder", "binned", "Builder for --accel bvh",
                                    false, parse_one_of({"binned", "sweep"})});
+  options.push_back({"presplit", "--bvh-presplit", "none",
+                     "Triangle presplit: none, or evh[=FRACTION] (edge volume heuristic: halve "
+                     "triangles whose edge box exceeds FRACTION x the scene box volume; 2^-14)",
+                     false, parse_presplit()});
+  options.push_back({"evh-max-refs", "--bvh-evh-max-refs", "8",
+                     "EVH presplit: at most this many references per triangle", false,
+                     parse_uint_in(1, 64)});
   return options;
 }
 
@@ -78,7 +102,37 @@ std::string summary_of(const BvhStatistics& s, double bytes_per_triangle) {
                 "bytes/triangle",
                 (unsigned long long)s.node_count, s.max_depth, s.sah_cost, s.duplication_factor,
                 bytes_per_triangle);
-  return line;
+  std::string text = line;
+  if (s.presplit_references != 0)
+    text += ", EVH presplit " + std::to_string(s.presplit_references) + " build references";
+  return text;
+}
+
+double parse_presplit_fraction(const std::string& canonical) {  // "evh=FRACTION"
+  double value = 0;
+  std::from_chars(canonical.data() + 4, canonical.data() + canonical.size(), value);
+  return value;
+}
+
+// The BvhDesc of either layout: `index` the blob's sections (binary: nodes, triangles, ids; wide:
+// wide nodes, packets, ids), `wide` null for the binary layout.
+std::pair<std::uint8_t, std::uint32_t> write_desc(flatbuffers::FlatBufferBuilder& fbb,
+                                                  const BvhBuildOptions& o, const BvhStatistics& s,
+                                                  std::span<const std::uint32_t> index,
+                                                  const WideBvhStatistics* wide) {
+  constexpr std::uint32_t kAbsent = 0xFFFFFFFFu;
+  const WideBvhStatistics w = wide ? *wide : WideBvhStatistics{};
+  const bool evh = o.presplit == BvhPresplit::kEvh;
+  const auto desc = schema::CreateBvhDescDirect(
+      fbb, bvh_builder_name(o.builder), o.bins, o.traversal_cost, o.intersection_cost,
+      o.max_leaf_size, o.sbvh_alpha, o.sbvh_max_duplication, wide ? kAbsent : index[0],
+      wide ? kAbsent : index[1], index[2], s.node_count, s.leaf_count, s.reference_count,
+      s.max_depth, s.max_leaf_size, s.average_leaf_size, s.duplication_factor, s.sah_cost,
+      wide ? w.bytes_per_triangle : s.bytes_per_triangle, wide ? o.width : 2,
+      wide ? index[0] : kAbsent, wide ? index[1] : kAbsent, w.node_count, w.leaf_count,
+      w.packet_count, w.max_depth, w.packet_fill, wide && o.quantized, evh ? "evh" : nullptr,
+      evh ? o.evh_threshold : 0.0, evh ? o.evh_max_refs : 0, s.presplit_references);
+  return {std::uint8_t(schema::StructureDesc::BvhDesc), desc.o};
 }
 
 // The binary layout: BVHN, BVHT, BVHP.
@@ -90,12 +144,7 @@ BuiltStructure binary_structure(std::shared_ptr<FlatBvh> flat, const BvhBuildOpt
   const BvhStatistics s = flat->stats;
   built.describe = [o, s](flatbuffers::FlatBufferBuilder& fbb,
                           std::span<const std::uint32_t> index) {
-    const auto desc = schema::CreateBvhDescDirect(
-        fbb, bvh_builder_name(o.builder), o.bins, o.traversal_cost, o.intersection_cost,
-        o.max_leaf_size, o.sbvh_alpha, o.sbvh_max_duplication, index[0], index[1], index[2],
-        s.node_count, s.leaf_count, s.reference_count, s.max_depth, s.max_leaf_size,
-        s.average_leaf_size, s.duplication_factor, s.sah_cost, s.bytes_per_triangle, 2);
-    return std::pair{std::uint8_t(schema::StructureDesc::BvhDesc), desc.o};
+    return write_desc(fbb, o, s, index, nullptr);
   };
   built.summary = summary_of(s, s.bytes_per_triangle);
   built.storage = std::move(flat);
@@ -117,15 +166,7 @@ BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, con
   const WideBvhStatistics w = wide->stats;
   built.describe = [o, s, w](flatbuffers::FlatBufferBuilder& fbb,
                              std::span<const std::uint32_t> index) {
-    constexpr std::uint32_t kAbsent = 0xFFFFFFFFu;
-    const auto desc = schema::CreateBvhDescDirect(
-        fbb, bvh_builder_name(o.builder), o.bins, o.traversal_cost, o.intersection_cost,
-        o.max_leaf_size, o.sbvh_alpha, o.sbvh_max_duplication, kAbsent, kAbsent, index[2],
-        s.node_count, s.leaf_count, s.reference_count, s.max_depth, s.max_leaf_size,
-        s.average_leaf_size, s.duplication_factor, s.sah_cost, w.bytes_per_triangle, o.width,
-        index[0], index[1], w.node_count, w.leaf_count, w.packet_count, w.max_depth, w.packet_fill,
-        o.quantized);
-    return std::pair{std::uint8_t(schema::StructureDesc::BvhDesc), desc.o};
+    return write_desc(fbb, o, s, index, &w);
   };
   built.summary =
       summary_of(s, w.bytes_per_triangle) +
@@ -149,6 +190,12 @@ BuiltStructure build_binned_or_sweep(const Scene& scene, const StructureRequest&
   BvhBuildOptions options = common_options_of(request, threads);
   options.builder =
       request.text_option("builder") == "sweep" ? BvhBuilder::kSweep : BvhBuilder::kBinned;
+  const std::string& presplit = request.text_option("presplit");
+  if (presplit != "none") {
+    options.presplit = BvhPresplit::kEvh;
+    options.evh_threshold = parse_presplit_fraction(presplit);
+    options.evh_max_refs = request.uint_option("evh-max-refs");
+  }
   return build_structure(scene, options);
 }
 

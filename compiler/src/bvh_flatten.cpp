@@ -2,7 +2,9 @@
 // first child adjacent, second child's index stored), leaf triangles copied in leaf order, and
 // the statistics every builder reports.
 #include <algorithm>
+#include <stdexcept>
 
+#include "bvh_evh_presplit.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -66,23 +68,43 @@ void copy_leaf_triangles(const Scene& scene, FlatBvh& out, unsigned threads) {
   });
 }
 
-FlatBvh build_sweep_bvh(const Scene& scene, const BvhBuildOptions& options) {
-  FlatBvh out;
-  out.nodes = build_sweep_nodes(triangle_refs(scene, options.threads), out.prim_ids, options);
-  if (options.leaf_triangles) copy_leaf_triangles(scene, out, options.threads);
-  return out;
+// The build references: one per triangle, or the EVH presplit's pieces.
+std::vector<PrimRef> build_refs(const Scene& scene, const BvhBuildOptions& options) {
+  return options.presplit == BvhPresplit::kEvh ? evh_presplit_refs(scene, options)
+                                               : triangle_refs(scene, options.threads);
 }
 
-FlatBvh build_binned_bvh(const Scene& scene, const BvhBuildOptions& options) {
-  FlatBvh out;
-  {
-    std::vector<PrimRef> refs = triangle_refs(scene, options.threads);
+// A presplit leaf may hold several pieces of one triangle: keep the first of each and compact.
+// Leaves lie in pre-order over consecutive reference ranges, so entries only move down.
+void dedupe_leaf_references(std::vector<format::BvhNode>& nodes,
+                            std::vector<std::uint32_t>& prim_ids) {
+  std::uint32_t write = 0;
+  for (format::BvhNode& node : nodes) {
+    if (node.count == 0) continue;
+    const std::uint32_t start = write;
+    for (std::uint32_t i = node.offset, end = node.offset + node.count; i < end; ++i) {
+      const auto kept_begin = prim_ids.begin() + start, kept_end = prim_ids.begin() + write;
+      if (std::find(kept_begin, kept_end, prim_ids[i]) == kept_end) prim_ids[write++] = prim_ids[i];
+    }
+    node.offset = start;
+    node.count = std::uint16_t(write - start);
+  }
+  prim_ids.resize(write);
+}
+
+// The sweep or binned builder's nodes and primitive ids in leaf order; returns the number of
+// build references.
+std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options, FlatBvh& out) {
+  std::vector<PrimRef> refs = build_refs(scene, options);
+  if (options.builder == BvhBuilder::kSweep) {
+    out.nodes = build_sweep_nodes(refs, out.prim_ids, options);  // reference indices
+    for (std::uint32_t& id : out.prim_ids) id = refs[id].prim;
+  } else {
     out.nodes = build_binned_nodes(refs, options);
     out.prim_ids.resize(refs.size());
     for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim;
-  }  // the references (28 B per triangle) are gone before the triangles are copied
-  if (options.leaf_triangles) copy_leaf_triangles(scene, out, options.threads);
-  return out;
+  }
+  return refs.size();  // the references (28 B each) go before the triangles are copied
 }
 
 }  // namespace
@@ -130,11 +152,16 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
 
 FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
   if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
+  if (options.builder == BvhBuilder::kSpatial && options.presplit != BvhPresplit::kNone)
+    throw std::invalid_argument("BVH: a presplit needs the binned or sweep builder");
   if (options.builder == BvhBuilder::kSpatial)
     return flatten_bvh(*build_bvh_tree(scene, options), scene, options);
-  FlatBvh out = options.builder == BvhBuilder::kBinned ? build_binned_bvh(scene, options)
-                                                       : build_sweep_bvh(scene, options);
+  FlatBvh out;
+  const std::size_t references = build_flat_nodes(scene, options, out);
+  if (options.presplit != BvhPresplit::kNone) dedupe_leaf_references(out.nodes, out.prim_ids);
+  if (options.leaf_triangles) copy_leaf_triangles(scene, out, options.threads);
   out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
+  if (options.presplit != BvhPresplit::kNone) out.stats.presplit_references = references;
   return out;
 }
 

@@ -180,6 +180,13 @@ Description describe(const Blob& blob, const StructureInfo& info) {
   if (builder == "sbvh")
     parameters += printf_string(", alpha %g, max duplication %g", double(b.sbvh_alpha()),
                                 double(b.sbvh_max_duplication()));
+  const std::string presplit = b.presplit() ? b.presplit()->str() : std::string("none");
+  if (presplit != "none")
+    parameters += printf_string(
+        ", presplit %s (threshold %g x scene volume, at most %u per "
+        "triangle: %llu build references)",
+        presplit.c_str(), b.evh_threshold(), b.evh_max_refs(),
+        (unsigned long long)b.presplit_references());
   out.lines.push_back(parameters);
   out.lines.push_back(printf_string("%llu nodes, %llu leaves, depth %u, leaf size avg %.2f max %u",
                                     (unsigned long long)b.node_count(),
@@ -198,6 +205,11 @@ Description describe(const Blob& blob, const StructureInfo& info) {
   out.field("largest_leaf", b.largest_leaf()).field("average_leaf_size", b.average_leaf_size());
   out.field("duplication_factor", b.duplication_factor()).field("sah_cost", b.sah_cost());
   out.field("bytes_per_triangle", b.bytes_per_triangle()).field("width", b.width());
+  out.field("presplit", presplit);
+  if (presplit != "none")
+    out.field("evh_threshold", b.evh_threshold())
+        .field("evh_max_refs", b.evh_max_refs())
+        .field("presplit_references", b.presplit_references());
   if (b.width() == 2) return out;
   out.lines.push_back(printf_string(
       "%u-wide layout, %s child boxes: %llu nodes, %llu leaves, depth %u, %llu packets of 4, "

@@ -17,7 +17,21 @@ namespace kiln {
 
 enum class BvhBuilder { kBinned, kSweep, kSpatial };
 
+/// Triangle subdivision before the build (binned and sweep builders only).
+enum class BvhPresplit {
+  kNone,
+  /// Edge volume heuristic (Dammertz & Keller 2008): a triangle whose largest edge volume (the
+  /// volume of the box its edge spans) exceeds evh_threshold x the scene box's volume is halved
+  /// at that edge, recursively, each piece's box becoming one build reference to the original
+  /// triangle (bvh_evh_presplit.hpp).
+  kEvh,
+};
+
 const char* bvh_builder_name(BvhBuilder builder);
+
+/// The EVH threshold `--bvh-presplit evh` means, as a fraction of the scene box's volume: 2^-14
+/// (docs/BENCHMARKS.md, "Edge volume heuristic", says why).
+inline constexpr double kEvhDefaultThreshold = 1.0 / 16384;
 
 struct BvhBuildOptions {
   BvhBuilder builder = BvhBuilder::kBinned;
@@ -35,6 +49,9 @@ struct BvhBuildOptions {
   // from the scene instead, which saves 36 bytes per triangle at the build's peak (the binned
   // and sweep builders honour it; SBVH's tree flattening always copies them).
   bool leaf_triangles = true;
+  BvhPresplit presplit = BvhPresplit::kNone;
+  double evh_threshold = kEvhDefaultThreshold;  // fraction of the scene box's volume
+  std::uint32_t evh_max_refs = 8;               // references per triangle at most (>= 1)
 };
 
 // A reference to a triangle: its (possibly clipped) box and original triangle id.
@@ -55,6 +72,7 @@ struct BvhStatistics {
   std::uint64_t node_count = 0, leaf_count = 0, reference_count = 0;
   std::uint32_t max_depth = 0, max_leaf_size = 0;
   double average_leaf_size = 0, duplication_factor = 0, sah_cost = 0, bytes_per_triangle = 0;
+  std::uint64_t presplit_references = 0;  // build references after a presplit (0: none)
 };
 
 // The flattened structure, ready for the blob.
@@ -76,9 +94,9 @@ FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuild
 std::vector<format::BvhNode> build_binned_nodes(std::vector<PrimRef>& refs,
                                                 const BvhBuildOptions& options);
 
-// The sweep builder (bvh_sweep_build.cpp) over `refs` (indexed by primitive id): returns the
-// nodes in the flat layout and, in `order`, the primitive ids in leaf order (leaf offsets index
-// it).
+// The sweep builder (bvh_sweep_build.cpp) over `refs`: returns the nodes in the flat layout
+// and, in `order`, the indices into `refs` in leaf order (leaf offsets index it; they are the
+// primitive ids when refs[i].prim == i, as without a presplit).
 std::vector<format::BvhNode> build_sweep_nodes(std::span<const PrimRef> refs,
                                                std::vector<std::uint32_t>& order,
                                                const BvhBuildOptions& options);
@@ -90,7 +108,9 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
 
 /// The BVH of `options.builder` over every triangle of the scene, in the flat layout. The
 /// binned builder works in place on one reference array, the sweep builder on presorted index
-/// arrays; SBVH (which adds references) builds a temporary tree.
+/// arrays; SBVH (which adds references) builds a temporary tree. With an EVH presplit (binned
+/// and sweep only; SBVH throws std::invalid_argument) the builders see the pieces' references and
+/// each leaf keeps one reference per triangle.
 FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options);
 
 }  // namespace kiln

@@ -14,7 +14,7 @@ namespace kiln {
 struct WideBvhStatistics {
   std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0;
   std::uint32_t max_depth = 0;
-  double packet_fill = 0;         ///< references / (packets x 4)
+  double packet_fill = 0;         ///< distinct references per leaf / (packets x 4)
   double bytes_per_triangle = 0;  ///< nodes + packets + per-lane primitive ids
 };
 
@@ -33,7 +33,8 @@ struct FlatWideBvh {
 /// Collapses `binary` into `width` (4 or 8) children per node. Each wide node starts from one
 /// binary node and repeatedly opens the child of largest surface area until it has `width`
 /// children (greedy SAH-driven expansion); a binary subtree of at most four references becomes
-/// one leaf packet. Deterministic and serial. `triangle_count` is the scene's (for bytes per
+/// one leaf packet, a triangle in two of its binary leaves stored once (SBVH, presplit).
+/// Deterministic and serial. `triangle_count` is the scene's (for bytes per
 /// triangle). `quantized`: child boxes as bytes relative to the node (BvhQuantizedNode), each
 /// containing the float box. Corners come from `binary.triangles`, or, when it is empty (built
 /// with BvhBuildOptions::leaf_triangles off), from `scene` through the primitive ids. Throws
