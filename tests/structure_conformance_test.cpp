@@ -54,6 +54,8 @@ const char* const kRayStructures[] = {
     "bvh:boxes=u8@sse",
     "bvh:width=4,boxes=u8@avx2",
     "bvh:boxes=u8@avx512",
+    "grid",
+    "nested-grid",
 };
 const char* const kPointStructures[] = {
     "points",

@@ -10,12 +10,13 @@
 namespace kiln {
 
 extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointTreeBuilder,
-    kVoxelDagBuilder, kEsvoBuilder;
+    kVoxelDagBuilder, kEsvoBuilder, kGridBuilder, kNestedGridBuilder;
 
 namespace {
 
-const StructureBuilder* const kBuilders[] = {&kBvhBuilder,       &kSbvhBuilder,     &kKdTreeBuilder,
-                                             &kPointTreeBuilder, &kVoxelDagBuilder, &kEsvoBuilder};
+const StructureBuilder* const kBuilders[] = {
+    &kBvhBuilder,      &kSbvhBuilder, &kKdTreeBuilder, &kPointTreeBuilder,
+    &kVoxelDagBuilder, &kEsvoBuilder, &kGridBuilder,   &kNestedGridBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;
