@@ -6,12 +6,13 @@
 
 namespace kiln {
 
-extern const StructureKind kBvhKind, kSbvhKind;         // bvh_kind.cpp
-extern const StructureKind kKdTreeKind;                 // kdtree_kind.cpp
-extern const StructureKind kPointTreeKind;              // point_tree_kind.cpp
-extern const StructureKind kVoxelDagKind;               // voxel_dag_kind.cpp
-extern const StructureKind kEsvoKind;                   // esvo_kind.cpp
-extern const StructureKind kGridKind, kNestedGridKind;  // grid_kind.cpp
+extern const StructureKind kBvhKind, kSbvhKind;  // bvh_kind.cpp
+extern const StructureKind kKdTreeKind;          // kdtree_kind.cpp
+extern const StructureKind kPointTreeKind;       // point_tree_kind.cpp
+extern const StructureKind kVoxelDagKind;        // voxel_dag_kind.cpp
+extern const StructureKind kEsvoKind;            // esvo_kind.cpp
+// grid_kind.cpp
+extern const StructureKind kGridKind, kNestedGridKind;
 
 namespace {
 
