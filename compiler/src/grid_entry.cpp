@@ -73,7 +73,7 @@ const StructureBuilder kGridBuilder{
     "grid",
     "uniform grid over triangles, 3D-DDA traversal (Amanatides & Woo)",
     InputKind::kTriangles,
-    {{"density", "--grid-density", "4", "uniform grid: about density x triangles cells", false,
+    {{"density", "--grid-density", "2", "uniform grid: about density x triangles cells", false,
       parse_float_in(0.001, 1000)}},
     build_uniform};
 

@@ -14,12 +14,28 @@ namespace kiln {
 
 namespace {
 
+// The last triangles tested on this ray (Amanatides & Woo's mailbox, as a small ring): a
+// triangle listed in consecutive cells is tested once. Skipping a repeat never changes the
+// result, since its test would give the same answer.
+struct Mailbox {
+  std::uint32_t ids[8] = {kNoHit, kNoHit, kNoHit, kNoHit, kNoHit, kNoHit, kNoHit, kNoHit};
+  std::uint32_t next = 0;
+
+  bool seen_or_add(std::uint32_t prim) {
+    for (const std::uint32_t id : ids)
+      if (id == prim) return true;
+    ids[next++ & 7u] = prim;
+    return false;
+  }
+};
+
 // The closest (or, with kAnyHit, any) hit among one cell's triangles, updating `hit`; true when
 // an any-hit search is done.
 template <bool kAnyHit, bool kCount>
 bool test_cell(std::span<const std::uint32_t> refs, std::span<const format::RayTriangle> tris,
-               const WatertightRay& tri_ray, float tmin, Hit& hit, Cost* cost) {
+               const WatertightRay& tri_ray, float tmin, Hit& hit, Mailbox& mailbox, Cost* cost) {
   for (const std::uint32_t prim : refs) {
+    if (mailbox.seen_or_add(prim)) continue;
     if constexpr (kCount) cost->tests += 1;
     const format::RayTriangle& tri = tris[prim];
     float t, u, v;
@@ -46,11 +62,13 @@ Hit traverse(const GridView& grid, const Ray& ray, Cost* cost) {
   const WatertightRay tri_ray = prepare_watertight(ray);
   Hit hit;
   hit.t = ray.tmax;
+  Mailbox mailbox;
   walk_grid(grid.frame(), r, ray.tmin, ray.tmax,
             [&](const std::uint32_t cell[3], float, float t_exit) {
               if constexpr (kCount) cost->nodes += 1;
               const auto refs = grid.lists().cell(grid.frame().linear(cell));
-              if (test_cell<kAnyHit, kCount>(refs, grid.triangles(), tri_ray, ray.tmin, hit, cost))
+              if (test_cell<kAnyHit, kCount>(refs, grid.triangles(), tri_ray, ray.tmin, hit,
+                                             mailbox, cost))
                 return true;
               return hit.prim != kNoHit && hit.t <= t_exit;
             });
@@ -63,6 +81,7 @@ Hit traverse(const NestedGridView& grid, const Ray& ray, Cost* cost) {
   const WatertightRay tri_ray = prepare_watertight(ray);
   Hit hit;
   hit.t = ray.tmax;
+  Mailbox mailbox;
   bool done = false;
   walk_grid(grid.frame(), r, ray.tmin, ray.tmax,
             [&](const std::uint32_t top[3], float t_enter, float t_exit) {
@@ -76,7 +95,7 @@ Hit traverse(const NestedGridView& grid, const Ray& ray, Cost* cost) {
                 if constexpr (kCount) cost->nodes += 1;
                 const auto refs = grid.lists().cell(leaf.first_cell + frame.linear(cell));
                 done = test_cell<kAnyHit, kCount>(refs, grid.triangles(), tri_ray, ray.tmin, hit,
-                                                  cost) ||
+                                                  mailbox, cost) ||
                        (hit.prim != kNoHit && hit.t <= leaf_exit);
                 return done;
               });

@@ -16,9 +16,12 @@
 namespace kiln {
 
 struct GridBuildOptions {
-  // λ: about λ N cells over N triangles (the top grid's, for two levels). The defaults were
-  // measured with `kiln rays` on bunny, dragon and Sponza (docs/BENCHMARKS.md, "Grids").
-  float density = 4.0f;
+  // λ: about λ N cells over N triangles (the top grid's, for two levels). Defaults (here and in
+  // grid_entry.cpp): the lowest mean traversal cost per ray (cell visits + triangle tests, from
+  // `kiln render --mode heatmap --compare ... --json`, 320x200 camera rays) on the Stanford bunny
+  // and the 100k dragon, over λ in {0.5 .. 16} for the uniform grid (λ = 2) and top λ in
+  // {1/64 .. 1} x leaf λ in {1, 2, 4} for the two-level grid (1/16 and 2); docs/BENCHMARKS.md.
+  float density = 2.0f;       // uniform grid; the two-level grid's top default is 1/16
   float leaf_density = 2.0f;  // two levels: about λ_leaf n cells in a top cell holding n triangles
   unsigned threads = 0;       // never changes the result
 };

@@ -32,10 +32,17 @@ struct LeafGrid {
 static_assert(sizeof(LeafGrid) == 16);
 
 // Plane i (0..res) of an axis from lo to hi: the builder and the traversal compute cell
-// boundaries with this one function, so they agree on every cell's box.
+// boundaries with this one formula (the traversal hoists the cell size out of its loop), so they
+// agree on every cell's box.
+inline float grid_cell_size(float lo, float hi, std::uint32_t res) {
+  return (hi - lo) / float(res);
+}
+inline float grid_plane_at(float lo, float hi, float cell_size, std::uint32_t i,
+                           std::uint32_t res) {
+  return i >= res ? hi : lo + float(i) * cell_size;
+}
 inline float grid_plane(float lo, float hi, std::uint32_t i, std::uint32_t res) {
-  if (i >= res) return hi;
-  return float(double(lo) + (double(hi) - double(lo)) * double(i) / double(res));
+  return grid_plane_at(lo, hi, grid_cell_size(lo, hi, res), i, res);
 }
 
 }  // namespace kiln::format

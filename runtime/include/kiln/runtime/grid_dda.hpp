@@ -84,13 +84,19 @@ void walk_grid(const GridFrame& f, const GridRay& r, float tmin, float tmax, Vis
   if (!clip_to_frame(f, r, tmin, tmax)) return;
   std::uint32_t cell[3];
   int step[3];
-  float t_next[3];
+  float t_next[3], size[3];
+  // The crossing of the plane ahead on `axis`, computed from the plane, never accumulated, so
+  // errors never add up along the walk.
+  auto crossing = [&](int a) {
+    const std::uint32_t ahead = cell[a] + (step[a] > 0);
+    return (format::grid_plane_at(f.lo[a], f.hi[a], size[a], ahead, f.res[a]) - r.org[a]) *
+           r.inv_dir[a];
+  };
   for (int a = 0; a < 3; ++a) {
+    size[a] = format::grid_cell_size(f.lo[a], f.hi[a], f.res[a]);
     cell[a] = f.cell_of(a, r.org[a] + r.dir[a] * tmin);
     step[a] = r.dir[a] > 0.0f ? 1 : r.dir[a] < 0.0f ? -1 : 0;
-    // Each crossing is computed from its plane, not accumulated, so errors never add up.
-    t_next[a] =
-        step[a] == 0 ? INFINITY : (f.plane(a, cell[a] + (step[a] > 0)) - r.org[a]) * r.inv_dir[a];
+    t_next[a] = step[a] == 0 ? INFINITY : crossing(a);
   }
   float t_enter = tmin;
   for (;;) {
@@ -102,7 +108,7 @@ void walk_grid(const GridFrame& f, const GridRay& r, float tmin, float tmax, Vis
     if (step[axis] > 0 ? cell[axis] + 1 >= f.res[axis] : cell[axis] == 0) return;
     cell[axis] += std::uint32_t(step[axis]);
     t_enter = std::max(t_enter, t_exit);
-    t_next[axis] = (f.plane(axis, cell[axis] + (step[axis] > 0)) - r.org[axis]) * r.inv_dir[axis];
+    t_next[axis] = crossing(axis);
   }
 }
 
