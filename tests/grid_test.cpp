@@ -8,6 +8,7 @@
 #include <random>
 
 #include "kiln/compiler/grid_builder.hpp"
+#include "kiln/runtime/error.hpp"
 #include "kiln/runtime/grid.hpp"
 #include "kiln/runtime/grid_dda.hpp"
 #include "kiln/runtime/triangle_geometry.hpp"
@@ -281,6 +282,39 @@ TEST(GridQueries, BoxQueryMatchesBruteForce) {
     EXPECT_FLOAT_EQ(a.distance, float(std::sqrt(best)));
     EXPECT_EQ(a.prim, b.prim);
   }
+}
+
+// The views refuse what would let a query read out of range or loop.
+TEST(GridViews, RefuseInconsistentLayouts) {
+  const Scene scene = scattered(50, 2);
+  const FlatGrid g = uniform(scene), n = nested(scene);
+  EXPECT_NO_THROW(view_of(g));
+  EXPECT_NO_THROW(nested_view_of(n));
+  auto uniform_with = [&](auto&& change) {
+    FlatGrid bad = g;
+    change(bad);
+    return view_of(bad);
+  };
+  auto nested_with = [&](auto&& change) {
+    FlatGrid bad = n;
+    change(bad);
+    return nested_view_of(bad);
+  };
+  EXPECT_THROW(uniform_with([](FlatGrid& b) { b.offsets[1] = b.offsets.back() + 1; }), BlobError);
+  EXPECT_THROW(uniform_with([](FlatGrid& b) { b.refs[0] = 50; }), BlobError);
+  EXPECT_THROW(uniform_with([](FlatGrid& b) { b.frame.res[0] = 0; }), BlobError);
+  EXPECT_THROW(uniform_with([](FlatGrid& b) { b.frame.res[0] = b.frame.res[1] = 1024; }),
+               BlobError);
+  EXPECT_THROW(uniform_with([](FlatGrid& b) { b.frame.hi[2] = b.frame.lo[2]; }), BlobError);
+  EXPECT_THROW(uniform_with([](FlatGrid& b) { b.frame.lo[1] = NAN; }), BlobError);
+  EXPECT_THROW(uniform_with([](FlatGrid& b) { b.offsets.pop_back(); }), BlobError);
+  EXPECT_THROW(nested_with([](FlatGrid& b) { b.leaves.back().first_cell += 1; }), BlobError);
+  EXPECT_THROW(nested_with([](FlatGrid& b) {
+                 for (auto& leaf : b.leaves)
+                   if (leaf.res[0] != 0) leaf.res[0] += 1;
+               }),
+               BlobError);
+  EXPECT_THROW(nested_with([](FlatGrid& b) { b.leaves.pop_back(); }), BlobError);
 }
 
 }  // namespace
