@@ -75,12 +75,11 @@ void lists_on_ray(const NestedGridView& g, const GridRay& r, Fn&& fn) {
     const format::LeafGrid& leaf = g.leaves()[g.frame().linear(top)];
     if (leaf.res[0] == 0) return false;
     const GridFrame frame = g.leaf_frame(top);
-    const float lo = t0 < 0.0f ? t0 * kGridFarScale : t0 * (2.0f - kGridFarScale);
-    const float hi = t1 < 0.0f ? t1 * (2.0f - kGridFarScale) : t1 * kGridFarScale;
-    walk_grid(frame, r, lo, hi, [&](const std::uint32_t c[3], float, float) {
-      fn(g.lists().cell(leaf.first_cell + frame.linear(c)));
-      return false;
-    });
+    walk_grid(frame, r, widen_enter(t0), widen_exit(t1),
+              [&](const std::uint32_t c[3], float, float) {
+                fn(g.lists().cell(leaf.first_cell + frame.linear(c)));
+                return false;
+              });
     return false;
   });
 }

@@ -47,15 +47,6 @@ bool test_cell(std::span<const std::uint32_t> refs, std::span<const format::RayT
   return false;
 }
 
-// Slightly widened [t_enter, t_exit] of a top cell, for the walk of its own grid (which clips to
-// the cell's box again).
-float widen_low(float t) {
-  return t < 0.0f ? t * kGridFarScale : t * (2.0f - kGridFarScale);
-}
-float widen_high(float t) {
-  return t < 0.0f ? t * (2.0f - kGridFarScale) : t * kGridFarScale;
-}
-
 template <bool kAnyHit, bool kCount>
 Hit traverse(const GridView& grid, const Ray& ray, Cost* cost) {
   const GridRay r = make_grid_ray(ray);
@@ -89,8 +80,8 @@ Hit traverse(const NestedGridView& grid, const Ray& ray, Cost* cost) {
               const format::LeafGrid& leaf = grid.leaves()[grid.frame().linear(top)];
               if (leaf.res[0] == 0) return false;
               const GridFrame frame = grid.leaf_frame(top);
-              const float lo = std::max(ray.tmin, widen_low(t_enter));
-              const float hi = std::min(hit.t, widen_high(t_exit));
+              const float lo = std::max(ray.tmin, widen_enter(t_enter));
+              const float hi = std::min(hit.t, widen_exit(t_exit));
               walk_grid(frame, r, lo, hi, [&](const std::uint32_t cell[3], float, float leaf_exit) {
                 if constexpr (kCount) cost->nodes += 1;
                 const auto refs = grid.lists().cell(leaf.first_cell + frame.linear(cell));

@@ -60,6 +60,15 @@ inline GridRay make_grid_ray(const Ray& ray) {
 // ray's stay in a box.
 inline constexpr float kGridFarScale = 1.0f + 2.0f * (3.0f * 0x1p-24f) / (1.0f - 3.0f * 0x1p-24f);
 
+/// A cell's [t_enter, t_exit] widened by their rounding bound, for the walk of a grid inside the
+/// cell (which clips to the cell's box again).
+inline float widen_enter(float t) {
+  return t < 0.0f ? t * kGridFarScale : t * (2.0f - kGridFarScale);
+}
+inline float widen_exit(float t) {
+  return t < 0.0f ? t * (2.0f - kGridFarScale) : t * kGridFarScale;
+}
+
 /// Narrows [tmin, tmax] to the part of the ray inside the frame's box, conservatively; false when
 /// nothing is left. A NaN slab distance leaves its axis unconstrained.
 inline bool clip_to_frame(const GridFrame& f, const GridRay& r, float& tmin, float& tmax) {
