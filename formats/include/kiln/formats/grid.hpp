@@ -18,8 +18,9 @@ inline constexpr std::uint32_t kSectionGridLeaves = fourcc('G', 'R', 'D', 'L');
 
 // Cells of a grid are numbered x fastest, then y, then z. Offsets are u32: a grid holds at most
 // 2^32 - 1 references (the builder refuses more).
-// The resolution of one axis, and the cells of one grid (top or leaf) or of all leaf grids
-// together: memory stays bounded (16 Mi cells = 64 MiB of offsets) whatever λ asks for.
+// The resolution of one axis, and the cells of one grid (the uniform grid, the top grid or one
+// leaf grid): memory stays bounded (16 Mi cells = 64 MiB of offsets) whatever λ asks for. The
+// builder also keeps all leaf grids together under 2^28 cells.
 inline constexpr std::uint32_t kGridMaxAxis = 1024;
 inline constexpr std::uint64_t kGridMaxCells = std::uint64_t(1) << 24;
 
