@@ -57,6 +57,8 @@ const char* const kRayStructures[] = {
     "bvh:boxes=u8@avx512",
     "bvh:presplit=evh",
     "bvh:presplit=evh,builder=sweep,width=2",
+    "grid",
+    "nested-grid",
 };
 const char* const kPointStructures[] = {
     "points",

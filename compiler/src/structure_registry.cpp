@@ -10,13 +10,13 @@
 namespace kiln {
 
 extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointTreeBuilder,
-    kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder;
+    kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder;
 
 namespace {
 
-const StructureBuilder* const kBuilders[] = {&kBvhBuilder,       &kSbvhBuilder,     &kKdTreeBuilder,
-                                             &kPointTreeBuilder, &kVoxelDagBuilder, &kEsvoBuilder,
-                                             &kOctreeBuilder};
+const StructureBuilder* const kBuilders[] = {
+    &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder, &kVoxelDagBuilder,
+    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;

@@ -6,18 +6,19 @@
 
 namespace kiln {
 
-extern const StructureKind kBvhKind, kSbvhKind;  // bvh_kind.cpp
-extern const StructureKind kKdTreeKind;          // kdtree_kind.cpp
-extern const StructureKind kPointTreeKind;       // point_tree_kind.cpp
-extern const StructureKind kVoxelDagKind;        // voxel_dag_kind.cpp
-extern const StructureKind kEsvoKind;            // esvo_kind.cpp
-extern const StructureKind kOctreeKind;          // octree_kind.cpp
+extern const StructureKind kBvhKind, kSbvhKind;         // bvh_kind.cpp
+extern const StructureKind kKdTreeKind;                 // kdtree_kind.cpp
+extern const StructureKind kPointTreeKind;              // point_tree_kind.cpp
+extern const StructureKind kVoxelDagKind;               // voxel_dag_kind.cpp
+extern const StructureKind kEsvoKind;                   // esvo_kind.cpp
+extern const StructureKind kOctreeKind;                 // octree_kind.cpp
+extern const StructureKind kGridKind, kNestedGridKind;  // grid_kind.cpp
 
 namespace {
 
 constexpr const StructureKind* kKinds[] = {
-    &kBvhKind, &kSbvhKind, &kKdTreeKind, &kPointTreeKind, &kVoxelDagKind, &kEsvoKind,
-    &kOctreeKind,
+    &kBvhKind,  &kSbvhKind,   &kKdTreeKind, &kPointTreeKind,  &kVoxelDagKind,
+    &kEsvoKind, &kOctreeKind, &kGridKind,   &kNestedGridKind,
 };
 
 }  // namespace
