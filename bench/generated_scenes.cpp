@@ -3,26 +3,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "kiln/tools/split_mix64.hpp"
+
 namespace kiln::bench {
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-class SplitMix64 {
- public:
-  explicit SplitMix64(std::uint64_t seed) : state_(seed) {}
-  std::uint64_t next() {
-    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  double uniform() { return double(next() >> 11) * 0x1p-53; }  // [0, 1)
-
- private:
-  std::uint64_t state_;
-};
 
 format::Float3 f3(double x, double y, double z) {
   return {float(x), float(y), float(z)};

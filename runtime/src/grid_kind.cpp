@@ -90,20 +90,6 @@ void check_cells(const Blob& blob, std::uint32_t section, const std::string& nam
     blob.fail_section(section, name + " triangle " + std::to_string(prim) + " is outside");
 }
 
-// The triangle copies equal to the input's.
-void verify_triangles(const Blob& blob, std::uint32_t section, const std::string& name,
-                      std::span<const format::RayTriangle> copies) {
-  const auto positions = blob.positions();
-  const auto triangles = blob.triangles();
-  for (std::size_t i = 0; i < triangles.size(); ++i) {
-    const auto& t = triangles[i];
-    const format::RayTriangle expected{positions[t.v[0]], positions[t.v[1]], positions[t.v[2]]};
-    if (std::memcmp(&expected, &copies[i], sizeof(expected)) != 0)
-      blob.fail_section(
-          section, name + " triangle " + std::to_string(i) + " does not match the scene's corners");
-  }
-}
-
 void verify_sorted(const Blob& blob, std::uint32_t section, const std::string& name,
                    const GridLists& lists) {
   for (std::size_t c = 0; c + 1 < lists.offsets.size(); ++c) {
@@ -121,14 +107,14 @@ void verify(const Blob& blob, const StructureInfo& info) {
   const std::string& name = info.name;
   if (info.kind == "grid") {
     const GridView g = GridView::from_blob(blob, name);
-    verify_triangles(blob, d.triangles(), name, g.triangles());
+    verify_triangle_copies(blob, d.triangles(), name, g.triangles());
     verify_sorted(blob, d.refs(), name, g.lists());
     for (std::uint32_t i = 0; i < g.triangles().size(); ++i)
       check_cells(blob, d.refs(), name, g.frame(), g.lists(), 0, g.triangles()[i], i);
     return;
   }
   const NestedGridView g = NestedGridView::from_blob(blob, name);
-  verify_triangles(blob, d.triangles(), name, g.triangles());
+  verify_triangle_copies(blob, d.triangles(), name, g.triangles());
   verify_sorted(blob, d.refs(), name, g.lists());
   const GridFrame& top = g.frame();
   for (std::uint32_t i = 0; i < g.triangles().size(); ++i) {

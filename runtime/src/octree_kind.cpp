@@ -44,22 +44,10 @@ void verify(const Blob& blob, const StructureInfo& info) {
   const auto& d = desc_of<schema::OctreeDesc>(blob, info);
   const std::string& name = info.name;
   const OctreeView tree = OctreeView::from_blob(blob, name);
-  const auto positions = blob.positions();
-  const auto triangles = blob.triangles();
-  const auto copies = tree.triangles();
-  for (std::size_t i = 0; i < triangles.size(); ++i) {
-    const auto& t = triangles[i];
-    const format::RayTriangle expected{positions[t.v[0]], positions[t.v[1]], positions[t.v[2]]};
-    if (std::memcmp(&expected, &copies[i], sizeof(expected)) != 0)
-      blob.fail_section(d.triangles(), name + " triangle " + std::to_string(i) +
-                                           " does not match the scene's corners");
-  }
-  std::vector<bool> referenced(triangles.size());
-  for (const auto id : tree.prim_ids()) referenced[id] = true;
-  for (std::size_t i = 0; i < referenced.size(); ++i)
-    if (!referenced[i])
-      blob.fail_section(d.prim_ids(), name + " triangle " + std::to_string(i) + " is in no leaf");
+  verify_triangle_copies(blob, d.triangles(), name, tree.triangles());
+  verify_every_triangle_listed(blob, d.prim_ids(), name, tree.prim_ids());
   const auto prim_ids = tree.prim_ids();
+  const auto copies = tree.triangles();
   for_each_octree_leaf(tree, [&](const format::OctreeNode& n, const format::Box3f& cell) {
     for (std::uint32_t i = n.first_reference(), end = i + n.reference_count(); i < end; ++i) {
       const format::RayTriangle& t = copies[prim_ids[i]];

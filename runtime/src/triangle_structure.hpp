@@ -7,16 +7,45 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <span>
+#include <string>
 #include <utility>
 #include <vector>
 
 #include "kiln/formats/geometry.hpp"
+#include "kiln/formats/ray_triangle.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/capabilities.hpp"
 #include "kiln/runtime/ray_structure.hpp"
 
 namespace kiln {
+
+/// verify: a structure's copy of every triangle's corners (`copies`, by triangle id, in section
+/// `section`) equals the scene's, bit for bit.
+inline void verify_triangle_copies(const Blob& blob, std::uint32_t section, const std::string& name,
+                                   std::span<const format::RayTriangle> copies) {
+  const auto positions = blob.positions();
+  const auto triangles = blob.triangles();
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    const auto& t = triangles[i];
+    const format::RayTriangle expected{positions[t.v[0]], positions[t.v[1]], positions[t.v[2]]};
+    if (std::memcmp(&expected, &copies[i], sizeof(expected)) != 0)
+      blob.fail_section(
+          section, name + " triangle " + std::to_string(i) + " does not match the scene's corners");
+  }
+}
+
+/// verify: every triangle of the scene is among `prim_ids` (section `section`), i.e. in a leaf.
+inline void verify_every_triangle_listed(const Blob& blob, std::uint32_t section,
+                                         const std::string& name,
+                                         std::span<const std::uint32_t> prim_ids) {
+  std::vector<bool> listed(blob.triangles().size());
+  for (const auto id : prim_ids) listed[id] = true;
+  for (std::size_t i = 0; i < listed.size(); ++i)
+    if (!listed[i])
+      blob.fail_section(section, name + " triangle " + std::to_string(i) + " is in no leaf");
+}
 
 /// The geometric normal (b - a) x (c - a) of triangle `prim`, not normalised; zero when the
 /// triangle or one of its vertices is out of range.
