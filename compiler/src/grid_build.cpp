@@ -132,13 +132,18 @@ CellLists build_cell_lists(const GridFrame& frame, std::span<const format::RayTr
   return lists;
 }
 
-std::vector<format::RayTriangle> ray_triangles(const Scene& scene) {
-  std::vector<format::RayTriangle> out;
-  out.reserve(scene.triangles.size());
+CellLists build_top_level(const Scene& scene, const GridBuildOptions& options, FlatGrid& grid) {
   const auto& v = scene.positions;
+  grid.triangles.reserve(scene.triangles.size());
   for (const format::Triangle& t : scene.triangles)
-    out.push_back({v[t.v[0]], v[t.v[1]], v[t.v[2]]});
-  return out;
+    grid.triangles.push_back({v[t.v[0]], v[t.v[1]], v[t.v[2]]});
+  float extent[3];
+  for (int a = 0; a < 3; ++a) extent[a] = at(scene.bounds.max, a) - at(scene.bounds.min, a);
+  const double n = double(scene.triangles.size());
+  grid.frame = padded_frame(scene.bounds, grid_resolution(extent, options.density * n));
+  std::vector<std::uint32_t> ids(scene.triangles.size());
+  std::iota(ids.begin(), ids.end(), 0u);
+  return build_cell_lists(grid.frame, grid.triangles, ids, options.threads);
 }
 
 void measure_grid(FlatGrid& grid) {
@@ -162,14 +167,7 @@ void measure_grid(FlatGrid& grid) {
 FlatGrid build_grid(const Scene& scene, const GridBuildOptions& options) {
   if (scene.triangles.empty()) throw std::runtime_error("grid: the scene has no triangles");
   FlatGrid grid;
-  grid.triangles = ray_triangles(scene);
-  float extent[3];
-  for (int a = 0; a < 3; ++a) extent[a] = at(scene.bounds.max, a) - at(scene.bounds.min, a);
-  const double n = double(scene.triangles.size());
-  grid.frame = padded_frame(scene.bounds, grid_resolution(extent, options.density * n));
-  std::vector<std::uint32_t> ids(scene.triangles.size());
-  std::iota(ids.begin(), ids.end(), 0u);
-  CellLists lists = build_cell_lists(grid.frame, grid.triangles, ids, options.threads);
+  CellLists lists = build_top_level(scene, options, grid);
   grid.offsets = std::move(lists.offsets);
   grid.refs = std::move(lists.refs);
   measure_grid(grid);

@@ -34,14 +34,7 @@ FlatGrid build_nested_grid(const Scene& scene, const GridBuildOptions& options) 
   if (scene.triangles.empty()) throw std::runtime_error("nested grid: the scene has no triangles");
   FlatGrid grid;
   grid.levels = 2;
-  grid.triangles = ray_triangles(scene);
-  float extent[3];
-  for (int a = 0; a < 3; ++a) extent[a] = at(scene.bounds.max, a) - at(scene.bounds.min, a);
-  const double n = double(scene.triangles.size());
-  grid.frame = padded_frame(scene.bounds, grid_resolution(extent, options.density * n));
-  std::vector<std::uint32_t> ids(scene.triangles.size());
-  std::iota(ids.begin(), ids.end(), 0u);
-  const CellLists top = build_cell_lists(grid.frame, grid.triangles, ids, options.threads);
+  const CellLists top = build_top_level(scene, options, grid);
 
   const std::uint64_t top_cells = grid.frame.cell_count();
   const double leaf_density =

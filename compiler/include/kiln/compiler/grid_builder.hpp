@@ -67,8 +67,9 @@ CellLists build_cell_lists(const GridFrame& frame, std::span<const format::RayTr
 FlatGrid build_grid(const Scene& scene, const GridBuildOptions& options);
 FlatGrid build_nested_grid(const Scene& scene, const GridBuildOptions& options);
 
-/// Shared by both builders: every triangle's corners by primitive id.
-std::vector<format::RayTriangle> ray_triangles(const Scene& scene);
+/// Shared by both builders, the top level: `grid`'s triangle copies (by primitive id) and its
+/// frame of about density x N cells over the scene bounds; returns that frame's cell lists.
+CellLists build_top_level(const Scene& scene, const GridBuildOptions& options, FlatGrid& grid);
 /// Cell, empty-cell and reference statistics of finished lists, and bytes per triangle.
 void measure_grid(FlatGrid& grid);
 
