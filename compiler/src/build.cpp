@@ -76,6 +76,8 @@ InputSectionIndices add_input_sections(const Scene& scene, std::vector<SectionPa
 }  // namespace
 
 InputKind input_kind_of(const Scene& scene) {
+  if (scene.polygons) return InputKind::kPolygons2;
+  if (scene.points2) return InputKind::kPoint2;
   return scene.triangles.empty() ? InputKind::kPoint3 : InputKind::kTriangles;
 }
 

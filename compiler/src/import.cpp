@@ -155,6 +155,26 @@ std::vector<ImportedMesh> import_stl_text_or_binary(const std::string& path,
 
 }  // namespace
 
+InputBytes read_input_bytes(const std::string& path, const ImportLimits& limits) {
+  auto stored = std::make_shared<std::vector<std::byte>>(read_whole_file(path));
+  InputBytes input;
+  input.source = {path, stored->size(), xxh3_64(*stored)};
+  input.inner_name = path;
+  if (stored->empty()) throw ImportError(path + ": file is empty");
+  if (lower_extension(path) != ".zst") {
+    input.bytes = *stored;
+    input.owner = std::move(stored);
+    return input;
+  }
+  auto inflated =
+      std::make_shared<InflatedBytes>(inflate_zstd(path, *stored, limits.max_inflated_bytes));
+  input.bytes = inflated->bytes();
+  input.owner = std::move(inflated);
+  input.inner_name = path.substr(0, path.size() - 4);
+  if (input.bytes.empty()) throw ImportError(path + ": inflates to an empty file");
+  return input;
+}
+
 ImportedFile import_file(const std::string& path, const ImportLimits& limits) {
   return import_bytes(path, read_whole_file(path), limits, true);
 }

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -34,6 +35,18 @@ struct ImportLimits {
   /// would never finish.
   std::uint32_t max_face_vertices = 4096;
 };
+
+/// A file's bytes as an importer sees them: read whole and, for a trailing `.zst`, inflated
+/// within `limits` (`inner_name` is then the path without `.zst`). What the 2D and event-table
+/// readers start from.
+struct InputBytes {
+  SourceFile source;       ///< the path as given, the stored size and XXH3
+  std::string inner_name;  ///< names the bytes in errors and picks the reader by extension
+  std::span<const std::byte> bytes;
+  std::shared_ptr<const void> owner;  ///< keeps `bytes` alive
+};
+/// Throws ImportError: no such file, not readable, empty, bad zstd, over the inflate limit.
+InputBytes read_input_bytes(const std::string& path, const ImportLimits& limits = {});
 
 // Reads and imports one file; its `accessed` lists `path` and every companion file read
 // (normalized). Throws ImportError.

@@ -2,11 +2,13 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "kiln/compiler/file_accesses.hpp"
+#include "kiln/compiler/geo_layer.hpp"
 #include "kiln/compiler/transform.hpp"
 #include "kiln/formats/geometry.hpp"
 
@@ -61,6 +63,10 @@ struct Scene {
   std::uint64_t degenerate_triangles_dropped = 0;
   format::Box3f bounds{{0, 0, 0}, {0, 0, 0}};  // all zero when empty
   FileAccesses accessed;                       // every input's, merged (import_scene fills it)
+  // A 2D input instead of meshes (GeoJSON, CSV): then the arrays above are empty, and `sources`
+  // and `accessed` name the one file it was read from.
+  std::optional<PolygonLayer> polygons;
+  std::optional<PointTable2> points2;
 };
 
 // Edge manifoldness over welded positions: what "closed" means for point-inside queries.

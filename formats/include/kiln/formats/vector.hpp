@@ -104,4 +104,39 @@ struct Box3d {
   Double3 min, max;
 };
 
+/// A 2D point in double precision: longitude and latitude in degrees for a geographic layer
+/// (x = lon, y = lat), else plain x and y. The 2D inputs (polygon layers, point tables) keep
+/// their coordinates exactly as parsed.
+struct Double2 {
+  double x = 0, y = 0;
+  friend constexpr bool operator==(const Double2&, const Double2&) = default;
+};
+static_assert(sizeof(Double2) == 16);
+
+/// A closed axis-aligned 2D double box; empty when min > max on some axis, as a default-made
+/// one (+inf, -inf) is.
+struct Box2d {
+  Double2 min{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
+  Double2 max{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+
+  constexpr void grow(const Double2& p) {
+    min.x = std::min(min.x, p.x), max.x = std::max(max.x, p.x);
+    min.y = std::min(min.y, p.y), max.y = std::max(max.y, p.y);
+  }
+  constexpr void grow(const Box2d& b) {
+    min.x = std::min(min.x, b.min.x), max.x = std::max(max.x, b.max.x);
+    min.y = std::min(min.y, b.min.y), max.y = std::max(max.y, b.max.y);
+  }
+  constexpr bool empty() const { return min.x > max.x || min.y > max.y; }
+  /// Whether `p` lies in the closed box.
+  constexpr bool contains(const Double2& p) const {
+    return p.x >= min.x && p.x <= max.x && p.y >= min.y && p.y <= max.y;
+  }
+  /// Whether the closed boxes share a point.
+  constexpr bool overlaps(const Box2d& b) const {
+    return b.min.x <= max.x && min.x <= b.max.x && b.min.y <= max.y && min.y <= b.max.y;
+  }
+};
+static_assert(sizeof(Box2d) == 32);
+
 }  // namespace kiln::format

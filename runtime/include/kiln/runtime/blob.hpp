@@ -16,6 +16,7 @@
 #include "kiln/formats/container.hpp"
 #include "kiln/formats/geometry.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"
+#include "kiln/runtime/geo_layer.hpp"
 #include "kiln/runtime/input_kind.hpp"
 #include "kiln/runtime/mapped_file.hpp"
 
@@ -34,6 +35,10 @@ struct InputInfo {
   bool has_normals = false;
   std::uint64_t boundary_edges = 0, non_manifold_edges = 0;
   bool closed = false;  ///< every edge shared by exactly two triangles
+  /// A 2D input's features (polygon layer) or features/rows (point table), and its exact
+  /// bounds (`bounds` holds them rounded to float, z = 0).
+  std::uint64_t feature_count = 0;
+  format::Box2d bounds2;
 };
 
 struct MeshInfo {
@@ -91,6 +96,10 @@ class Blob {
   std::span<const format::Float3> normals() const;      ///< empty when the scene has none
   std::span<const format::Triangle> triangles() const;  ///< empty for a point set
   std::span<const std::uint32_t> triangle_mesh_ids() const;
+  /// The 2D polygon layer this blob was built from; throws BlobError for another input kind.
+  PolygonLayerView polygon_layer() const;
+  /// The 2D point table this blob was built from; throws BlobError for another input kind.
+  PointTableView point_table() const;
 
   std::span<const StructureInfo> structures() const { return structures_; }
   /// The structure named `name`, or nullptr.

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "kiln/formats/geometry.hpp"
+#include "kiln/formats/vector.hpp"
 #include "kiln/runtime/query_results.hpp"
 #include "kiln/runtime/ray.hpp"
 
@@ -68,6 +69,60 @@ class OccupancyQueries {
   virtual bool occupied(const format::Float3& point) const = 0;
 };
 
+/// A cell of a 2D index, for drawing it (`kiln render --mode cells`) and describing it.
+struct IndexCell2 {
+  format::Box2d box;
+  std::uint32_t level = 0;  ///< 0 = the root
+  std::uint32_t items = 0;  ///< what the cell lists: boundary edges, or points in a bucket
+};
+
+/// Point in polygon over a 2D polygon layer. A point lies in a polygon when it is inside its
+/// outer ring and outside its holes under the half-open boundary rule of docs/FORMAT.md, so
+/// a point of a partition (counties) lies in exactly one of its polygons or in none. Feature
+/// indices are the source's order.
+class PolygonQueries {
+ public:
+  static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
+  virtual ~PolygonQueries() = default;
+  /// The lowest feature index whose area contains `p`, or kNone.
+  virtual std::uint32_t locate(const format::Double2& p) const = 0;
+  /// The same, counting cells visited (nodes) and edges tested (primitive tests) into `cost`.
+  virtual std::uint32_t locate_counting(const format::Double2& p, Cost& cost) const = 0;
+  /// Every feature containing `p`, ascending, into `out` (cleared first).
+  virtual void locate_all(const format::Double2& p, std::vector<std::uint32_t>& out) const = 0;
+  /// Every feature whose area (interior or boundary) meets the closed box, ascending.
+  virtual void features_in_box(const format::Box2d& box, std::vector<std::uint32_t>& out) const = 0;
+  /// The index's cells, leaves only, in storage order.
+  virtual void cells(std::vector<IndexCell2>& out) const = 0;
+};
+
+/// A 2D point found by a neighbour query: its index in the point table's points and its
+/// squared Euclidean distance in the table's coordinates.
+struct Neighbor2 {
+  double distance_squared = 0;
+  std::uint32_t index = 0;
+  friend bool operator==(const Neighbor2&, const Neighbor2&) = default;
+};
+
+/// Range and neighbour queries over a 2D point table; indices are into its points (the CLI
+/// maps them to rows). Results are sorted as a brute-force scan sorts them.
+class Point2Queries {
+ public:
+  virtual ~Point2Queries() = default;
+  /// Every point inside the closed box, ascending index, into `out` (cleared first).
+  virtual void range(const format::Box2d& box, std::vector<std::uint32_t>& out) const = 0;
+  /// The same, counting nodes visited and points tested into `cost` (for heatmaps).
+  virtual void range_counting(const format::Box2d& box, std::vector<std::uint32_t>& out,
+                              Cost& cost) const = 0;
+  /// The min(k, point count) nearest by (distance, index), k = out.size(); returns how many.
+  virtual std::size_t nearest(const format::Double2& q, std::span<Neighbor2> out) const = 0;
+  /// Every point with squared distance <= radius^2, by (distance, index), into `out`.
+  virtual void within_radius(const format::Double2& q, double radius,
+                             std::vector<Neighbor2>& out) const = 0;
+  /// The index's leaf cells, in storage order.
+  virtual void cells(std::vector<IndexCell2>& out) const = 0;
+};
+
 /// An opened, validated structure: the capabilities it has (nullptr for those it lacks).
 /// Borrows the Blob it was opened from, which must outlive it.
 class StructureView {
@@ -77,6 +132,8 @@ class StructureView {
   virtual const SurfaceQueries* surface() const { return nullptr; }
   virtual const NeighborQueries* neighbors() const { return nullptr; }
   virtual const OccupancyQueries* occupancy() const { return nullptr; }
+  virtual const PolygonQueries* polygons() const { return nullptr; }
+  virtual const Point2Queries* points2() const { return nullptr; }
 };
 
 }  // namespace kiln

@@ -1,0 +1,79 @@
+#include "kiln/compiler/csv_reader.hpp"
+
+#include <stdexcept>
+
+namespace kiln {
+
+CsvReader::CsvReader(std::string path, std::string_view text)
+    : path_(std::move(path)), text_(text) {
+  // A UTF-8 byte order mark is not part of the first column's name.
+  if (text_.substr(0, 3) == "\xEF\xBB\xBF") pos_ = 3;
+}
+
+std::string CsvReader::where(std::string_view what) const {
+  return path_ + ":" + std::to_string(record_line_) + ": " + std::string(what);
+}
+
+bool CsvReader::next(std::vector<std::string_view>& fields) {
+  fields.clear();
+  spans_.clear();
+  scratch_.clear();
+  // Empty lines between records are skipped.
+  while (pos_ < text_.size() && (text_[pos_] == '\n' || text_[pos_] == '\r')) {
+    if (text_[pos_] == '\n') ++line_;
+    ++pos_;
+  }
+  if (pos_ >= text_.size()) return false;
+  record_line_ = line_;
+  for (;;) {
+    if (pos_ < text_.size() && text_[pos_] == '"') {
+      // A quoted field: up to the closing quote; "" is one quote; newlines are kept.
+      const std::size_t begin = scratch_.size();
+      for (++pos_;; ++pos_) {
+        if (pos_ >= text_.size()) throw std::runtime_error(where("a quoted field never closes"));
+        const char c = text_[pos_];
+        if (c == '"') {
+          if (pos_ + 1 < text_.size() && text_[pos_ + 1] == '"') {
+            scratch_ += '"', ++pos_;
+            continue;
+          }
+          ++pos_;
+          break;
+        }
+        if (c == '\n') ++line_;
+        scratch_ += c;
+      }
+      spans_.push_back({true, begin, scratch_.size() - begin});
+      if (pos_ < text_.size() && text_[pos_] != ',' && text_[pos_] != '\n' && text_[pos_] != '\r')
+        throw std::runtime_error(where("text after the closing quote of a field"));
+    } else {
+      const std::size_t begin = pos_;
+      while (pos_ < text_.size() && text_[pos_] != ',' && text_[pos_] != '\n' &&
+             text_[pos_] != '\r')
+        ++pos_;
+      spans_.push_back({false, begin, pos_ - begin});
+    }
+    if (pos_ < text_.size() && text_[pos_] == ',') {
+      ++pos_;
+      continue;
+    }
+    // End of the record: CRLF, LF, a lone CR, or the end of the input.
+    if (pos_ < text_.size() && text_[pos_] == '\r') ++pos_;
+    if (pos_ < text_.size() && text_[pos_] == '\n') ++pos_, ++line_;
+    break;
+  }
+  fields.reserve(spans_.size());
+  for (const Span& s : spans_)
+    fields.push_back(s.scratch ? std::string_view(scratch_).substr(s.begin, s.size)
+                               : text_.substr(s.begin, s.size));
+  return true;
+}
+
+std::optional<std::size_t> csv_column(std::span<const std::string_view> header,
+                                      std::string_view name) {
+  for (std::size_t i = 0; i < header.size(); ++i)
+    if (header[i] == name) return i;
+  return std::nullopt;
+}
+
+}  // namespace kiln
