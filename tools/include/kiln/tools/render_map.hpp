@@ -1,0 +1,85 @@
+// `kiln render` on a 2D blob: a map of its polygon layer or point table (render_map.cpp).
+// Projection: equirectangular (plate carrée): x = longitude (or x), y = latitude (or y), one
+// scale for both axes, fitted to the layer's bounds with a small margin; index cells, which
+// are boxes in those coordinates, stay rectangles on the map.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "kiln/runtime/capabilities.hpp"
+#include "kiln/runtime/geo_layer.hpp"
+#include "kiln/tools/render.hpp"
+
+namespace kiln {
+class Blob;
+}
+
+namespace kiln::render {
+
+enum class MapMode {
+  kPlain,    // polygons filled one colour per feature, outlined; points as dots
+  kCells,    // the plain map with the index's leaf cells drawn over it
+  kHeatmap,  // each pixel coloured by the cost of a point query at its centre, outlines over it
+};
+/// "map", "cells", "heatmap".
+std::optional<MapMode> parse_map_mode(std::string_view name);
+
+/// Where the map's pixels lie in layer coordinates: `bounds` fitted into `size`, centred.
+class MapFrame {
+ public:
+  MapFrame(const format::Box2d& bounds, Size size);
+  /// Pixel coordinates (x right, y down; pixel (i, j) covers [i, i+1) x [j, j+1)).
+  format::Double2 to_pixel(const format::Double2& p) const;
+  /// The layer point at the centre of pixel (i, j).
+  format::Double2 pixel_centre(std::uint32_t i, std::uint32_t j) const;
+  /// Layer units per pixel.
+  double pixel_size() const { return 1.0 / scale_; }
+  Size size() const { return size_; }
+
+ private:
+  Size size_;
+  double scale_ = 1, left_ = 0, top_ = 0;  // pixels per unit; the layer x at pixel 0, y at row 0
+};
+
+/// What a map shows. `polygons` or `points` (or both) must be set; `polygon_index` /
+/// `point_index` answer the cells and heatmap modes for them.
+struct MapContent {
+  const PolygonLayerView* polygons = nullptr;
+  const PointTableView* points = nullptr;
+  const PolygonQueries* polygon_index = nullptr;
+  const Point2Queries* point_index = nullptr;
+};
+
+/// Costs of a heatmap (node visits + primitive tests per pixel's query) and the cells drawn.
+struct MapStats {
+  double mean_cost = 0;
+  std::uint32_t max_cost = 0, heat_scale = 0;
+  std::uint64_t cells = 0;
+};
+
+/// The feature colour: a stable hash of the feature index into a 12-colour palette.
+Rgb feature_colour(std::uint64_t feature);
+
+/// Draws the map: polygons filled with the even-odd rule over every ring of a feature (so holes
+/// stay open), later features over earlier ones, then outlines, points, cells; or the heatmap
+/// under outlines and points, with its legend. Heatmap queries run on up to `threads` threads;
+/// the image never depends on the count. Throws std::invalid_argument when the mode needs an
+/// index that `content` lacks.
+Image draw_map(const MapContent& content, MapMode mode, Size size, unsigned threads,
+               MapStats* stats = nullptr);
+
+/// Whether the blob's input is a 2D polygon layer or point table (kiln render draws a map).
+bool is_map_blob(const Blob& blob);
+
+/// `kiln render` on a 2D blob: the map in `mode_name` (empty: "map") of size `size_text`, the
+/// index for cells and heatmap the structure `accel` (empty: the first that answers the
+/// layer's queries), written atomically to `out` as PNG; a summary line (or JSON) on stdout.
+/// Returns the exit status; one line on stderr on any error.
+int render_map_command(const Blob& blob, const std::string& out, const std::string& accel,
+                       const std::string& mode_name, const std::string& size_text,
+                       unsigned threads, bool json);
+
+}  // namespace kiln::render
