@@ -3,6 +3,7 @@
 // thread counts, forged nodes.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <random>
 #include <string>

@@ -5,15 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <iostream>
 #include <utility>
 #include <vector>
 
-#include "kiln/runtime/atomic_file.hpp"
-#include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
-#include "kiln/tools/structure_choice.hpp"
 
 namespace kiln::render {
 
@@ -242,58 +237,6 @@ Image draw_map(const MapContent& content, MapMode mode, Size size, unsigned thre
   if (content.points) draw_points(image, *content.points, frame);
   if (mode == MapMode::kCells) s.cells = draw_cells(image, content, frame);
   return image;
-}
-
-bool is_map_blob(const Blob& blob) {
-  return blob.input().kind == InputKind::kPolygons2 || blob.input().kind == InputKind::kPoint2;
-}
-
-int render_map_command(const Blob& blob, const std::string& out, const std::string& accel,
-                       const std::string& mode_name, const std::string& size_text,
-                       unsigned threads, bool json) {
-  auto fail = [](const std::string& message) {
-    std::cerr << "kiln render: " << message << "\n";
-    return 1;
-  };
-  const std::string name = mode_name.empty() ? "map" : mode_name;
-  const auto mode = parse_map_mode(name);
-  if (!mode) return fail("--mode '" + name + "' must be map, cells or heatmap for a 2D blob");
-  std::string error;
-  const auto size = parse_size(size_text, error);
-  if (!size) return fail(error);
-  const bool polygons = blob.input().kind == InputKind::kPolygons2;
-  PolygonLayerView layer;
-  PointTableView table;
-  MapContent content;
-  if (polygons) content.polygons = &(layer = blob.polygon_layer());
-  else content.points = &(table = blob.point_table());
-  ChosenStructure index;
-  if (*mode != MapMode::kPlain || !accel.empty()) {
-    index = polygons ? choose_structure(blob, accel, &StructureView::polygons,
-                                        "answer point-in-polygon queries")
-                     : choose_structure(blob, accel, &StructureView::points2,
-                                        "answer 2D point queries");
-    content.polygon_index = index.view->polygons();
-    content.point_index = polygons ? nullptr : index.view->points2();
-  }
-  MapStats stats;
-  const Image image = draw_map(content, *mode, *size, threads, &stats);
-  write_file_atomically(out, encode_png(image));
-  char line[512];
-  if (json)
-    std::snprintf(line, sizeof line,
-                  "{\"image\":\"%s\",\"width\":%u,\"height\":%u,\"mode\":\"%s\",\"structure\":\"%s\","
-                  "\"cells\":%llu,\"mean_cost\":%.6g,\"max_cost\":%u,\"heat_scale\":%u}",
-                  out.c_str(), image.width, image.height, name.c_str(), index.name.c_str(),
-                  (unsigned long long)stats.cells, stats.mean_cost, stats.max_cost,
-                  stats.heat_scale);
-  else
-    std::snprintf(line, sizeof line, "kiln render: %s %ux%u, %s map%s%s, %llu cells, mean cost %.2f",
-                  out.c_str(), image.width, image.height, name.c_str(),
-                  index.name.empty() ? "" : " with ", index.name.c_str(),
-                  (unsigned long long)stats.cells, stats.mean_cost);
-  std::cout << line << "\n";
-  return 0;
 }
 
 }  // namespace kiln::render
