@@ -15,6 +15,8 @@
 #include <cstring>
 #include <functional>
 #include <map>
+#include <memory>
+#include <span>
 #include <random>
 #include <string>
 #include <vector>
@@ -84,10 +86,12 @@ std::vector<Box2d> boxes_around(const std::vector<Double2>& points, double side,
   return boxes;
 }
 
-// The quadtree's range walk over ids only, reading coordinates from the table: the layout a
-// blob would have without the Double2 copies (compared, not shipped).
-void range_by_ids(const kiln::QuadtreeView& tree, const std::vector<Double2>& table,
-                  const Box2d& box, std::vector<std::uint32_t>& out) {
+// The quadtree's range walk, unsorted, reading coordinates from the leaf-order copies (the
+// stored layout) or, with kIdsOnly, from the table through the ids: the layout a blob would
+// have without the copies (4 bytes per point instead of 20; compared, not shipped).
+template <bool kIdsOnly>
+void range_walk(const kiln::QuadtreeView& tree, const std::vector<Double2>& table,
+                const Box2d& box, std::vector<std::uint32_t>& out) {
   out.clear();
   const auto nodes = tree.nodes();
   const auto ids = tree.ids();
@@ -105,7 +109,7 @@ void range_by_ids(const kiln::QuadtreeView& tree, const std::vector<Double2>& ta
       out.insert(out.end(), ids.begin() + n.first, ids.begin() + n.first + n.count);
     } else if (n.is_leaf()) {
       for (std::uint32_t i = n.first; i < n.first + n.count; ++i)
-        if (box.contains(table[ids[i]])) out.push_back(ids[i]);
+        if (box.contains(kIdsOnly ? table[ids[i]] : tree.points()[i])) out.push_back(ids[i]);
     } else {
       for (std::uint32_t c = p.node + 1; c < n.end(); c = nodes[c].end()) {
         const Box2d cell = kiln::format::quad_child_cell(p.cell, nodes[c].quadrant());
@@ -113,7 +117,6 @@ void range_by_ids(const kiln::QuadtreeView& tree, const std::vector<Double2>& ta
       }
     }
   }
-  std::sort(out.begin(), out.end());
 }
 
 struct Bench {
@@ -122,94 +125,120 @@ struct Bench {
   std::map<std::string, std::vector<double>> times;  // per label, one per round
   std::map<std::string, std::uint64_t> checks;       // results found, to compare methods
 
-  void add(const std::string& label, double seconds, std::uint64_t found) {
-    times[label].push_back(seconds);
-    checks[label] = found;
+  // `run` does the work and returns the results it found; per-query seconds are recorded.
+  void add(const std::string& label, std::size_t count, const std::function<std::uint64_t()>& run) {
+    std::uint64_t found = 0;
+    times[label].push_back(seconds_of([&] { found = run(); }) / double(count));
+    checks[label] = found / count;
   }
 };
 
-void run_dataset(Bench& bench, const std::string& name, const std::vector<Double2>& points) {
+#ifdef KILN_BENCH_GEO
+namespace bg = boost::geometry;
+namespace bgi = boost::geometry::index;
+using BPoint = bg::model::point<double, 2, bg::cs::cartesian>;
+using BBox = bg::model::box<BPoint>;
+using RTree = bgi::rtree<std::pair<BPoint, std::uint32_t>, bgi::rstar<16>>;
+
+// Packed (STR bulk load) through the range constructor: Boost's fastest build and queries.
+std::unique_ptr<RTree> build_rtree(const std::vector<Double2>& points) {
+  std::vector<std::pair<BPoint, std::uint32_t>> values;
+  for (std::uint32_t i = 0; i < points.size(); ++i)
+    values.push_back({BPoint(points[i].x, points[i].y), i});
+  return std::make_unique<RTree>(values);
+}
+
+// The same answer as Kiln's: the indices in the box, ascending.
+std::uint64_t rtree_range(const RTree& rtree, const std::vector<Box2d>& boxes) {
+  std::vector<std::pair<BPoint, std::uint32_t>> hits;
+  std::vector<std::uint32_t> found;
+  std::uint64_t total = 0;
+  for (const auto& box : boxes) {
+    hits.clear();
+    found.clear();
+    rtree.query(bgi::intersects(BBox(BPoint(box.min.x, box.min.y), BPoint(box.max.x, box.max.y))),
+                std::back_inserter(hits));
+    for (const auto& h : hits) found.push_back(h.second);
+    std::sort(found.begin(), found.end());
+    total += found.size();
+  }
+  return total;
+}
+#endif
+
+std::uint64_t brute_range(const std::vector<Double2>& points, std::span<const Box2d> boxes) {
+  std::vector<std::uint32_t> found;
+  std::uint64_t total = 0;
+  for (const auto& box : boxes) {
+    found.clear();
+    for (std::uint32_t i = 0; i < points.size(); ++i)
+      if (box.contains(points[i])) found.push_back(i);
+    total += found.size();
+  }
+  return total;
+}
+
+// One round: every bucket size's build and range queries, the ids-only walk, the scan and the
+// R-tree, one after the other on the same boxes.
+void run_round(Bench& bench, const std::string& name, const std::vector<Double2>& points) {
   const Box2d b = bounds_of(points);
   const double width = b.max.x - b.min.x;
-  std::printf("%s: %zu points\n", name.c_str(), points.size());
   std::vector<std::uint32_t> found;
-  for (int round = 0; round < bench.rounds; ++round) {
-    for (const std::uint32_t bucket : {4u, 8u, 16u, 32u, 64u}) {
-      kiln::QuadtreeBuildOptions o;
-      o.bucket_size = bucket;
-      o.threads = 1;
-      kiln::FlatQuadtree flat;
-      const double build = seconds_of([&] { flat = kiln::build_quadtree(points, o); });
-      const kiln::QuadtreeView tree(flat.nodes, flat.points, flat.ids, flat.root, points.size());
-      const std::string tag = "quadtree b" + std::to_string(bucket);
-      bench.add(name + " build " + tag, build, flat.nodes.size());
-      bench.checks[name + " bytes/point " + tag] = std::uint64_t(flat.stats.bytes_per_point * 10);
-      for (const double side : {0.001, 0.01, 0.05}) {
-        const auto boxes = boxes_around(points, side * width, bench.queries, 7);
-        const std::string what = name + " range " + std::to_string(side) + " ";
-        std::uint64_t total = 0;
-        bench.add(what + tag, seconds_of([&] {
-                    for (const auto& box : boxes) tree.range(box, found), total += found.size();
-                  }) / double(boxes.size()),
-                  total);
-        if (bucket != 8) continue;
-        total = 0;
-        bench.add(what + tag + " ids-only", seconds_of([&] {
-                    for (const auto& box : boxes)
-                      range_by_ids(tree, points, box, found), total += found.size();
-                  }) / double(boxes.size()),
-                  total);
-        const std::size_t brute_count = std::max<std::size_t>(20, bench.queries / 200);
-        total = 0;
-        bench.add(what + "brute force", seconds_of([&] {
-                    for (std::size_t q = 0; q < brute_count; ++q) {
-                      found.clear();
-                      for (std::uint32_t i = 0; i < points.size(); ++i)
-                        if (boxes[q].contains(points[i])) found.push_back(i);
-                      total += found.size();
-                    }
-                  }) / double(brute_count),
-                  total * (boxes.size() / brute_count));
+  for (const std::uint32_t bucket : {4u, 8u, 16u, 32u, 64u}) {
+    kiln::QuadtreeBuildOptions o;
+    o.bucket_size = bucket;
+    o.threads = 1;
+    kiln::FlatQuadtree flat;
+    const std::string tag = "quadtree b" + std::to_string(bucket);
+    bench.add(name + " build " + tag, 1, [&] {
+      flat = kiln::build_quadtree(points, o);
+      return flat.nodes.size();
+    });
+    bench.checks[name + " bytes/point " + tag] = std::uint64_t(flat.stats.bytes_per_point * 10);
+    const kiln::QuadtreeView tree(flat.nodes, flat.points, flat.ids, flat.root, points.size());
 #ifdef KILN_BENCH_GEO
-        namespace bg = boost::geometry;
-        namespace bgi = boost::geometry::index;
-        using BPoint = bg::model::point<double, 2, bg::cs::cartesian>;
-        using BBox = bg::model::box<BPoint>;
-        using Value = std::pair<BPoint, std::uint32_t>;
-        static std::map<std::string, std::unique_ptr<bgi::rtree<Value, bgi::rstar<16>>>> rtrees;
-        auto& rtree = rtrees[name];
-        if (!rtree) {
-          std::vector<Value> values;
-          for (std::uint32_t i = 0; i < points.size(); ++i)
-            values.push_back({BPoint(points[i].x, points[i].y), i});
-          const double t = seconds_of([&] {
-            rtree = std::make_unique<bgi::rtree<Value, bgi::rstar<16>>>(values);  // packed (STR)
-          });
-          bench.add(name + " build boost rtree", t, rtree->size());
-        }
-        std::vector<Value> hits;
-        total = 0;
-        bench.add(what + "boost rtree", seconds_of([&] {
-                    for (const auto& box : boxes) {
-                      hits.clear();
-                      found.clear();
-                      rtree->query(bgi::intersects(BBox(BPoint(box.min.x, box.min.y),
-                                                        BPoint(box.max.x, box.max.y))),
-                                   std::back_inserter(hits));
-                      for (const auto& h : hits) found.push_back(h.second);
-                      std::sort(found.begin(), found.end());  // the same answer as Kiln's
-                      total += found.size();
-                    }
-                  }) / double(boxes.size()),
-                  total);
+    std::unique_ptr<RTree> rtree;
+    if (bucket == 8)
+      bench.add(name + " build boost rtree", 1, [&] {
+        rtree = build_rtree(points);
+        return rtree->size();
+      });
 #endif
-      }
+    for (const double side : {0.001, 0.01, 0.05}) {
+      // Fewer of the larger boxes: each returns hundreds to thousands of points.
+      const std::size_t count = side < 0.005 ? bench.queries : side < 0.03 ? bench.queries / 4
+                                                                          : bench.queries / 40;
+      const auto boxes = boxes_around(points, side * width, std::max<std::size_t>(count, 20), 7);
+      const std::string what = name + " range " + std::to_string(side).substr(0, 5) + " ";
+      bench.add(what + tag, boxes.size(), [&] {
+        std::uint64_t total = 0;
+        for (const auto& box : boxes) tree.range(box, found), total += found.size();
+        return total;
+      });
+      if (bucket != 8) continue;
+      bench.add(what + "walk only, copies", boxes.size(), [&] {
+        std::uint64_t total = 0;
+        for (const auto& box : boxes) range_walk<false>(tree, points, box, found), total += found.size();
+        return total;
+      });
+      bench.add(what + "walk only, ids-only", boxes.size(), [&] {
+        std::uint64_t total = 0;
+        for (const auto& box : boxes) range_walk<true>(tree, points, box, found), total += found.size();
+        return total;
+      });
+      const std::size_t brute_count = std::max<std::size_t>(20, boxes.size() / 200);
+      bench.add(what + "brute force", brute_count, [&] {
+        return brute_range(points, std::span(boxes).first(brute_count));
+      });
+#ifdef KILN_BENCH_GEO
+      bench.add(what + "boost rtree", boxes.size(), [&] { return rtree_range(*rtree, boxes); });
+#endif
     }
   }
 }
 
 void print(const Bench& bench) {
-  std::printf("| measurement | median | results |\n|---|---|---|\n");
+  std::printf("| measurement | median | results per query |\n|---|---|---|\n");
   for (const auto& [label, t] : bench.times) {
     const double m = median(t);
     const bool build = label.find(" build ") != std::string::npos;
@@ -236,9 +265,10 @@ int main(int argc, char** argv) {
   if (!zip.empty()) {
     const auto points = read_zip_points(zip);
     world = bounds_of(points);
-    run_dataset(bench, "zip", points);
+    for (int round = 0; round < bench.rounds; ++round) run_round(bench, "zip", points);
   }
-  run_dataset(bench, "uniform", uniform_points(1000000, world, 42));
+  const auto uniform = uniform_points(1000000, world, 42);
+  for (int round = 0; round < bench.rounds; ++round) run_round(bench, "uniform", uniform);
   print(bench);
   return 0;
 }

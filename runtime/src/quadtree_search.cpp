@@ -57,6 +57,24 @@ void push_children(std::span<const format::QuadNode> nodes, const Pending& p,
   while (count > 0) stack[top++] = children[--count];
 }
 
+// Sorts indices ascending in O(k): least significant digit first, 11 bits at a time (three
+// stable counting passes), for the long answers of large boxes, where a comparison sort would
+// cost more than the walk; short answers use std::sort.
+void sort_indices(std::vector<std::uint32_t>& ids) {
+  if (ids.size() < 512) {
+    std::sort(ids.begin(), ids.end());
+    return;
+  }
+  std::vector<std::uint32_t> scratch(ids.size());
+  for (int shift = 0; shift < 32; shift += 11) {
+    std::array<std::uint32_t, 2049> start{};
+    for (const auto id : ids) start[((id >> shift) & 2047u) + 1] += 1;
+    for (std::size_t d = 1; d < start.size(); ++d) start[d] += start[d - 1];
+    for (const auto id : ids) scratch[start[(id >> shift) & 2047u]++] = id;
+    ids.swap(scratch);
+  }
+}
+
 }  // namespace
 
 template <bool kCount>
@@ -81,7 +99,7 @@ void QuadtreeView::range_impl(const format::Box2d& box, std::vector<std::uint32_
       push_children(nodes_, p, stack, top, [&](const format::Box2d& c) { return c.overlaps(box); });
     }
   }
-  std::sort(out.begin(), out.end());
+  sort_indices(out);
 }
 
 void QuadtreeView::range(const format::Box2d& box, std::vector<std::uint32_t>& out) const {
