@@ -8,10 +8,13 @@
 #include <random>
 #include <string>
 
+#include "kiln/compiler/build.hpp"
 #include "kiln/compiler/csv_reader.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/compiler/quadtree_builder.hpp"
+#include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
+#include "kiln/runtime/structure_registry.hpp"
 #include "kiln/runtime/quadtree.hpp"
 #include "test_support.hpp"
 
@@ -293,6 +296,156 @@ TEST(Quadtree, ForgedNodesAreRefusedOrSafe) {
     }
   }
   EXPECT_GT(refused, 1000u);
+}
+
+
+// A point table of `n` rows as a CSV reader makes it, with feature_points when `multipoint`
+// (row r owns r % 3 points: some rows none).
+Scene point_scene(std::size_t n, bool multipoint, std::uint32_t seed) {
+  Scene scene;
+  PointTable2 table;
+  table.points = awkward_points(n, seed);
+  if (multipoint) {
+    std::size_t next = 0;
+    table.feature_points = {0};
+    for (std::size_t r = 0; next < table.points.size(); ++r) {
+      next = std::min(table.points.size(), next + r % 3);
+      table.feature_points.push_back(next);
+    }
+  }
+  for (const auto& p : table.points) table.bounds.grow(p);
+  table.x_column = "x", table.y_column = "y";
+  scene.points2 = std::move(table);
+  return scene;
+}
+
+void expect_blob_answers(const Blob& blob, std::span<const Double2> points, const std::string& what) {
+  const auto view = open_structure(blob, "quadtree");
+  const Point2Queries* q = view->points2();
+  ASSERT_NE(q, nullptr);
+  std::vector<std::uint32_t> found;
+  for (const Box2d& box : sample_boxes(points, 60, 3)) {
+    q->range(box, found);
+    ASSERT_EQ(found, brute_range(points, box)) << what;
+  }
+  for (const Double2& p : sample_queries(points, 30, 5)) {
+    std::vector<Neighbor2> got(5);
+    got.resize(q->nearest(p, got));
+    const auto all = brute_sorted(points, p);
+    ASSERT_EQ(got, std::vector<Neighbor2>(all.begin(), all.begin() + 5)) << what;
+  }
+}
+
+TEST(QuadtreeBlob, RoundTripsThroughFileMemoryAndZstd) {
+  const Scene scene = point_scene(3000, false, 21);
+  const auto& points = scene.points2->points;
+  for (const bool compress : {false, true}) {
+    const auto bytes = test::blob_with(scene, "quadtree:bucket-size=6", 0, compress);
+    const AlignedBuffer copy = test::aligned_copy(bytes);
+    const Blob memory = Blob::open_memory(copy.bytes());
+    memory.verify();
+    expect_blob_answers(memory, points, compress ? "zstd" : "memory");
+    test::TempDir dir;
+    test::write_file(dir.file("p.kiln"), bytes);
+    const Blob file = Blob::open_file(dir.file("p.kiln"));
+    file.verify();
+    expect_blob_answers(file, points, "file");
+  }
+}
+
+TEST(QuadtreeBlob, ByteIdenticalOnOneTwoEightThreads) {
+  const Scene scene = point_scene(120000, true, 22);
+  const auto one = test::blob_with(scene, "quadtree", 1);
+  EXPECT_EQ(test::blob_with(scene, "quadtree", 2), one);
+  EXPECT_EQ(test::blob_with(scene, "quadtree", 8), one);
+}
+
+// Every byte of every quadtree section forged, a sample of values each: open and verify refuse
+// it with a BlobError, or every query stays in range.
+TEST(QuadtreeBlob, ForgedSectionsAreRefusedOrSafe) {
+  const Scene scene = point_scene(400, false, 23);
+  const auto bytes = test::blob_with(scene, "quadtree:bucket-size=3", 1);
+  const AlignedBuffer clean = test::aligned_copy(bytes);
+  const Blob blob = Blob::open_memory(clean.bytes());
+  const auto boxes = sample_boxes(scene.points2->points, 6, 1);
+  const auto queries = sample_queries(scene.points2->points, 6, 2);
+  std::size_t refused = 0, tried = 0;
+  for (const std::uint32_t section : blob.structures()[0].sections) {
+    const std::size_t size = blob.section_bytes(section).size();
+    for (std::size_t offset = 0; offset < size; offset += 1 + offset % 7) {
+      const std::uint8_t value = std::uint8_t(blob.section_bytes(section)[offset]) ^ 0x5Au;
+      const AlignedBuffer forged = test::forged_copy(bytes, section, offset, value);
+      tried += 1;
+      try {
+        const Blob f = Blob::open_memory(forged.bytes());
+        const auto view = open_structure(f, "quadtree");
+        std::vector<std::uint32_t> found;
+        std::vector<Neighbor2> near(4);
+        for (const auto& box : boxes) view->points2()->range(box, found);
+        for (const auto& q : queries) view->points2()->nearest(q, near);
+        for (const auto id : found) ASSERT_LT(id, scene.points2->points.size());
+        f.verify();
+      } catch (const BlobError&) {
+        refused += 1;
+      }
+    }
+  }
+  EXPECT_GT(refused, tried / 4);
+}
+
+TEST(QuadtreeBlob, DumpVerifyAndQueryOnTheCommandLine) {
+  const Scene scene = point_scene(2000, true, 24);
+  test::TempDir dir;
+  const std::string blob = dir.file("p.kiln");
+  test::write_file(blob, test::blob_with(scene, "quadtree", 0));
+  const auto dump = test::run_kiln("dump --json " + test::quoted(blob));
+  ASSERT_EQ(dump.exit_code, 0) << dump.err;
+  EXPECT_NE(dump.out.find("\"levels\""), std::string::npos);
+  EXPECT_NE(dump.out.find("\"bytes_per_point\""), std::string::npos);
+  const auto verify = test::run_kiln("verify " + test::quoted(blob));
+  EXPECT_EQ(verify.exit_code, 0) << verify.err;
+  // Boxes as CSV with a header; answers are rows (features), once per box.
+  const auto& t = *scene.points2;
+  const auto boxes = sample_boxes(t.points, 40, 9);
+  std::string csv = "min_x,min_y,max_x,max_y\n", want = "box_index,point_index\n";
+  for (std::size_t b = 0; b < boxes.size(); ++b) {
+    char line[160];
+    std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g,%.17g\n", boxes[b].min.x, boxes[b].min.y,
+                  boxes[b].max.x, boxes[b].max.y);
+    csv += line;
+    for (std::size_t row = 0; row + 1 < t.feature_points.size(); ++row)
+      for (auto i = t.feature_points[row]; i < t.feature_points[row + 1]; ++i)
+        if (boxes[b].contains(t.points[i])) {
+          want += std::to_string(b) + "," + std::to_string(row) + "\n";
+          break;
+        }
+  }
+  test::write_text(dir.file("boxes.csv"), csv);
+  const auto range = test::run_kiln("query " + test::quoted(blob) + " --op range --in " +
+                                    test::quoted(dir.file("boxes.csv")) + " --out " +
+                                    test::quoted(dir.file("out.csv")) + " --threads 2");
+  ASSERT_EQ(range.exit_code, 0) << range.err;
+  EXPECT_EQ(test::read_text(dir.file("out.csv")), want);
+  // knn2d from binary float64 pairs: k rows per query, the first at distance 0 for a table point.
+  const std::vector<double> xy{t.points[5].x, t.points[5].y};
+  test::write_file(dir.file("q.bin"), std::as_bytes(std::span(xy)));
+  const auto knn = test::run_kiln("query " + test::quoted(blob) + " --op knn2d --k 3 --in " +
+                                  test::quoted(dir.file("q.bin")) + " --out " +
+                                  test::quoted(dir.file("knn.csv")));
+  ASSERT_EQ(knn.exit_code, 0) << knn.err;
+  const std::string knn_text = test::read_text(dir.file("knn.csv"));
+  EXPECT_EQ(std::count(knn_text.begin(), knn_text.end(), '\n'), 4);
+  EXPECT_EQ(knn_text.rfind("query_index,point_index,distance\n0,", 0), 0u) << knn_text;
+  test::write_text(dir.file("bad.csv"), "1,2,3\n");
+  const auto bad = test::run_kiln("query " + test::quoted(blob) + " --op range --in " +
+                                  test::quoted(dir.file("bad.csv")) + " --out " +
+                                  test::quoted(dir.file("x.csv")));
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("bad.csv:1:"), std::string::npos) << bad.err;
+  const auto map = test::run_kiln("render " + test::quoted(blob) + " --mode cells --size 200x120 -o " +
+                                  test::quoted(dir.file("map.png")));
+  EXPECT_EQ(map.exit_code, 0) << map.err;
+  EXPECT_TRUE(std::filesystem::exists(dir.file("map.png")));
 }
 
 }  // namespace

@@ -10,13 +10,13 @@
 namespace kiln {
 
 extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointTreeBuilder,
-    kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder;
+    kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder, kQuadtreeBuilder;
 
 namespace {
 
 const StructureBuilder* const kBuilders[] = {
     &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder, &kVoxelDagBuilder,
-    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder};
+    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder, &kQuadtreeBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;

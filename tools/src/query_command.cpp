@@ -12,6 +12,7 @@
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/structure_choice.hpp"
+#include "query_points2d.hpp"
 
 namespace kiln::cli {
 
@@ -23,7 +24,7 @@ struct QueryArgs {
   std::string blob, op, in, out, accel;
   float max_distance = std::numeric_limits<float>::infinity();
   unsigned k = 1;
-  float radius = 0;
+  double radius = 0;
   unsigned threads = 0;
 };
 
@@ -97,7 +98,7 @@ std::vector<std::byte> neighbor_answers(const NeighborQueries& n, const QueryArg
     });
   return answer_all(q.count, args.threads, [&](std::size_t i, std::vector<std::byte>& bytes) {
     std::vector<Neighbor> found;
-    n.within_radius(q.at(i), args.radius, found);
+    n.within_radius(q.at(i), float(args.radius), found);
     append_pod(bytes, std::uint32_t(found.size()));
     for (const Neighbor& neighbor : found) append_pod(bytes, neighbor.id);
   });
@@ -164,10 +165,13 @@ Command add_query_command(CLI::App& app) {
   command
       ->add_option("--op", args->op,
                    "closest, inside, box (surface queries); knn, radius (nearest neighbours among "
-                   "the vertices); occupied (voxel structures)")
-      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius", "occupied"}))
+                   "the vertices); occupied (voxel structures); range, knn2d, radius2d (2D point "
+                   "tables: CSV rows out)")
+      ->check(CLI::IsMember(
+          {"closest", "inside", "box", "knn", "radius", "occupied", "range", "knn2d", "radius2d"}))
       ->required();
-  command->add_option("--in", args->in, "Queries: float32 x 3 per point, x 6 per box (min, max)")
+  command->add_option("--in", args->in, "Queries: float32 x 3 per point, x 6 per box (min, max); 2D: CSV rows "
+                      "(x,y or min_x,min_y,max_x,max_y; header optional) or float64 x 2 / x 4")
       ->required();
   command->add_option("--out", args->out, "Answers (docs/FORMAT.md)")->required();
   command->add_option("--accel", args->accel,
@@ -178,7 +182,13 @@ Command add_query_command(CLI::App& app) {
   command->add_option("--radius", args->radius, "radius: search radius")
       ->check(CLI::NonNegativeNumber);
   add_threads_option(command, args->threads);
-  return {command, [args] { return run_query(*args); }};
+  return {command, [args] {
+            if (is_points2d_op(args->op))
+              return run_points2d_query(
+                  {args->blob, args->op, args->in, args->out, args->accel, args->k, args->radius,
+                   args->threads});
+            return run_query(*args);
+          }};
 }
 
 }  // namespace kiln::cli

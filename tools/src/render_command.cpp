@@ -16,6 +16,7 @@
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/structure_registry.hpp"
 #include "kiln/tools/render.hpp"
+#include "kiln/tools/render_map.hpp"
 
 namespace kiln::cli {
 
@@ -208,6 +209,10 @@ int fail(const std::string& message) {
 
 int run_render(const RenderArgs& args) {
   try {
+    std::string ignored;  // a blob that does not open gets the 3D path's messages
+    if (const auto blob = Blob::try_open_file(args.blob, ignored); blob && render::is_map_blob(*blob))
+      return render::render_map_command(*blob, args.out, args.accel, args.mode, args.size,
+                                        args.threads, args.json);
     std::string error;
     std::optional<Settings> s = check_options(args, error);
     if (!s) return fail(error);

@@ -1,6 +1,7 @@
 // `kiln render` on a 2D blob: the layer, the index the mode needs, the map, the PNG and a
 // summary (the drawing itself is render_map.cpp).
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 
 #include "kiln/runtime/atomic_file.hpp"
@@ -21,6 +22,9 @@ int render_map_command(const Blob& blob, const std::string& out, const std::stri
     std::cerr << "kiln render: " << message << "\n";
     return 1;
   };
+  std::error_code ec;
+  if (std::filesystem::exists(out, ec) && std::filesystem::equivalent(blob.name(), out, ec))
+    return fail("output " + out + " is the blob itself");
   const std::string name = mode_name.empty() ? "map" : mode_name;
   const auto mode = parse_map_mode(name);
   if (!mode) return fail("--mode '" + name + "' must be map, cells or heatmap for a 2D blob");
