@@ -3,6 +3,7 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "geo_input.hpp"
 #include "kiln/compiler/advise.hpp"
 #include "kiln/compiler/file_accesses.hpp"
 #include "kiln/compiler/geo_import.hpp"
@@ -43,7 +44,9 @@ void check_requests(const Scene& scene, const BuildOptions& options) {
   const std::string what = scene.sources.empty() ? "the scene" : scene.sources.front().path;
   // Every other input kind lacks triangles, and triangles are what most structures consume.
   const std::string is = what + ": is a " + std::string(input_kind_name(input)) + " (no triangles)";
-  if (requests.empty()) throw ImportError(is + "; it needs " + kinds_for(input));
+  // A 2D layer alone is a map (kiln render draws it); a 3D point set alone is likely a mistake.
+  if (requests.empty() && input == InputKind::kPoint3)
+    throw ImportError(is + "; it needs " + kinds_for(input));
   for (const StructureRequest& request : requests) {
     const StructureBuilder* builder = find_structure_builder(request.kind);
     if (!builder) throw std::invalid_argument("unknown structure kind '" + request.kind + "'");
@@ -62,6 +65,10 @@ InputSectionIndices add_input_sections(const Scene& scene, std::vector<SectionPa
     return std::uint32_t(sections.size() - 1);
   };
   InputSectionIndices indices;
+  if (scene.polygons || scene.points2) {
+    add_geo_input_sections(scene, indices, add);
+    return indices;
+  }
   indices.positions = add(format::kSectionPositions, sizeof(format::Float3), scene.positions.size(),
                           as_bytes(scene.positions));
   if (input_kind_of(scene) != InputKind::kTriangles) return indices;
