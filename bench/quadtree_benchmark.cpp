@@ -16,8 +16,8 @@
 #include <functional>
 #include <map>
 #include <memory>
-#include <span>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -50,10 +50,12 @@ double median(std::vector<double> v) {
 
 std::vector<Double2> read_zip_points(const std::string& path) {
   const auto input = kiln::read_input_bytes(path);
-  kiln::CsvReader csv(path, {reinterpret_cast<const char*>(input.bytes.data()), input.bytes.size()});
+  kiln::CsvReader csv(path,
+                      {reinterpret_cast<const char*>(input.bytes.data()), input.bytes.size()});
   std::vector<std::string_view> fields;
   csv.next(fields);
-  const auto lat = kiln::csv_column(fields, "latitude"), lon = kiln::csv_column(fields, "longitude");
+  const auto lat = kiln::csv_column(fields, "latitude"),
+             lon = kiln::csv_column(fields, "longitude");
   std::vector<Double2> points;
   while (lat && lon && csv.next(fields))
     points.push_back({std::stod(std::string(fields[*lon])), std::stod(std::string(fields[*lat]))});
@@ -74,8 +76,8 @@ std::vector<Double2> uniform_points(std::size_t n, const Box2d& b, std::uint32_t
   return points;
 }
 
-std::vector<Box2d> boxes_around(const std::vector<Double2>& points, double side,
-                                std::size_t count, std::uint32_t seed) {
+std::vector<Box2d> boxes_around(const std::vector<Double2>& points, double side, std::size_t count,
+                                std::uint32_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
   std::vector<Box2d> boxes(count);
@@ -90,8 +92,8 @@ std::vector<Box2d> boxes_around(const std::vector<Double2>& points, double side,
 // stored layout) or, with kIdsOnly, from the table through the ids: the layout a blob would
 // have without the copies (4 bytes per point instead of 20; compared, not shipped).
 template <bool kIdsOnly>
-void range_walk(const kiln::QuadtreeView& tree, const std::vector<Double2>& table,
-                const Box2d& box, std::vector<std::uint32_t>& out) {
+void range_walk(const kiln::QuadtreeView& tree, const std::vector<Double2>& table, const Box2d& box,
+                std::vector<std::uint32_t>& out) {
   out.clear();
   const auto nodes = tree.nodes();
   const auto ids = tree.ids();
@@ -206,8 +208,9 @@ void run_round(Bench& bench, const std::string& name, const std::vector<Double2>
 #endif
     for (const double side : {0.001, 0.01, 0.05}) {
       // Fewer of the larger boxes: each returns hundreds to thousands of points.
-      const std::size_t count = side < 0.005 ? bench.queries : side < 0.03 ? bench.queries / 4
-                                                                          : bench.queries / 40;
+      const std::size_t count = side < 0.005  ? bench.queries
+                                : side < 0.03 ? bench.queries / 4
+                                              : bench.queries / 40;
       const auto boxes = boxes_around(points, side * width, std::max<std::size_t>(count, 20), 7);
       const std::string what = name + " range " + std::to_string(side).substr(0, 5) + " ";
       bench.add(what + tag, boxes.size(), [&] {
@@ -218,18 +221,19 @@ void run_round(Bench& bench, const std::string& name, const std::vector<Double2>
       if (bucket != 8) continue;
       bench.add(what + "walk only, copies", boxes.size(), [&] {
         std::uint64_t total = 0;
-        for (const auto& box : boxes) range_walk<false>(tree, points, box, found), total += found.size();
+        for (const auto& box : boxes)
+          range_walk<false>(tree, points, box, found), total += found.size();
         return total;
       });
       bench.add(what + "walk only, ids-only", boxes.size(), [&] {
         std::uint64_t total = 0;
-        for (const auto& box : boxes) range_walk<true>(tree, points, box, found), total += found.size();
+        for (const auto& box : boxes)
+          range_walk<true>(tree, points, box, found), total += found.size();
         return total;
       });
       const std::size_t brute_count = std::max<std::size_t>(20, boxes.size() / 200);
-      bench.add(what + "brute force", brute_count, [&] {
-        return brute_range(points, std::span(boxes).first(brute_count));
-      });
+      bench.add(what + "brute force", brute_count,
+                [&] { return brute_range(points, std::span(boxes).first(brute_count)); });
 #ifdef KILN_BENCH_GEO
       bench.add(what + "boost rtree", boxes.size(), [&] { return rtree_range(*rtree, boxes); });
 #endif
@@ -257,9 +261,12 @@ int main(int argc, char** argv) {
   std::string zip;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg.rfind("--rounds=", 0) == 0) bench.rounds = std::stoi(arg.substr(9));
-    else if (arg.rfind("--queries=", 0) == 0) bench.queries = std::stoul(arg.substr(10));
-    else zip = arg;
+    if (arg.rfind("--rounds=", 0) == 0)
+      bench.rounds = std::stoi(arg.substr(9));
+    else if (arg.rfind("--queries=", 0) == 0)
+      bench.queries = std::stoul(arg.substr(10));
+    else
+      zip = arg;
   }
   Box2d world{{-180, -90}, {180, 90}};
   if (!zip.empty()) {

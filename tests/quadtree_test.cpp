@@ -14,8 +14,8 @@
 #include "kiln/compiler/quadtree_builder.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
-#include "kiln/runtime/structure_registry.hpp"
 #include "kiln/runtime/quadtree.hpp"
+#include "kiln/runtime/structure_registry.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
@@ -73,7 +73,8 @@ std::vector<Box2d> sample_boxes(std::span<const Double2> points, std::size_t cou
   std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
   auto x_at = [&](double t) { return b.min.x - 0.25 * w + 1.5 * w * t; };
   auto y_at = [&](double t) { return b.min.y - 0.25 * h + 1.5 * h * t; };
-  std::vector<Box2d> boxes{b, {{b.min.x - w, b.min.y - h}, {b.max.x + w, b.max.y + h}},
+  std::vector<Box2d> boxes{b,
+                           {{b.min.x - w, b.min.y - h}, {b.max.x + w, b.max.y + h}},
                            {{b.max.x + 1, b.min.y}, {b.max.x + 2, b.max.y}},  // outside
                            {{1, 1}, {0, 0}},                                  // inverted
                            {{b.min.x, b.min.y}, {b.min.x, b.max.y}}};         // a line
@@ -125,8 +126,7 @@ void expect_matches_brute_force(std::span<const Double2> points, const QuadtreeV
   for (const Box2d& box : sample_boxes(points, count, 7)) {
     tree.range(box, found);
     ASSERT_EQ(found, brute_range(points, box))
-        << what << " box " << box.min.x << "," << box.min.y << "," << box.max.x << ","
-        << box.max.y;
+        << what << " box " << box.min.x << "," << box.min.y << "," << box.max.x << "," << box.max.y;
     Cost cost;
     std::vector<std::uint32_t> counted;
     tree.range_counting(box, counted, cost);
@@ -171,9 +171,12 @@ std::vector<Double2> awkward_points(std::size_t n, std::uint32_t seed) {
   std::normal_distribution<double> cluster(0, 0.001);
   std::vector<Double2> points;
   for (std::size_t i = 0; points.size() < n; ++i) {
-    if (i % 4 == 0) points.push_back({double(i % 37), double((i / 37) % 23)});  // lattice
-    else if (i % 4 == 1 && !points.empty()) points.push_back(points[(i * 7919) % points.size()]);
-    else points.push_back({10 + cluster(rng), 5 + cluster(rng)});
+    if (i % 4 == 0)
+      points.push_back({double(i % 37), double((i / 37) % 23)});  // lattice
+    else if (i % 4 == 1 && !points.empty())
+      points.push_back(points[(i * 7919) % points.size()]);
+    else
+      points.push_back({10 + cluster(rng), 5 + cluster(rng)});
   }
   return points;
 }
@@ -234,7 +237,8 @@ TEST(Quadtree, CellsCoverEveryPointOnce) {
   EXPECT_EQ(cells.size(), t.flat.stats.leaf_count);
   std::size_t first = 0;
   for (const IndexCell2& c : cells) {
-    for (std::size_t i = first; i < first + c.items; ++i) EXPECT_TRUE(c.box.contains(t.flat.points[i]));
+    for (std::size_t i = first; i < first + c.items; ++i)
+      EXPECT_TRUE(c.box.contains(t.flat.points[i]));
     EXPECT_LE(c.level, t.flat.stats.depth);
     first += c.items;
   }
@@ -298,7 +302,6 @@ TEST(Quadtree, ForgedNodesAreRefusedOrSafe) {
   EXPECT_GT(refused, 1000u);
 }
 
-
 // A point table of `n` rows as a CSV reader makes it, with feature_points when `multipoint`
 // (row r owns r % 3 points: some rows none).
 Scene point_scene(std::size_t n, bool multipoint, std::uint32_t seed) {
@@ -319,7 +322,8 @@ Scene point_scene(std::size_t n, bool multipoint, std::uint32_t seed) {
   return scene;
 }
 
-void expect_blob_answers(const Blob& blob, std::span<const Double2> points, const std::string& what) {
+void expect_blob_answers(const Blob& blob, std::span<const Double2> points,
+                         const std::string& what) {
   const auto view = open_structure(blob, "quadtree");
   const Point2Queries* q = view->points2();
   ASSERT_NE(q, nullptr);
@@ -442,8 +446,9 @@ TEST(QuadtreeBlob, DumpVerifyAndQueryOnTheCommandLine) {
                                   test::quoted(dir.file("x.csv")));
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_NE(bad.err.find("bad.csv:1:"), std::string::npos) << bad.err;
-  const auto map = test::run_kiln("render " + test::quoted(blob) + " --mode cells --size 200x120 -o " +
-                                  test::quoted(dir.file("map.png")));
+  const auto map =
+      test::run_kiln("render " + test::quoted(blob) + " --mode cells --size 200x120 -o " +
+                     test::quoted(dir.file("map.png")));
   EXPECT_EQ(map.exit_code, 0) << map.err;
   EXPECT_TRUE(std::filesystem::exists(dir.file("map.png")));
 }

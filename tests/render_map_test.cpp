@@ -25,9 +25,9 @@ bool same(const render::Rgb& a, const render::Rgb& b) {
 // Feature 0: the square [0, 10]^2 with the hole [4, 6]^2. Feature 1: two squares, [12, 16] x
 // [0, 4] and [12, 16] x [6, 10] (a multipolygon).
 struct Layer {
-  std::vector<Double2> vertices{{0, 0},   {10, 0},  {10, 10}, {0, 10},  {4, 4},   {6, 4},
-                                {6, 6},   {4, 6},   {12, 0},  {16, 0},  {16, 4},  {12, 4},
-                                {12, 6},  {16, 6},  {16, 10}, {12, 10}};
+  std::vector<Double2> vertices{{0, 0},  {10, 0}, {10, 10}, {0, 10}, {4, 4},  {6, 4},
+                                {6, 6},  {4, 6},  {12, 0},  {16, 0}, {16, 4}, {12, 4},
+                                {12, 6}, {16, 6}, {16, 10}, {12, 10}};
   std::vector<std::uint64_t> rings{0, 4, 8, 12, 16};
   std::vector<std::uint64_t> polygons{0, 2, 3, 4};
   std::vector<std::uint64_t> features{0, 1, 3};
@@ -59,8 +59,7 @@ class BruteLocate final : public PolygonQueries {
         for (std::size_t i = 0; i < ring.size(); ++i) {
           const Double2 a = ring[i], b = ring[(i + 1) % ring.size()];
           cost.tests += 1;
-          if ((a.y <= p.y) != (b.y <= p.y) &&
-              p.x < a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y))
+          if ((a.y <= p.y) != (b.y <= p.y) && p.x < a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y))
             in = !in;
         }
       }

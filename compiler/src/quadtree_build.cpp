@@ -51,11 +51,12 @@ std::array<std::size_t, 5> split_quadrants(const Context& ctx, std::span<std::ui
 }
 
 // Appends `sub` (built as if it started at index 0) to `nodes`, shifting its end indices.
-void append_shifted(std::vector<format::QuadNode>& nodes, const std::vector<format::QuadNode>& sub) {
+void append_shifted(std::vector<format::QuadNode>& nodes,
+                    const std::vector<format::QuadNode>& sub) {
   const auto shift = std::uint32_t(nodes.size());
   for (const format::QuadNode& n : sub)
-    nodes.push_back(format::QuadNode::make(n.first, n.count, n.end() + shift, n.is_leaf(),
-                                           n.quadrant()));
+    nodes.push_back(
+        format::QuadNode::make(n.first, n.count, n.end() + shift, n.is_leaf(), n.quadrant()));
 }
 
 // Appends the subtree over ids[begin, end) (quadrant `quadrant` of its parent, cell `cell`) to

@@ -67,8 +67,8 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
 
 }  // namespace
 
-const StructureBuilder kQuadtreeBuilder{"quadtree",
-                                        "bucket PR quadtree over 2D points (range, knn2d, radius2d)",
-                                        InputKind::kPoint2, quadtree_options(), build};
+const StructureBuilder kQuadtreeBuilder{
+    "quadtree", "bucket PR quadtree over 2D points (range, knn2d, radius2d)", InputKind::kPoint2,
+    quadtree_options(), build};
 
 }  // namespace kiln

@@ -10,12 +10,13 @@
 namespace kiln {
 
 extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointTreeBuilder,
-    kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder, kQuadtreeBuilder;
+    kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder,
+    kQuadtreeBuilder;
 
 namespace {
 
 const StructureBuilder* const kBuilders[] = {
-    &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder, &kVoxelDagBuilder,
+    &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder,  &kVoxelDagBuilder,
     &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder, &kQuadtreeBuilder};
 
 std::string join(const std::vector<std::string>& items) {

@@ -80,8 +80,8 @@ void verify_ids(const Blob& blob, const schema::QuadtreeDesc& d, const std::stri
   std::vector<bool> seen(table.size());
   for (std::size_t i = 0; i < ids.size(); ++i) {
     if (seen[ids[i]])  // the view checked ids[i] < table.size()
-      blob.fail_section(d.point_ids(), name + " names table point " + std::to_string(ids[i]) +
-                                           " twice");
+      blob.fail_section(d.point_ids(),
+                        name + " names table point " + std::to_string(ids[i]) + " twice");
     seen[ids[i]] = true;
     if (std::memcmp(&points[i], &table[ids[i]], sizeof(format::Double2)) != 0)
       blob.fail_section(d.points(),
@@ -138,7 +138,8 @@ void describe_levels(const QuadtreeView& tree, Description& out) {
       levels[level][1] += 1, levels[level][2] += n.count, buckets[n.count] += 1;
       continue;
     }
-    for (std::uint32_t c = node + 1; c < n.end(); c = nodes[c].end()) stack.push_back({c, level + 1});
+    for (std::uint32_t c = node + 1; c < n.end(); c = nodes[c].end())
+      stack.push_back({c, level + 1});
   }
   DescTable per_level{"levels", {"level", "nodes", "leaves", "points"}, {}};
   std::string line = "per level (nodes/leaves/points):";
@@ -162,7 +163,8 @@ void describe_levels(const QuadtreeView& tree, Description& out) {
 Description describe(const Blob& blob, const StructureInfo& info) {
   const auto& q = desc_of<schema::QuadtreeDesc>(blob, info);
   Description out;
-  out.lines.push_back(printf_string("bucket size %u, max depth %u", q.bucket_size(), q.max_depth()));
+  out.lines.push_back(
+      printf_string("bucket size %u, max depth %u", q.bucket_size(), q.max_depth()));
   out.lines.push_back(printf_string(
       "%llu points, %llu nodes, %llu leaves, depth %u, largest bucket %u, %.1f bytes/point",
       (unsigned long long)q.point_count(), (unsigned long long)q.node_count(),

@@ -72,8 +72,8 @@ QuadtreeView::QuadtreeView(std::span<const format::QuadNode> nodes,
   }
   for (std::size_t i = 0; i < ids.size(); ++i)
     if (ids[i] >= table_points)
-      fail("point " + std::to_string(i) + " names table point " + std::to_string(ids[i]) +
-           " of " + std::to_string(table_points));
+      fail("point " + std::to_string(i) + " names table point " + std::to_string(ids[i]) + " of " +
+           std::to_string(table_points));
 }
 
 void QuadtreeView::cells(std::vector<IndexCell2>& out) const {

@@ -13,7 +13,7 @@ extern const StructureKind kVoxelDagKind;               // voxel_dag_kind.cpp
 extern const StructureKind kEsvoKind;                   // esvo_kind.cpp
 extern const StructureKind kOctreeKind;                 // octree_kind.cpp
 extern const StructureKind kGridKind, kNestedGridKind;  // grid_kind.cpp
-extern const StructureKind kQuadtreeKind;              // quadtree_kind.cpp
+extern const StructureKind kQuadtreeKind;               // quadtree_kind.cpp
 
 namespace {
 

@@ -170,8 +170,10 @@ Command add_query_command(CLI::App& app) {
       ->check(CLI::IsMember(
           {"closest", "inside", "box", "knn", "radius", "occupied", "range", "knn2d", "radius2d"}))
       ->required();
-  command->add_option("--in", args->in, "Queries: float32 x 3 per point, x 6 per box (min, max); 2D: CSV rows "
-                      "(x,y or min_x,min_y,max_x,max_y; header optional) or float64 x 2 / x 4")
+  command
+      ->add_option("--in", args->in,
+                   "Queries: float32 x 3 per point, x 6 per box (min, max); 2D: CSV rows "
+                   "(x,y or min_x,min_y,max_x,max_y; header optional) or float64 x 2 / x 4")
       ->required();
   command->add_option("--out", args->out, "Answers (docs/FORMAT.md)")->required();
   command->add_option("--accel", args->accel,
@@ -184,9 +186,8 @@ Command add_query_command(CLI::App& app) {
   add_threads_option(command, args->threads);
   return {command, [args] {
             if (is_points2d_op(args->op))
-              return run_points2d_query(
-                  {args->blob, args->op, args->in, args->out, args->accel, args->k, args->radius,
-                   args->threads});
+              return run_points2d_query({args->blob, args->op, args->in, args->out, args->accel,
+                                         args->k, args->radius, args->threads});
             return run_query(*args);
           }};
 }

@@ -96,15 +96,16 @@ template <class Answer>
 std::string answer_all(std::size_t count, unsigned threads, Answer answer) {
   std::vector<std::string> parts((count + kBatch - 1) / kBatch);
   parallel_for(parts.size(), threads, [&](std::size_t b) {
-    for (std::size_t i = b * kBatch; i < std::min(count, (b + 1) * kBatch); ++i) answer(i, parts[b]);
+    for (std::size_t i = b * kBatch; i < std::min(count, (b + 1) * kBatch); ++i)
+      answer(i, parts[b]);
   });
   std::string out;
   for (const auto& part : parts) out += part;
   return out;
 }
 
-std::string range_answers(const Point2Queries& q, const RowOf& row_of,
-                          const std::vector<double>& v, unsigned threads) {
+std::string range_answers(const Point2Queries& q, const RowOf& row_of, const std::vector<double>& v,
+                          unsigned threads) {
   return "box_index,point_index\n" +
          answer_all(v.size() / 4, threads, [&](std::size_t i, std::string& out) {
            std::vector<std::uint32_t> found;

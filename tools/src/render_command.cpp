@@ -210,7 +210,8 @@ int fail(const std::string& message) {
 int run_render(const RenderArgs& args) {
   try {
     std::string ignored;  // a blob that does not open gets the 3D path's messages
-    if (const auto blob = Blob::try_open_file(args.blob, ignored); blob && render::is_map_blob(*blob))
+    if (const auto blob = Blob::try_open_file(args.blob, ignored);
+        blob && render::is_map_blob(*blob))
       return render::render_map_command(*blob, args.out, args.accel, args.mode, args.size,
                                         args.threads, args.json);
     std::string error;
@@ -256,7 +257,10 @@ Command add_render_command(CLI::App& app) {
                       "Ray structure to use, by name (default: the first that traces rays)");
   command->add_option("--mode", args->mode,
                       "shade (default), normal, depth or heatmap (node visits + primitive "
-                      "tests per ray on viridis, with a legend; --compare's default)");
+                      "tests per ray on viridis, with a legend; --compare's default). A 2D blob "
+                      "(polygon layer, point table) draws a map instead, in an equirectangular "
+                      "(plate carree) projection fitted to its bounds: map (default), cells (the "
+                      "index's leaf cells over it) or heatmap (cost of a point query per pixel)");
   command->add_option("--size", args->size, "Image size WIDTHxHEIGHT, each 1..16384 (per panel)")
       ->capture_default_str();
   command->add_option("--camera", args->camera,

@@ -77,7 +77,8 @@ void fill_feature(Image& image, const std::vector<std::vector<format::Double2>>&
     for (std::size_t i = 0; i < ring.size(); ++i) {
       const format::Double2 a = ring[i], b = ring[(i + 1) % ring.size()];
       if (!std::isfinite(a.x + a.y + b.x + b.y) || a.y == b.y) continue;
-      const long lo = std::max(0L, long(std::ceil(std::clamp(std::min(a.y, b.y), -kFar, kFar) - 0.5)));
+      const long lo =
+          std::max(0L, long(std::ceil(std::clamp(std::min(a.y, b.y), -kFar, kFar) - 0.5)));
       const long hi = std::min(long(image.height) - 1,
                                long(std::ceil(std::clamp(std::max(a.y, b.y), -kFar, kFar) - 0.5)));
       for (long row = lo; row <= hi; ++row) {
@@ -105,8 +106,8 @@ void draw_outlines(Image& image, const std::vector<std::vector<format::Double2>>
       draw_line(image, ring[i], ring[(i + 1) % ring.size()], c);
 }
 
-void draw_polygons(Image& image, const PolygonLayerView& layer, const MapFrame& frame,
-                   bool fill, Rgb outline) {
+void draw_polygons(Image& image, const PolygonLayerView& layer, const MapFrame& frame, bool fill,
+                   Rgb outline) {
   for (std::size_t f = 0; f < layer.feature_count(); ++f) {
     const auto rings = feature_rings(layer, frame, f);
     if (fill) fill_feature(image, rings, feature_colour(f));
@@ -174,8 +175,8 @@ Image draw_heatmap(const MapContent& content, const MapFrame& frame, unsigned th
   Image image(frame.size().width, frame.size().height);
   for (std::size_t i = 0; i < image.pixels.size(); ++i)
     image.pixels[i] = heat_colour(samples.pixels[i].cost(), stats.heat_scale);
+  // Outlines keep the map readable; dots would hide the dense areas the heatmap is about.
   if (content.polygons) draw_polygons(image, *content.polygons, frame, false, kHeatOutline);
-  if (content.points) draw_points(image, *content.points, frame);
   draw_legend(image, stats.heat_scale, stats.max_cost > stats.heat_scale,
               content.polygon_index ? "cost per point query: cells visited + edges tested"
                                     : "cost per pixel box query: nodes visited + points tested");
@@ -193,7 +194,8 @@ std::optional<MapMode> parse_map_mode(std::string_view name) {
 
 MapFrame::MapFrame(const format::Box2d& bounds, Size size) : size_(size) {
   const double w = bounds.max.x - bounds.min.x, h = bounds.max.y - bounds.min.y;
-  const double usable_w = size.width * (1 - 2 * kMargin), usable_h = size.height * (1 - 2 * kMargin);
+  const double usable_w = size.width * (1 - 2 * kMargin),
+               usable_h = size.height * (1 - 2 * kMargin);
   scale_ = std::min(w > 0 ? usable_w / w : INFINITY, h > 0 ? usable_h / h : INFINITY);
   if (!std::isfinite(scale_) || !(scale_ > 0)) scale_ = 1;  // one point, or an empty layer
   const double cx = 0.5 * bounds.min.x + 0.5 * bounds.max.x;

@@ -16,8 +16,8 @@ bool is_map_blob(const Blob& blob) {
 }
 
 int render_map_command(const Blob& blob, const std::string& out, const std::string& accel,
-                       const std::string& mode_name, const std::string& size_text,
-                       unsigned threads, bool json) {
+                       const std::string& mode_name, const std::string& size_text, unsigned threads,
+                       bool json) {
   auto fail = [](const std::string& message) {
     std::cerr << "kiln render: " << message << "\n";
     return 1;
@@ -35,14 +35,16 @@ int render_map_command(const Blob& blob, const std::string& out, const std::stri
   PolygonLayerView layer;
   PointTableView table;
   MapContent content;
-  if (polygons) content.polygons = &(layer = blob.polygon_layer());
-  else content.points = &(table = blob.point_table());
+  if (polygons)
+    content.polygons = &(layer = blob.polygon_layer());
+  else
+    content.points = &(table = blob.point_table());
   ChosenStructure index;
   if (*mode != MapMode::kPlain || !accel.empty()) {
-    index = polygons ? choose_structure(blob, accel, &StructureView::polygons,
-                                        "answer point-in-polygon queries")
-                     : choose_structure(blob, accel, &StructureView::points2,
-                                        "answer 2D point queries");
+    index = polygons
+                ? choose_structure(blob, accel, &StructureView::polygons,
+                                   "answer point-in-polygon queries")
+                : choose_structure(blob, accel, &StructureView::points2, "answer 2D point queries");
     content.polygon_index = index.view->polygons();
     content.point_index = polygons ? nullptr : index.view->points2();
   }
@@ -51,17 +53,17 @@ int render_map_command(const Blob& blob, const std::string& out, const std::stri
   write_file_atomically(out, encode_png(image));
   char line[512];
   if (json)
-    std::snprintf(line, sizeof line,
-                  "{\"image\":\"%s\",\"width\":%u,\"height\":%u,\"mode\":\"%s\",\"structure\":\"%s\","
-                  "\"cells\":%llu,\"mean_cost\":%.6g,\"max_cost\":%u,\"heat_scale\":%u}",
-                  out.c_str(), image.width, image.height, name.c_str(), index.name.c_str(),
-                  (unsigned long long)stats.cells, stats.mean_cost, stats.max_cost,
-                  stats.heat_scale);
+    std::snprintf(
+        line, sizeof line,
+        "{\"image\":\"%s\",\"width\":%u,\"height\":%u,\"mode\":\"%s\",\"structure\":\"%s\","
+        "\"cells\":%llu,\"mean_cost\":%.6g,\"max_cost\":%u,\"heat_scale\":%u}",
+        out.c_str(), image.width, image.height, name.c_str(), index.name.c_str(),
+        (unsigned long long)stats.cells, stats.mean_cost, stats.max_cost, stats.heat_scale);
   else
-    std::snprintf(line, sizeof line, "kiln render: %s %ux%u, %s map%s%s, %llu cells, mean cost %.2f",
-                  out.c_str(), image.width, image.height, name.c_str(),
-                  index.name.empty() ? "" : " with ", index.name.c_str(),
-                  (unsigned long long)stats.cells, stats.mean_cost);
+    std::snprintf(line, sizeof line,
+                  "kiln render: %s %ux%u, %s map%s%s, %llu cells, mean cost %.2f", out.c_str(),
+                  image.width, image.height, name.c_str(), index.name.empty() ? "" : " with ",
+                  index.name.c_str(), (unsigned long long)stats.cells, stats.mean_cost);
   std::cout << line << "\n";
   return 0;
 }

@@ -36,8 +36,7 @@ class QuadtreeView {
   /// whose cell lies inside the box is reported without testing its points.
   void range(const format::Box2d& box, std::vector<std::uint32_t>& out) const;
   /// The same, counting nodes visited and points tested into `cost`.
-  void range_counting(const format::Box2d& box, std::vector<std::uint32_t>& out,
-                      Cost& cost) const;
+  void range_counting(const format::Box2d& box, std::vector<std::uint32_t>& out, Cost& cost) const;
   /// The min(k, point count) nearest, k = out.size(), by (distance, index): best first over
   /// cells by their distance, the k best so far in a bounded heap. Returns how many.
   std::size_t nearest(const format::Double2& q, std::span<Neighbor2> out) const;

@@ -23,6 +23,7 @@ enum class MapMode {
   kPlain,    // polygons filled one colour per feature, outlined; points as dots
   kCells,    // the plain map with the index's leaf cells drawn over it
   kHeatmap,  // each pixel coloured by the cost of a point query at its centre, outlines over it
+             // (points are left out: they would hide the dense areas)
 };
 /// "map", "cells", "heatmap".
 std::optional<MapMode> parse_map_mode(std::string_view name);
@@ -65,7 +66,7 @@ Rgb feature_colour(std::uint64_t feature);
 
 /// Draws the map: polygons filled with the even-odd rule over every ring of a feature (so holes
 /// stay open), later features over earlier ones, then outlines, points, cells; or the heatmap
-/// under outlines and points, with its legend. Heatmap queries run on up to `threads` threads;
+/// under the outlines, with its legend. Heatmap queries run on up to `threads` threads;
 /// the image never depends on the count. Throws std::invalid_argument when the mode needs an
 /// index that `content` lacks.
 Image draw_map(const MapContent& content, MapMode mode, Size size, unsigned threads,
@@ -79,7 +80,7 @@ bool is_map_blob(const Blob& blob);
 /// layer's queries), written atomically to `out` as PNG; a summary line (or JSON) on stdout.
 /// Returns the exit status; one line on stderr on any error.
 int render_map_command(const Blob& blob, const std::string& out, const std::string& accel,
-                       const std::string& mode_name, const std::string& size_text,
-                       unsigned threads, bool json);
+                       const std::string& mode_name, const std::string& size_text, unsigned threads,
+                       bool json);
 
 }  // namespace kiln::render
