@@ -1,6 +1,6 @@
 // Quadtree range queries against a brute-force scan and (with -DKILN_BENCH_GEO=ON) Boost.Geometry's
 // R-tree (libboost-dev, benchmark only), single thread, on the same points and boxes; the
-// quadtree's bucket size and its two point layouts
+// quadtree's bucket size (range and k = 8 nearest) and its two point layouts
 // (Double2 copies in leaf order, as stored, against ids only with coordinates read from the
 // table), which chose the defaults.
 //
@@ -206,6 +206,13 @@ void run_round(Bench& bench, const std::string& name, const std::vector<Double2>
         return rtree->size();
       });
 #endif
+    const auto centres = boxes_around(points, 1e-4 * width, bench.queries, 9);
+    bench.add(name + " knn8 " + tag, centres.size(), [&] {
+      std::uint64_t total = 0;
+      std::vector<kiln::Neighbor2> near(8);
+      for (const auto& c : centres) total += tree.nearest(c.min, near);
+      return total;
+    });
     for (const double side : {0.001, 0.01, 0.05}) {
       // Fewer of the larger boxes: each returns hundreds to thousands of points.
       const std::size_t count = side < 0.005  ? bench.queries

@@ -1,6 +1,7 @@
 // Maps of 2D blobs: polygons filled by scanlines (even-odd over every ring of a feature),
 // outlines, points as dots, the index's cells, or a heatmap of per-query cost, in an
-// equirectangular projection fitted to the layer's bounds.
+// equirectangular projection fitted to the layer's bounds (across the antimeridian when that
+// frames it tighter).
 #include "kiln/tools/render_map.hpp"
 
 #include <algorithm>
@@ -134,6 +135,7 @@ std::uint64_t draw_cells(Image& image, const MapContent& content, const MapFrame
   else
     content.point_index->cells(cells);
   for (const IndexCell2& c : cells) {
+    if (frame.wrap() && c.box.min.x < 0 && c.box.max.x >= 0) continue;  // would span the map
     const format::Double2 a = frame.to_pixel(c.box.min), b = frame.to_pixel(c.box.max);
     draw_line(image, a, {b.x, a.y}, kCell);
     draw_line(image, {b.x, a.y}, b, kCell);
@@ -183,6 +185,26 @@ Image draw_heatmap(const MapContent& content, const MapFrame& frame, unsigned th
   return image;
 }
 
+// The layer's bounds, or, for longitudes and latitudes whose span shrinks by a quarter or more
+// when the western ones move 360 degrees east, those wrapped bounds (a gap around 0 degrees:
+// no ring crosses it).
+MapFrame fit_frame(const MapContent& content, Size size) {
+  format::Box2d bounds, wrapped;
+  auto grow = [&](const format::Double2& p) {
+    bounds.grow(p);
+    wrapped.grow(format::Double2{p.x < 0 ? p.x + 360 : p.x, p.y});
+  };
+  if (content.polygons)
+    for (const auto& v : content.polygons->vertices) grow(v);
+  if (content.points)
+    for (const auto& p : content.points->points) grow(p);
+  const bool geographic =
+      bounds.min.x >= -180 && bounds.max.x <= 180 && bounds.min.y >= -90 && bounds.max.y <= 90;
+  const bool wrap =
+      geographic && wrapped.max.x - wrapped.min.x < 0.75 * (bounds.max.x - bounds.min.x);
+  return MapFrame(wrap ? wrapped : bounds, size, wrap);
+}
+
 }  // namespace
 
 std::optional<MapMode> parse_map_mode(std::string_view name) {
@@ -192,7 +214,7 @@ std::optional<MapMode> parse_map_mode(std::string_view name) {
   return std::nullopt;
 }
 
-MapFrame::MapFrame(const format::Box2d& bounds, Size size) : size_(size) {
+MapFrame::MapFrame(const format::Box2d& bounds, Size size, bool wrap) : size_(size), wrap_(wrap) {
   const double w = bounds.max.x - bounds.min.x, h = bounds.max.y - bounds.min.y;
   const double usable_w = size.width * (1 - 2 * kMargin),
                usable_h = size.height * (1 - 2 * kMargin);
@@ -205,11 +227,13 @@ MapFrame::MapFrame(const format::Box2d& bounds, Size size) : size_(size) {
 }
 
 format::Double2 MapFrame::to_pixel(const format::Double2& p) const {
-  return {(p.x - left_) * scale_, (top_ - p.y) * scale_};
+  const double x = wrap_ && p.x < 0 ? p.x + 360 : p.x;
+  return {(x - left_) * scale_, (top_ - p.y) * scale_};
 }
 
 format::Double2 MapFrame::pixel_centre(std::uint32_t i, std::uint32_t j) const {
-  return {left_ + (i + 0.5) / scale_, top_ - (j + 0.5) / scale_};
+  const double x = left_ + (i + 0.5) / scale_;
+  return {wrap_ && x >= 180 ? x - 360 : x, top_ - (j + 0.5) / scale_};
 }
 
 Rgb feature_colour(std::uint64_t feature) {
@@ -226,10 +250,7 @@ Image draw_map(const MapContent& content, MapMode mode, Size size, unsigned thre
   const bool indexed = content.polygon_index || content.point_index;
   if (mode != MapMode::kPlain && !indexed)
     throw std::invalid_argument("--mode cells and heatmap need a 2D index (build one: --accel)");
-  format::Box2d bounds;
-  if (content.polygons) bounds.grow(content.polygons->bounds);
-  if (content.points) bounds.grow(content.points->bounds);
-  const MapFrame frame(bounds, size);
+  const MapFrame frame = fit_frame(content, size);
   MapStats local;
   MapStats& s = stats ? *stats : local;
   s = {};

@@ -1,7 +1,8 @@
 // `kiln render` on a 2D blob: a map of its polygon layer or point table (render_map.cpp).
 // Projection: equirectangular (plate carrée): x = longitude (or x), y = latitude (or y), one
-// scale for both axes, fitted to the layer's bounds with a small margin; index cells, which
-// are boxes in those coordinates, stay rectangles on the map.
+// scale for both axes, fitted to the layer's bounds with a small margin (across the antimeridian
+// when that is tighter); index cells, which are boxes in those coordinates, stay rectangles on the
+// map.
 #pragma once
 
 #include <cstdint>
@@ -28,10 +29,12 @@ enum class MapMode {
 /// "map", "cells", "heatmap".
 std::optional<MapMode> parse_map_mode(std::string_view name);
 
-/// Where the map's pixels lie in layer coordinates: `bounds` fitted into `size`, centred.
+/// Where the map's pixels lie in layer coordinates: `bounds` fitted into `size`, centred. With
+/// `wrap`, longitudes below 0 are drawn 360 degrees east (and `bounds` are in those terms), so
+/// a layer across the antimeridian (the Aleutians, Pacific islands) stays in one piece.
 class MapFrame {
  public:
-  MapFrame(const format::Box2d& bounds, Size size);
+  MapFrame(const format::Box2d& bounds, Size size, bool wrap = false);
   /// Pixel coordinates (x right, y down; pixel (i, j) covers [i, i+1) x [j, j+1)).
   format::Double2 to_pixel(const format::Double2& p) const;
   /// The layer point at the centre of pixel (i, j).
@@ -39,9 +42,11 @@ class MapFrame {
   /// Layer units per pixel.
   double pixel_size() const { return 1.0 / scale_; }
   Size size() const { return size_; }
+  bool wrap() const { return wrap_; }
 
  private:
   Size size_;
+  bool wrap_ = false;
   double scale_ = 1, left_ = 0, top_ = 0;  // pixels per unit; the layer x at pixel 0, y at row 0
 };
 
