@@ -200,7 +200,7 @@ void run_round(Bench& bench, const std::string& name, const std::vector<Double2>
     const kiln::QuadtreeView tree(flat.nodes, flat.points, flat.ids, flat.root, points.size());
 #ifdef KILN_BENCH_GEO
     std::unique_ptr<RTree> rtree;
-    if (bucket == 8)
+    if (bucket == 32)
       bench.add(name + " build boost rtree", 1, [&] {
         rtree = build_rtree(points);
         return rtree->size();
@@ -225,7 +225,7 @@ void run_round(Bench& bench, const std::string& name, const std::vector<Double2>
         for (const auto& box : boxes) tree.range(box, found), total += found.size();
         return total;
       });
-      if (bucket != 8) continue;
+      if (bucket != 32) continue;
       bench.add(what + "walk only, copies", boxes.size(), [&] {
         std::uint64_t total = 0;
         for (const auto& box : boxes)

@@ -201,6 +201,9 @@ TEST(Quadtree, MatchesBruteForceOnUniformPoints) {
   for (const std::uint32_t bucket : {1u, 8u, 64u})
     expect_matches_brute_force(points, build(points, bucket).view(), 300,
                                "uniform, bucket " + std::to_string(bucket));
+  // Answers of 10^3-10^4 points among 1.2 * 10^5: both long-answer sorts (radix and bitmap).
+  const auto many = uniform_points(120000, 6);
+  expect_matches_brute_force(many, build(many, 32).view(), 40, "uniform, 120k");
 }
 
 TEST(Quadtree, MatchesBruteForceWithTiesAndDuplicates) {

@@ -15,7 +15,7 @@ namespace {
 
 std::vector<StructureOption> quadtree_options() {
   return {
-      {"bucket-size", "--quadtree-bucket-size", "8",
+      {"bucket-size", "--quadtree-bucket-size", "32",
        "Quadtree: most points per leaf (except at max-depth or for coincident points)", false,
        parse_uint_in(1, kMaxQuadBucketSize)},
       {"max-depth", "--quadtree-max-depth", "32",

@@ -57,16 +57,27 @@ void push_children(std::span<const format::QuadNode> nodes, const Pending& p,
   while (count > 0) stack[top++] = children[--count];
 }
 
-// Sorts indices ascending in O(k): least significant digit first, 11 bits at a time (three
-// stable counting passes), for the long answers of large boxes, where a comparison sort would
-// cost more than the walk; short answers use std::sort.
-void sort_indices(std::vector<std::uint32_t>& ids) {
+// Sorts the k indices (all below n) of an answer ascending. Long answers of large boxes would
+// cost more to sort by comparison than to find: a dense one (k >= n / 32) is marked in a bitmap
+// of n bits and read back in order, O(n / 64 + k); a sparse one is radix sorted, least
+// significant digit first, 11 bits at a time, one stable counting pass per digit n needs.
+void sort_indices(std::vector<std::uint32_t>& ids, std::size_t n) {
   if (ids.size() < 512) {
     std::sort(ids.begin(), ids.end());
     return;
   }
+  if (ids.size() >= n / 32) {
+    std::vector<std::uint64_t> bits((n + 63) / 64);
+    for (const auto id : ids) bits[id >> 6] |= std::uint64_t{1} << (id & 63);
+    std::size_t k = 0;
+    for (std::size_t w = 0; w < bits.size(); ++w)
+      for (std::uint64_t word = bits[w]; word != 0; word &= word - 1)
+        ids[k++] = std::uint32_t(w * 64 + std::size_t(__builtin_ctzll(word)));
+    ids.resize(k);  // fewer only when forged ids repeat: nothing is read or written past k
+    return;
+  }
   std::vector<std::uint32_t> scratch(ids.size());
-  for (int shift = 0; shift < 32; shift += 11) {
+  for (int shift = 0; shift < 32 && (std::uint64_t(n - 1) >> shift) != 0; shift += 11) {
     std::array<std::uint32_t, 2049> start{};
     for (const auto id : ids) start[((id >> shift) & 2047u) + 1] += 1;
     for (std::size_t d = 1; d < start.size(); ++d) start[d] += start[d - 1];
@@ -99,7 +110,7 @@ void QuadtreeView::range_impl(const format::Box2d& box, std::vector<std::uint32_
       push_children(nodes_, p, stack, top, [&](const format::Box2d& c) { return c.overlaps(box); });
     }
   }
-  sort_indices(out);
+  sort_indices(out, table_points_);
 }
 
 void QuadtreeView::range(const format::Box2d& box, std::vector<std::uint32_t>& out) const {

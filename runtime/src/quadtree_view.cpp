@@ -48,7 +48,7 @@ QuadtreeView::QuadtreeView(std::span<const format::QuadNode> nodes,
                            std::span<const format::Double2> points,
                            std::span<const std::uint32_t> ids, const format::Box2d& root,
                            std::uint64_t table_points, const std::string& name)
-    : nodes_(nodes), points_(points), ids_(ids), root_(root) {
+    : nodes_(nodes), points_(points), ids_(ids), root_(root), table_points_(table_points) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
   if (points.size() != ids.size())
     fail(std::to_string(points.size()) + " points but " + std::to_string(ids.size()) + " ids");

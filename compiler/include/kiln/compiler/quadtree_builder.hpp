@@ -12,9 +12,9 @@
 namespace kiln {
 
 struct QuadtreeBuildOptions {
-  std::uint32_t bucket_size = 8;  // most points per leaf, except at max_depth (docs/BENCHMARKS.md)
-  std::uint32_t max_depth = 32;   // deepest leaf level (root = 0); coincident points stop there
-  unsigned threads = 0;           // never changes the result
+  std::uint32_t bucket_size = 32;  // most points per leaf, except at max_depth (docs/BENCHMARKS.md)
+  std::uint32_t max_depth = 32;    // deepest leaf level (root = 0); coincident points stop there
+  unsigned threads = 0;            // never changes the result
 };
 
 inline constexpr std::uint32_t kMaxQuadBucketSize = 4096;

@@ -58,6 +58,7 @@ class QuadtreeView {
   std::span<const format::Double2> points_;
   std::span<const std::uint32_t> ids_;
   format::Box2d root_;
+  std::uint64_t table_points_ = 0;
 };
 
 }  // namespace kiln
