@@ -11,6 +11,49 @@
 
 namespace kiln::render {
 
+namespace {
+
+// `text` as a JSON string's contents: quotes, backslashes and control characters escaped.
+std::string json_escaped(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char code[8];
+      std::snprintf(code, sizeof code, "\\u%04x", unsigned(c));
+      out += code;
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+// One line on stdout: the image, the mode, the index and the costs (JSON with --json).
+void print_summary(const std::string& out, const std::string& name, const std::string& index,
+                   const Image& image, const MapStats& stats, bool json) {
+  char numbers[256];
+  if (json) {
+    std::snprintf(numbers, sizeof numbers,
+                  "\"width\":%u,\"height\":%u,\"cells\":%llu,\"mean_cost\":%.6g,\"max_cost\":%u,"
+                  "\"heat_scale\":%u}",
+                  image.width, image.height, (unsigned long long)stats.cells, stats.mean_cost,
+                  stats.max_cost, stats.heat_scale);
+    std::cout << "{\"image\":\"" << json_escaped(out) << "\",\"mode\":\"" << name
+              << "\",\"structure\":\"" << json_escaped(index) << "\"," << numbers << "\n";
+    return;
+  }
+  std::snprintf(numbers, sizeof numbers, " %ux%u, --mode %s", image.width, image.height, name.c_str());
+  std::cout << "kiln render: " << out << numbers << (index.empty() ? "" : ", index ") << index;
+  std::snprintf(numbers, sizeof numbers, ", %llu cells, mean cost %.2f",
+                (unsigned long long)stats.cells, stats.mean_cost);
+  std::cout << numbers << "\n";
+}
+
+}  // namespace
+
 bool is_map_blob(const Blob& blob) {
   return blob.input().kind == InputKind::kPolygons2 || blob.input().kind == InputKind::kPoint2;
 }
@@ -51,20 +94,7 @@ int render_map_command(const Blob& blob, const std::string& out, const std::stri
   MapStats stats;
   const Image image = draw_map(content, *mode, *size, threads, &stats);
   write_file_atomically(out, encode_png(image));
-  char line[512];
-  if (json)
-    std::snprintf(
-        line, sizeof line,
-        "{\"image\":\"%s\",\"width\":%u,\"height\":%u,\"mode\":\"%s\",\"structure\":\"%s\","
-        "\"cells\":%llu,\"mean_cost\":%.6g,\"max_cost\":%u,\"heat_scale\":%u}",
-        out.c_str(), image.width, image.height, name.c_str(), index.name.c_str(),
-        (unsigned long long)stats.cells, stats.mean_cost, stats.max_cost, stats.heat_scale);
-  else
-    std::snprintf(line, sizeof line,
-                  "kiln render: %s %ux%u, %s map%s%s, %llu cells, mean cost %.2f", out.c_str(),
-                  image.width, image.height, name.c_str(), index.name.empty() ? "" : " with ",
-                  index.name.c_str(), (unsigned long long)stats.cells, stats.mean_cost);
-  std::cout << line << "\n";
+  print_summary(out, name, index.name, image, stats, json);
   return 0;
 }
 
