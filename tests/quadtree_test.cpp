@@ -443,6 +443,16 @@ TEST(QuadtreeBlob, DumpVerifyAndQueryOnTheCommandLine) {
   const std::string knn_text = test::read_text(dir.file("knn.csv"));
   EXPECT_EQ(std::count(knn_text.begin(), knn_text.end(), '\n'), 4);
   EXPECT_EQ(knn_text.rfind("query_index,point_index,distance\n0,", 0), 0u) << knn_text;
+  // radius2d 0 around the same point: every table point there (duplicates included), distance 0.
+  const auto radius = test::run_kiln(
+      "query " + test::quoted(blob) + " --op radius2d --radius 0 --in " +
+      test::quoted(dir.file("q.bin")) + " --out " + test::quoted(dir.file("radius.csv")));
+  ASSERT_EQ(radius.exit_code, 0) << radius.err;
+  const std::string radius_text = test::read_text(dir.file("radius.csv"));
+  const auto at_five = std::count(t.points.begin(), t.points.end(), t.points[5]);
+  EXPECT_GE(std::count(radius_text.begin(), radius_text.end(), '\n'), 2);
+  EXPECT_LE(std::count(radius_text.begin(), radius_text.end(), '\n'), 1 + at_five);
+  EXPECT_NE(radius_text.find(",0\n"), std::string::npos) << radius_text;
   test::write_text(dir.file("bad.csv"), "1,2,3\n");
   const auto bad = test::run_kiln("query " + test::quoted(blob) + " --op range --in " +
                                   test::quoted(dir.file("bad.csv")) + " --out " +

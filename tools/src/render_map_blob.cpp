@@ -45,7 +45,8 @@ void print_summary(const std::string& out, const std::string& name, const std::s
               << "\",\"structure\":\"" << json_escaped(index) << "\"," << numbers << "\n";
     return;
   }
-  std::snprintf(numbers, sizeof numbers, " %ux%u, --mode %s", image.width, image.height, name.c_str());
+  std::snprintf(numbers, sizeof numbers, " %ux%u, --mode %s", image.width, image.height,
+                name.c_str());
   std::cout << "kiln render: " << out << numbers << (index.empty() ? "" : ", index ") << index;
   std::snprintf(numbers, sizeof numbers, ", %llu cells, mean cost %.2f",
                 (unsigned long long)stats.cells, stats.mean_cost);
