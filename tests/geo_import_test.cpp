@@ -140,7 +140,11 @@ TEST(GeoJsonImport, BareFeatureAndGeometryAndKeyOrder) {
            .polygons;
   EXPECT_EQ(b.names[0], "b");
   EXPECT_EQ(b.name_property, "NAME");
-  const GeoInput c = import_geojson("in.json", R"({"type":"Point","coordinates":[1,2]})", {});
+  // A UTF-8 byte order mark is skipped.
+  const GeoInput c = import_geojson("in.json",
+                                    "\xEF\xBB\xBF"
+                                    R"({"type":"Point","coordinates":[1,2]})",
+                                    {});
   ASSERT_TRUE(c.points);
   EXPECT_EQ(c.points->points, (std::vector<Double2>{{1, 2}}));
   EXPECT_TRUE(c.points->feature_points.empty());  // point i is feature i
@@ -497,6 +501,12 @@ TEST(GeoImport, KilnBuildWritesTheLayer) {
                      " --lon-column lon --x-column lat --lat-column lat");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.err, "kiln build: --lon-column and --x-column differ\n");
+  r = test::run_kiln("build " + test::quoted(dir.file("m.geojson")) + " -o " + test::quoted(blob) +
+                     " --lon-column lon");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err,
+            "kiln build: --lon-column/--lat-column (--x-column/--y-column) apply to a CSV input "
+            "only\n");
   r = test::run_kiln("build " + test::quoted(dir.file("p.csv")) + " -o " + test::quoted(blob) +
                      " --lon-column lon --lat-column lat");
   ASSERT_EQ(r.exit_code, 0) << r.err;
