@@ -8,7 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "kiln/compiler/build_cache.hpp"
 #include "kiln/compiler/geo_import.hpp"
+#include "kiln/runtime/blob.hpp"
 #include "test_support.hpp"
 
 namespace kiln {
@@ -138,7 +140,11 @@ TEST(GeoJsonImport, BareFeatureAndGeometryAndKeyOrder) {
            .polygons;
   EXPECT_EQ(b.names[0], "b");
   EXPECT_EQ(b.name_property, "NAME");
-  const GeoInput c = import_geojson("in.json", R"({"type":"Point","coordinates":[1,2]})", {});
+  // A UTF-8 byte order mark is skipped.
+  const GeoInput c = import_geojson("in.json",
+                                    "\xEF\xBB\xBF"
+                                    R"({"type":"Point","coordinates":[1,2]})",
+                                    {});
   ASSERT_TRUE(c.points);
   EXPECT_EQ(c.points->points, (std::vector<Double2>{{1, 2}}));
   EXPECT_TRUE(c.points->feature_points.empty());  // point i is feature i
@@ -224,6 +230,10 @@ TEST(GeoJsonImport, BrokenFeaturesAreOneLine) {
                 {feature(R"({"type":"Point","coordinates":[1,2]})", "", R"({"name":[1]})")})),
             "in.geojson: feature 0: its property 'name' is an array, not a string or number");
   EXPECT_EQ(geojson_error(collection({"3"})), "in.geojson: feature 0: is not an object");
+  // Text from the file stays on one line.
+  EXPECT_EQ(geojson_error(collection({feature(R"({"type":"Line\nString"})", R"("a\nb")")})),
+            "in.geojson: feature 0 (id a?b): a geometry of type 'Line?String' is not supported "
+            "(only Polygon, MultiPolygon, Point, MultiPoint)");
   EXPECT_EQ(geojson_error(collection({R"({"type":"Feeture","geometry":null})"})),
             "in.geojson: feature 0: its type is 'Feeture', not 'Feature'");
 }
@@ -248,6 +258,10 @@ TEST(GeoJsonImport, FileLevelErrorsAreOneLine) {
   EXPECT_EQ(geojson_error(R"({"features":[]})"),
             "in.geojson: not GeoJSON: an object with \"features\" whose type is '', not "
             "'FeatureCollection'");
+  EXPECT_EQ(geojson_error(R"({"type":"FeatureCollection"})"),
+            "in.geojson: not GeoJSON: a FeatureCollection with no \"features\" array");
+  EXPECT_EQ(geojson_error(R"({"type":"Feature","geometry":{"type":"Point"}})"),
+            "in.geojson: feature 0: the Point has no \"coordinates\"");
   EXPECT_EQ(geojson_error("{\"type\":\n\"Polygon\",]"),
             "in.geojson: not valid JSON: parse error at line 2, column 11: syntax error while "
             "parsing object key - unexpected ']'; expected string literal");
@@ -402,10 +416,11 @@ TEST(GeoImport, SharedCountiesStatesCountries) {
 
   // States: Illinois (feature 19, id 17) has a ring that does not close.
   const std::string states = geo_dir() + "/us-states-10m.geojson.zst";
-  EXPECT_NE(error_of([&] { import_geo_file(states, {}); })
-                .find("us-states-10m.geojson.zst: feature 19 (id 17): polygon 0, ring 0 is not "
-                      "closed"),
-            std::string::npos);
+  EXPECT_EQ(error_of([&] { import_geo_file(states, {}); }),
+            states +
+                ": feature 19 (id 17): polygon 0, ring 0 is not closed: it starts at "
+                "(-88.41357715247152, 37.42399851987519) and ends at (-88.41357715247152, "
+                "37.42485757956579)");
   const PolygonLayer s = *import_geo_file(states, skipping()).polygons;
   EXPECT_EQ(s.feature_count(), 56u);
   EXPECT_EQ(s.features_skipped, 1u);
@@ -426,6 +441,94 @@ TEST(GeoImport, SharedZipcodes) {
   EXPECT_EQ(z.points->points.size(), 42049u);
   EXPECT_EQ(z.points->rows_skipped, 0u);
   EXPECT_EQ(z.points->points[0], (Double2{-72.637078, 40.922326}));
+}
+
+// `kiln build` end to end, with no structure (a map): the blob's layer is what the reader gave.
+TEST(GeoImport, KilnBuildWritesTheLayer) {
+  test::TempDir dir;
+  const std::string text = collection({
+      feature(std::string(R"({"type":"Polygon","coordinates":[)") + kSquare + "," + kHole + "]}",
+              R"("a")", R"({"label":"first"})"),
+      feature(R"({"type":"Polygon","coordinates":[[[0,0],[1,0],[1,1],[0,1]]]})", R"("b")"),
+  });
+  test::write_text(dir.file("m.geojson"), text);
+  const std::string blob = dir.file("m.kiln");
+  const auto build = [&](const std::string& flags) {
+    return test::run_kiln("build " + test::quoted(dir.file("m.geojson")) + " -o " +
+                          test::quoted(blob) + " " + flags);
+  };
+  test::CommandResult r = build("--name-property label");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "kiln build: " + dir.file("m.geojson") +
+                       ": feature 1 (id b): polygon 0, ring 0 is not closed: it starts at (0, 0) "
+                       "and ends at (0, 1)\n");
+  r = build("--name-property label --skip-invalid");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Blob b = Blob::open_file(blob);
+  b.verify();
+  const PolygonLayerView layer = b.polygon_layer();
+  const PolygonLayer given = *import_geojson("m.geojson", text,
+                                             [] {
+                                               GeoImportOptions o = naming("label");
+                                               o.skip_invalid = true;
+                                               return o;
+                                             }())
+                                  .polygons;
+  EXPECT_EQ(layer.feature_count(), 2u);
+  EXPECT_EQ(layer.features_skipped, 1u);
+  EXPECT_EQ(layer.name_property, "label");
+  EXPECT_EQ(layer.names[0], "first");
+  EXPECT_EQ(layer.ids[1], "b");
+  EXPECT_TRUE(std::equal(layer.vertices.begin(), layer.vertices.end(), given.vertices.begin(),
+                         given.vertices.end()));
+  EXPECT_TRUE(std::equal(layer.ring_vertices.begin(), layer.ring_vertices.end(),
+                         given.ring_vertices.begin(), given.ring_vertices.end()));
+
+  // A CSV needs its columns; a 2D input is alone; the flags are refused when they disagree.
+  test::write_text(dir.file("p.csv"), "lon,lat\n1,2\n");
+  r = test::run_kiln("build " + test::quoted(dir.file("p.csv")) + " -o " + test::quoted(blob));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "kiln build: " + dir.file("p.csv") +
+                       ": a CSV input needs --lon-column and --lat-column (or --x-column and "
+                       "--y-column) naming its coordinate columns\n");
+  r = test::run_kiln("build " + test::quoted(dir.file("p.csv")) + " " +
+                     test::quoted(dir.file("m.geojson")) + " -o " + test::quoted(blob));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "kiln build: " + dir.file("p.csv") +
+                       ": a 2D input (GeoJSON, CSV) must be the blob's only input (2 inputs "
+                       "given: build one blob each)\n");
+  r = test::run_kiln("build " + test::quoted(dir.file("p.csv")) + " -o " + test::quoted(blob) +
+                     " --lon-column lon --x-column lat --lat-column lat");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err, "kiln build: --lon-column and --x-column differ\n");
+  r = test::run_kiln("build " + test::quoted(dir.file("m.geojson")) + " -o " + test::quoted(blob) +
+                     " --lon-column lon");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err,
+            "kiln build: --lon-column/--lat-column (--x-column/--y-column) apply to a CSV input "
+            "only\n");
+  r = test::run_kiln("build " + test::quoted(dir.file("p.csv")) + " -o " + test::quoted(blob) +
+                     " --lon-column lon --lat-column lat");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Blob p = Blob::open_file(blob);
+  EXPECT_EQ(p.point_table().x_column, "lon");
+  EXPECT_EQ(p.point_table().points[0], (Double2{1, 2}));
+}
+
+// How a 2D input is read changes the blob, so it enters the build cache key.
+TEST(GeoImport, ReadOptionsEnterTheCacheKey) {
+  BuildOptions base;
+  base.inputs = {"m.geojson"};
+  const Hash128 hashes[1] = {};
+  const Hash128 key = direct_key(base, hashes, "fp");
+  for (int field = 0; field < 4; ++field) {
+    BuildOptions other = base;
+    if (field == 0) other.geo.name_property = "NAME";
+    if (field == 1) other.geo.x_column = "lon";
+    if (field == 2) other.geo.y_column = "lat";
+    if (field == 3) other.geo.skip_invalid = true;
+    EXPECT_NE(direct_key(other, hashes, "fp"), key) << field;
+  }
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -67,10 +68,23 @@ double parse_double(const std::string& raw) {
   return value;
 }
 
+// Text from the file for an error line: control characters as '?', at most 40 bytes, so the
+// line stays one short line.
+std::string printable(std::string_view text) {
+  std::string out;
+  for (std::size_t i = 0; i < text.size() && i < 40; ++i)
+    out += static_cast<unsigned char>(text[i]) < 0x20 ? '?' : text[i];
+  if (text.size() > 40) out += "...";
+  return out;
+}
+
+// "(x, y)", each in the shortest text that reads back as the same double (as the file wrote it,
+// usually).
 std::string point_text(format::Double2 p) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, "(%.17g, %.17g)", p.x, p.y);
-  return buffer;
+  char buffer[2][32];
+  const auto x = std::to_chars(buffer[0], buffer[0] + 32, p.x).ptr;
+  const auto y = std::to_chars(buffer[1], buffer[1] + 32, p.y).ptr;
+  return "(" + std::string(buffer[0], x) + ", " + std::string(buffer[1], y) + ")";
 }
 
 // Reads the coordinate tokens of one geometry, appending to the layer or table being built.
@@ -88,22 +102,26 @@ class CoordReader {
     if (op_ < t_.ops.size() && t_.ops[op_] == ']') return ++op_, true;
     return false;
   }
-  // A position: [x, y, ...]; a third number (altitude) and more are ignored.
-  format::Double2 position(const std::string& what) {
-    open(what);
+  // A position: [x, y, ...]; a third number (altitude) and more are ignored. Named in errors
+  // "PREFIXpoint INDEX", or PREFIX alone without an index (built only on error: one per vertex
+  // would cost more than the parse).
+  format::Double2 position(const std::string& prefix, std::optional<std::size_t> index) {
+    const auto name = [&] { return index ? prefix + "point " + std::to_string(*index) : prefix; };
+    if (op_ >= t_.ops.size() || t_.ops[op_] != '[') throw FeatureError{name() + " is not an array"};
+    ++op_;
     double xy[2] = {0, 0};
     std::size_t count = 0;
     while (!close()) {
       if (op_ >= t_.ops.size() || t_.ops[op_] != 'n')
-        throw FeatureError{what + " holds something other than numbers"};
+        throw FeatureError{name() + " holds something other than numbers"};
       const double v = t_.numbers[num_++];
       if (count < 2) xy[count] = v;
       ++count, ++op_;
     }
     if (count < 2)
-      throw FeatureError{what + " has " + std::to_string(count) + " coordinates, not 2"};
+      throw FeatureError{name() + " has " + std::to_string(count) + " coordinates, not 2"};
     if (!std::isfinite(xy[0]) || !std::isfinite(xy[1]))
-      throw FeatureError{what + " has a coordinate that is not finite"};
+      throw FeatureError{name() + " has a coordinate that is not finite"};
     return {xy[0], xy[1]};
   }
 
@@ -137,8 +155,8 @@ class LayerBuilder {
  private:
   enum class Kind { kNone, kPolygons, kPoints };
   std::string where(std::size_t index, const std::string& id) const {
-    return path_ + ": feature " + std::to_string(index) + (id.empty() ? "" : " (id " + id + ")") +
-           ": ";
+    return path_ + ": feature " + std::to_string(index) +
+           (id.empty() ? "" : " (id " + printable(id) + ")") + ": ";
   }
   void check_kind(Kind kind, const std::string& type, std::size_t index, const std::string& id);
   void read_polygons(const Geometry& g);
@@ -182,8 +200,8 @@ void LayerBuilder::read_polygon(CoordReader& r, const std::string& what) {
     const std::string ring_what = what + ", ring " + std::to_string(ring);
     r.open(ring_what);
     const std::size_t begin = layer_.vertices.size();
-    for (std::size_t i = 0; !r.close(); ++i)
-      layer_.vertices.push_back(r.position(ring_what + ", point " + std::to_string(i)));
+    const std::string prefix = ring_what + ", ";
+    for (std::size_t i = 0; !r.close(); ++i) layer_.vertices.push_back(r.position(prefix, i));
     const std::span<const format::Double2> v(layer_.vertices.data() + begin,
                                              layer_.vertices.size() - begin);
     if (v.size() < 4)
@@ -220,11 +238,10 @@ void LayerBuilder::read_polygons(const Geometry& g) {
 void LayerBuilder::read_points(const Geometry& g) {
   CoordReader r(g.coords);
   if (g.type == "Point") {
-    table_.points.push_back(r.position("the point"));
+    table_.points.push_back(r.position("the point", std::nullopt));
   } else {
     r.open("the coordinates");
-    for (std::size_t i = 0; !r.close(); ++i)
-      table_.points.push_back(r.position("point " + std::to_string(i)));
+    for (std::size_t i = 0; !r.close(); ++i) table_.points.push_back(r.position("", i));
   }
   if (!r.at_end()) throw FeatureError{"the coordinates hold more than one array"};
 }
@@ -243,7 +260,7 @@ void LayerBuilder::add_feature(const FeatureState& f, std::size_t index, bool in
     if (!f.error.empty()) throw FeatureError{f.error};
     if (in_collection && !f.has_type) throw FeatureError{"has no \"type\""};
     if (in_collection && f.type != "Feature")
-      throw FeatureError{"its type is '" + f.type + "', not 'Feature'"};
+      throw FeatureError{"its type is '" + printable(f.type) + "', not 'Feature'"};
     const Geometry& g = f.geometry;
     if (g.collection || g.type == "GeometryCollection")
       throw FeatureError{
@@ -262,7 +279,7 @@ void LayerBuilder::add_feature(const FeatureState& f, std::size_t index, bool in
     } else if (g.type.empty()) {
       throw FeatureError{"its geometry has no \"type\""};
     } else {
-      throw FeatureError{"a geometry of type '" + g.type +
+      throw FeatureError{"a geometry of type '" + printable(g.type) +
                          "' is not supported (only Polygon, MultiPolygon, Point, MultiPoint)"};
     }
     degenerate_ += feature_degenerate_;
@@ -454,7 +471,7 @@ bool GeoJsonHandler::open(bool array) {
       }
       current_geometry().coords.ops.push_back('[');
     } else if (parent.role == Role::kProperties && parent.key == options_.name_property) {
-      feature().error = "its property '" + options_.name_property + "' is an " +
+      feature().error = "its property '" + printable(options_.name_property) + "' is an " +
                         (array ? "array" : "object") + ", not a string or number";
     } else if ((parent.role == Role::kFeature || parent.role == Role::kTop) && parent.key == "id") {
       feature().error = "its id is not a string or number";
@@ -535,9 +552,11 @@ GeoInput GeoJsonHandler::finish() {
   if (has_features_) {
     if (top_type_ != "FeatureCollection")
       throw ImportError(path_ + ": not GeoJSON: an object with \"features\" whose type is '" +
-                        top_type_ + "', not 'FeatureCollection'");
+                        printable(top_type_) + "', not 'FeatureCollection'");
   } else if (top_type_ == "Feature") {
     builder_.add_feature(top_, 0, false);
+  } else if (top_type_ == "FeatureCollection") {
+    throw ImportError(path_ + ": not GeoJSON: a FeatureCollection with no \"features\" array");
   } else if (top_type_.empty()) {
     throw ImportError(path_ + ": not GeoJSON: the top-level object has no \"type\"");
   } else {

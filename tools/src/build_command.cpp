@@ -2,6 +2,7 @@
 // flags, and `--accel KIND[:key=value,...]`), the rest is the build job's.
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -144,6 +145,11 @@ BuildOptions build_options(const BuildArgs& args) {
   };
   column(options.geo.x_column, args.lon_column, "--lon-column and --x-column");
   column(options.geo.y_column, args.lat_column, "--lat-column and --y-column");
+  const bool csv = std::any_of(args.inputs.begin(), args.inputs.end(),
+                               [](const std::string& input) { return is_csv_input_name(input); });
+  if (!csv && (!options.geo.x_column.empty() || !options.geo.y_column.empty()))
+    throw std::invalid_argument(
+        "--lon-column/--lat-column (--x-column/--y-column) apply to a CSV input only");
   return options;
 }
 
