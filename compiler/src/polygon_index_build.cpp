@@ -1,7 +1,9 @@
-// The polygon index builder: a temporary quadtree built top down (each cell keeps, per polygon
-// that may contain one of its points, the polygon's edges meeting the strip x >= cell.min.x
-// over the cell's rows; a polygon none of whose edges meets the closed cell is decided once, at
-// the cell's centre), then flattened into sibling groups in depth-first order.
+// The polygon index builder: a temporary quadtree built top down, then flattened into sibling
+// groups in depth-first order. Each cell keeps, per polygon that may hold one of its points,
+// the polygon's edges meeting the closed cell and whether the cell's centre is inside; the
+// root's centre is decided by the crossing number over the whole polygon, a child's from its
+// parent's by the parent's edges that the segment between the two centres crosses (so no cell
+// ever scans a whole polygon). A polygon with no edge in the cell is wholly in or out of it.
 #include <algorithm>
 #include <array>
 #include <memory>
@@ -32,10 +34,12 @@ PolygonLayerView view_of(const PolygonLayer& layer) {
 
 namespace {
 
-// A polygon in a cell: wholly inside, or the edges (first-vertex indices) that decide it.
+// A polygon in a cell: wholly inside, or its edges meeting the cell (first-vertex indices)
+// and whether the cell's centre is inside.
 struct Candidate {
   std::uint32_t polygon = 0;
-  bool inside = false;
+  bool inside = false;  // wholly
+  bool centre = false;
   std::vector<std::uint32_t> edges;
 };
 
@@ -52,45 +56,35 @@ struct Context {
   unsigned fork_levels;
 };
 
-// Whether edge (a, next[a]) can cross the ray of a point of the cell: it meets the strip
-// x >= min.x, min.y <= y <= max.y (a conservative box test; extra edges never cross).
-bool in_strip(const Double2& a, const Double2& b, const Box2d& cell) {
-  return std::max(a.x, b.x) >= cell.min.x && std::max(a.y, b.y) >= cell.min.y &&
-         std::min(a.y, b.y) <= cell.max.y;
-}
-
-// The candidate `c` of the parent, narrowed to `cell`; false when the polygon holds no point
-// of the cell.
-bool narrow(const Context& ctx, const Candidate& c, const Box2d& cell, Candidate& out) {
+// The candidate `c` of the parent cell (centre `from`), narrowed to `cell`; false when the
+// polygon holds no point of the cell.
+bool narrow(const Context& ctx, const Candidate& c, const Double2& from, const Box2d& cell,
+            Candidate& out) {
   out.polygon = c.polygon;
   out.inside = c.inside;
   out.edges.clear();
   if (c.inside) return true;
   const auto v = ctx.layer.vertices;
-  bool boundary = false;
+  const Double2 centre = format::quadtree_centre(cell);
+  out.centre = c.centre;
   for (const std::uint32_t a : c.edges) {
     const Double2& p = v[a];
     const Double2& q = v[ctx.next[a]];
-    if (!in_strip(p, q, cell)) continue;
-    out.edges.push_back(a);
-    boundary = boundary || segment_meets_box(p, q, cell.min, cell.max);
+    out.centre ^= shifted_segment_crosses(from, centre, p, q);
+    if (segment_meets_box(p, q, cell.min, cell.max)) out.edges.push_back(a);
   }
-  if (boundary) return true;
-  // No boundary in the closed cell: one parity holds for all of it.
-  const Double2 centre{0.5 * cell.min.x + 0.5 * cell.max.x, 0.5 * cell.min.y + 0.5 * cell.max.y};
-  bool parity = false;
-  for (const std::uint32_t a : out.edges) parity ^= crosses_ray(v[a], v[ctx.next[a]], centre);
-  out.edges.clear();
-  out.inside = parity;
-  return parity;
+  if (!out.edges.empty()) return true;
+  out.inside = out.centre;  // no boundary in the closed cell: one answer for all of it
+  return out.inside;
 }
 
 std::unique_ptr<TempNode> build_node(const Context& ctx, const std::vector<Candidate>& parent,
-                                     const Box2d& cell, std::uint32_t depth) {
+                                     const Double2& from, const Box2d& cell, std::uint32_t depth) {
   std::vector<Candidate> narrowed(parent.size());
   std::vector<char> keep(parent.size());
-  parallel_for_batched(parent.size(), 64, depth < ctx.fork_levels ? ctx.options.threads : 1,
-                       [&](std::size_t i) { keep[i] = narrow(ctx, parent[i], cell, narrowed[i]); });
+  parallel_for_batched(
+      parent.size(), 64, depth < ctx.fork_levels ? ctx.options.threads : 1,
+      [&](std::size_t i) { keep[i] = narrow(ctx, parent[i], from, cell, narrowed[i]); });
   auto node = std::make_unique<TempNode>();
   std::uint64_t edges = 0;
   for (std::size_t i = 0; i < parent.size(); ++i)
@@ -100,7 +94,7 @@ std::unique_ptr<TempNode> build_node(const Context& ctx, const std::vector<Candi
     }
   if (edges <= ctx.options.max_edges || depth >= ctx.options.max_depth) return node;
   parallel_for(4, depth < ctx.fork_levels ? ctx.options.threads : 1, [&](std::size_t c) {
-    node->children[c] = build_node(ctx, node->entries,
+    node->children[c] = build_node(ctx, node->entries, format::quadtree_centre(cell),
                                    format::quadtree_child_box(cell, std::uint32_t(c)), depth + 1);
   });
   node->entries.clear();
@@ -118,7 +112,8 @@ void emit_leaf(const Context& ctx, const TempNode& t, FlatPolygonIndex& out,
       continue;
     }
     out.entries.push_back(
-        {c.polygon, std::uint32_t(out.edges.size()), std::uint32_t(c.edges.size())});
+        {c.polygon, std::uint32_t(out.edges.size()),
+         std::uint32_t(c.edges.size()) | (c.centre ? format::kPolygonCentreInside : 0u)});
     for (const std::uint32_t a : c.edges) out.edges.push_back({a, ctx.next[a]});
   }
   ++out.leaf_count;
@@ -145,8 +140,8 @@ void emit_children(const Context& ctx, const TempNode& t, std::uint32_t index, s
 
 FlatPolygonIndex build_polygon_index(const PolygonLayerView& layer,
                                      const PolygonIndexBuildOptions& options) {
-  if (layer.polygon_count() > 0xFFFFFFFEu || layer.vertices.size() > 0xFFFFFFFFu)
-    throw std::invalid_argument("polygon-index: more than 2^32 - 2 polygons or vertices");
+  if (layer.polygon_count() > 0xFFFFFFFEu || layer.vertices.size() > 0x7FFFFFFFu)
+    throw std::invalid_argument("polygon-index: more than 2^32 - 2 polygons or 2^31 - 1 vertices");
   Context ctx{layer, std::vector<std::uint32_t>(layer.vertices.size()), options,
               fork_depth(options.threads)};
   std::vector<Candidate> all(layer.polygon_count());
@@ -162,7 +157,13 @@ FlatPolygonIndex build_polygon_index(const PolygonLayerView& layer,
   }
   FlatPolygonIndex out;
   out.bounds = layer.bounds;
-  const auto root = build_node(ctx, all, out.bounds, 0);
+  // The root's parent: a cell whose centre is the root's, so narrowing crosses nothing.
+  const Double2 centre = format::quadtree_centre(out.bounds);
+  parallel_for(all.size(), options.threads, [&](std::size_t p) {
+    for (const std::uint32_t a : all[p].edges)
+      all[p].centre ^= crosses_ray(layer.vertices[a], layer.vertices[ctx.next[a]], centre);
+  });
+  const auto root = build_node(ctx, all, centre, out.bounds, 0);
   out.nodes.resize(1);
   if (root->leaf())
     emit_leaf(ctx, *root, out, out.nodes[0]);

@@ -46,14 +46,14 @@ void PolygonIndexView::features_in_box(const Box2d& box, std::vector<std::uint32
   out.clear();
   const auto vertices = parts_.layer.vertices;
   auto meets = [&](const PolygonIndexEntry& e, const Box2d& cell) {
-    if (e.edge_count == format::kPolygonWhollyInside) return true;
+    if (e.wholly_inside()) return true;
     // The polygon's boundary meets the box: its closed area does.
-    for (const auto& edge : parts_.edges.subspan(e.first_edge, e.edge_count))
+    for (const auto& edge : parts_.edges.subspan(e.first_edge, e.edges()))
       if (segment_meets_box(vertices[edge.a], vertices[edge.b], box.min, box.max)) return true;
     // Else no boundary crosses box ∩ cell (the entry lists every edge meeting the cell), which
     // lies wholly inside or outside the polygon: one of its points decides.
     const Double2 corner{std::max(box.min.x, cell.min.x), std::max(box.min.y, cell.min.y)};
-    return entry_contains(e, corner, nullptr);
+    return entry_contains(e, cell, corner, nullptr);
   };
   walk(
       parts_, &box,
@@ -78,7 +78,7 @@ void PolygonIndexView::cells(std::vector<IndexCell2>& out) const {
         const auto& n = parts_.nodes[node];
         std::uint64_t edges = 0;
         for (const PolygonIndexEntry& e : parts_.entries.subspan(n.first, n.count))
-          if (e.edge_count != format::kPolygonWhollyInside) edges += e.edge_count;
+          edges += e.edges();
         leaves.push_back({node, {box, depth, std::uint32_t(std::min<std::uint64_t>(edges, ~0u))}});
       },
       [](std::uint32_t) {});
@@ -102,9 +102,9 @@ std::vector<PolygonIndexLevel> PolygonIndexView::levels() const {
         bool boundary = false;
         for (const PolygonIndexEntry& e : parts_.entries.subspan(n.first, n.count)) {
           ++level.entries;
-          if (e.edge_count == format::kPolygonWhollyInside) continue;
+          if (e.wholly_inside()) continue;
           boundary = true;
-          level.edge_refs += e.edge_count;
+          level.edge_refs += e.edges();
         }
         level.boundary_leaves += boundary;
       },

@@ -71,12 +71,12 @@ void verify(const Blob& blob, const StructureInfo& info) {
   const auto& p = view.parts();
   for (std::size_t i = 0; i < p.entries.size(); ++i) {
     const auto& e = p.entries[i];
-    if (e.edge_count == format::kPolygonWhollyInside) continue;
+    if (e.wholly_inside()) continue;
     const std::uint64_t first_ring = p.layer.polygon_rings[e.polygon];
     const std::uint64_t last_ring = p.layer.polygon_rings[e.polygon + 1];
     const std::uint64_t lo = p.layer.ring_vertices[first_ring];
     const std::uint64_t hi = p.layer.ring_vertices[last_ring];
-    for (const auto& edge : p.edges.subspan(e.first_edge, e.edge_count)) {
+    for (const auto& edge : p.edges.subspan(e.first_edge, e.edges())) {
       bool ok = edge.a >= lo && edge.a < hi;
       if (ok) {
         // The ring holding edge.a: its next vertex wraps to the ring's first.

@@ -65,8 +65,7 @@ void PolygonIndexView::validate(const std::string& name) const {
       if (e.polygon >= p.layer.polygon_count() ||
           (i > n.first && e.polygon <= p.entries[i - 1].polygon))
         fail(name, "entry " + std::to_string(i) + " names a polygon out of range or order");
-      if (e.edge_count != format::kPolygonWhollyInside &&
-          std::uint64_t(e.first_edge) + e.edge_count > p.edges.size())
+      if (std::uint64_t(e.first_edge) + e.edges() > p.edges.size())
         fail(name, "entry " + std::to_string(i) + " has edges out of range");
     }
   }
@@ -84,18 +83,20 @@ std::uint32_t PolygonIndexView::feature_of(std::uint32_t polygon) const {
   return std::uint32_t(it - offsets.begin() - 1);
 }
 
-bool PolygonIndexView::entry_contains(const PolygonIndexEntry& e, const Double2& p,
-                                      Cost* cost) const {
-  if (e.edge_count == format::kPolygonWhollyInside) return true;
+bool PolygonIndexView::entry_contains(const PolygonIndexEntry& e, const Box2d& cell,
+                                      const Double2& p, Cost* cost) const {
+  if (e.wholly_inside()) return true;
   const auto vertices = parts_.layer.vertices;
-  bool inside = false;
-  for (const PolygonIndexEdge& edge : parts_.edges.subspan(e.first_edge, e.edge_count))
-    inside ^= crosses_ray(vertices[edge.a], vertices[edge.b], p);
-  if (cost) cost->tests += e.edge_count;
+  const Double2 centre = format::quadtree_centre(cell);
+  bool inside = e.centre_inside();
+  for (const PolygonIndexEdge& edge : parts_.edges.subspan(e.first_edge, e.edges()))
+    inside ^= shifted_segment_crosses(centre, p, vertices[edge.a], vertices[edge.b]);
+  if (cost) cost->tests += e.edges();
   return inside;
 }
 
-// Calls visit(entry) for each entry of the leaf holding p, in order, until it returns false.
+// Calls visit(entry, cell) for each entry of the leaf holding p, in order, until it returns
+// false.
 template <class Visit>
 void PolygonIndexView::visit_leaf(const Double2& p, Visit&& visit, Cost* cost) const {
   Box2d box = parts_.bounds;
@@ -109,15 +110,15 @@ void PolygonIndexView::visit_leaf(const Double2& p, Visit&& visit, Cost* cost) c
     if (cost) ++cost->nodes;
   }
   for (const PolygonIndexEntry& e : parts_.entries.subspan(n->first, n->count))
-    if (!visit(e)) return;
+    if (!visit(e, box)) return;
 }
 
 std::uint32_t PolygonIndexView::locate(const Double2& p) const {
   std::uint32_t found = PolygonQueries::kNone;
   visit_leaf(
       p,
-      [&](const PolygonIndexEntry& e) {
-        if (!entry_contains(e, p, nullptr)) return true;
+      [&](const PolygonIndexEntry& e, const Box2d& cell) {
+        if (!entry_contains(e, cell, p, nullptr)) return true;
         found = feature_of(e.polygon);
         return false;
       },
@@ -129,8 +130,8 @@ std::uint32_t PolygonIndexView::locate_counting(const Double2& p, Cost& cost) co
   std::uint32_t found = PolygonQueries::kNone;
   visit_leaf(
       p,
-      [&](const PolygonIndexEntry& e) {
-        if (!entry_contains(e, p, &cost)) return true;
+      [&](const PolygonIndexEntry& e, const Box2d& cell) {
+        if (!entry_contains(e, cell, p, &cost)) return true;
         found = feature_of(e.polygon);
         return false;
       },
@@ -142,8 +143,8 @@ void PolygonIndexView::locate_all(const Double2& p, std::vector<std::uint32_t>& 
   out.clear();
   visit_leaf(
       p,
-      [&](const PolygonIndexEntry& e) {
-        if (entry_contains(e, p, nullptr)) {
+      [&](const PolygonIndexEntry& e, const Box2d& cell) {
+        if (entry_contains(e, cell, p, nullptr)) {
           const std::uint32_t f = feature_of(e.polygon);
           if (out.empty() || out.back() != f) out.push_back(f);  // entries ascend by polygon
         }

@@ -164,6 +164,40 @@ bool crosses_ray(const Double2& a, const Double2& b, const Double2& p) {
   return false;
 }
 
+namespace {
+
+// Sign of orient2d(c + s, p + s, v), s = (eps, delta): orient(c, p, v) + d.y eps - d.x delta,
+// d = p - c, so the shift decides only when v is on the line: by d.y, else by -d.x.
+int side_of_shifted_line(const Double2& c, const Double2& p, const Double2& v) {
+  const double o = orient2d(c, p, v);
+  if (o != 0) return o > 0 ? 1 : -1;
+  if (p.y != c.y) return p.y > c.y ? 1 : -1;
+  return p.x > c.x ? -1 : p.x < c.x ? 1 : 0;
+}
+
+// Sign of orient2d(a, b, q + s): orient(a, b, q) + (b.x - a.x) delta - (b.y - a.y) eps.
+int side_of_shifted_point(const Double2& a, const Double2& b, const Double2& q) {
+  const double o = orient2d(a, b, q);
+  if (o != 0) return o > 0 ? 1 : -1;
+  if (b.y != a.y) return b.y > a.y ? -1 : 1;
+  return b.x > a.x ? 1 : b.x < a.x ? -1 : 0;
+}
+
+}  // namespace
+
+bool shifted_segment_crosses(const Double2& c, const Double2& p, const Double2& a,
+                             const Double2& b) {
+  // Boxes first: the shifted segment reaches past its box by infinitesimals only on the max
+  // sides, so closed comparisons reject only edges it cannot meet.
+  if (std::max(a.x, b.x) < std::min(c.x, p.x) || std::min(a.x, b.x) > std::max(c.x, p.x) ||
+      std::max(a.y, b.y) < std::min(c.y, p.y) || std::min(a.y, b.y) > std::max(c.y, p.y))
+    return false;
+  const int sa = side_of_shifted_line(c, p, a), sb = side_of_shifted_line(c, p, b);
+  if (sa == 0 || sa == sb) return false;
+  const int sc = side_of_shifted_point(a, b, c), sp = side_of_shifted_point(a, b, p);
+  return sc != 0 && sc != sp;
+}
+
 bool segment_meets_box(const Double2& a, const Double2& b, const Double2& lo, const Double2& hi) {
   if (std::max(a.x, b.x) < lo.x || std::min(a.x, b.x) > hi.x || std::max(a.y, b.y) < lo.y ||
       std::min(a.y, b.y) > hi.y)

@@ -1,6 +1,7 @@
 // Builds the polygon index (docs/FORMAT.md, "Polygon index") over a polygon layer: a region
 // quadtree over the layer's bounds, split while a cell lists more than `max_edges` edges, whose
-// leaves mark each polygon wholly inside or list the edges that decide it.
+// leaves mark each polygon wholly inside, or list its edges meeting the cell and whether the
+// cell's centre is inside.
 #pragma once
 
 #include <cstdint>
@@ -32,7 +33,7 @@ struct FlatPolygonIndex {
 PolygonLayerView view_of(const PolygonLayer& layer);
 
 /// Builds the index; byte-identical for any thread count. Throws std::invalid_argument when the
-/// layer has more than 2^32 - 2 polygons or vertices.
+/// layer has more than 2^32 - 2 polygons or 2^31 - 1 vertices.
 FlatPolygonIndex build_polygon_index(const PolygonLayerView& layer,
                                      const PolygonIndexBuildOptions& options);
 

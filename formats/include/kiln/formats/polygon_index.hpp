@@ -31,18 +31,38 @@ inline bool PolygonIndexNode::is_leaf() const {
 static_assert(sizeof(PolygonIndexNode) == 8);
 
 /// One polygon of a leaf. `edge_count` == kPolygonWhollyInside: the cell's closed area lies in
-/// the polygon (no edge of it meets the cell). Else the polygon contains a point p of the cell
-/// exactly when an odd number of edges `first_edge .. first_edge + edge_count` crosses the ray
-/// from p towards +x: they are every edge of the polygon that meets the half-plane strip
-/// x >= cell.min.x, cell.min.y <= y <= cell.max.y, so no crossing is missed. Entries of a leaf
-/// are sorted by polygon index (hence by feature index).
+/// the polygon (no edge of it meets the cell). Else bit 31 of `edge_count`
+/// (kPolygonCentreInside) says whether the cell's centre is in the polygon, and its low 31 bits
+/// count the polygon's edges that meet the closed cell, `first_edge ..`: a point p of the cell is
+/// in the polygon when the centre is, flipped once per edge that the segment from the centre to
+/// p crosses (both ends shifted by the boundary rule's infinitesimal, docs/FORMAT.md). Entries
+/// of a leaf are sorted by polygon index (hence by feature index).
 struct PolygonIndexEntry {
   std::uint32_t polygon;
   std::uint32_t first_edge;
   std::uint32_t edge_count;
+
+  bool wholly_inside() const;
+  bool centre_inside() const;
+  std::uint32_t edges() const;
 };
 inline constexpr std::uint32_t kPolygonWhollyInside = 0xFFFFFFFFu;
+inline constexpr std::uint32_t kPolygonCentreInside = 0x80000000u;
+inline bool PolygonIndexEntry::wholly_inside() const {
+  return edge_count == kPolygonWhollyInside;
+}
+inline bool PolygonIndexEntry::centre_inside() const {
+  return (edge_count & kPolygonCentreInside) != 0;
+}
+inline std::uint32_t PolygonIndexEntry::edges() const {
+  return wholly_inside() ? 0 : edge_count & ~kPolygonCentreInside;
+}
 static_assert(sizeof(PolygonIndexEntry) == 12);
+
+/// A cell's centre, as builder and view compute it.
+constexpr Double2 quadtree_centre(const Box2d& box) {
+  return {0.5 * box.min.x + 0.5 * box.max.x, 0.5 * box.min.y + 0.5 * box.max.y};
+}
 
 /// An edge: indices of its two vertices in the layer's vertex array (a ring's closing edge runs
 /// from its last vertex to its first).

@@ -67,8 +67,8 @@ class PolygonIndexView {
  private:
   template <class Visit>
   void visit_leaf(const format::Double2& p, Visit&& visit, Cost* cost) const;
-  bool entry_contains(const format::PolygonIndexEntry& e, const format::Double2& p,
-                      Cost* cost) const;
+  bool entry_contains(const format::PolygonIndexEntry& e, const format::Box2d& cell,
+                      const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
 
   PolygonIndexParts parts_;

@@ -25,6 +25,14 @@ double orient2d(const format::Double2& a, const format::Double2& b, const format
 /// and p lies strictly left of it. A point exactly on the edge does not count. Exact.
 bool crosses_ray(const format::Double2& a, const format::Double2& b, const format::Double2& p);
 
+/// Whether the segment from `c` to `p`, both ends moved by the rule's infinitesimal shift
+/// (+eps, +delta) with 0 < delta << eps, crosses edge (a, b). The shift puts the segment in
+/// general position (it passes through no vertex, its ends lie on no edge, it overlaps no
+/// edge), so summed over closed rings the crossings' parity is exactly the change of the
+/// half-open rule's answer from c to p. Exact (simulation of simplicity on orient2d's signs).
+bool shifted_segment_crosses(const format::Double2& c, const format::Double2& p,
+                             const format::Double2& a, const format::Double2& b);
+
 /// Whether the closed segment (a, b) meets the closed box [lo, hi]. Exact.
 bool segment_meets_box(const format::Double2& a, const format::Double2& b,
                        const format::Double2& lo, const format::Double2& hi);
