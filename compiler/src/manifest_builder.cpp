@@ -6,6 +6,7 @@
 #include <cstring>
 #include <map>
 
+#include "geo_input.hpp"
 #include "kiln/schema/manifest_generated.h"
 
 namespace kiln {
@@ -106,14 +107,21 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
   std::vector<Offset<schema::SourceFile>> sources;
   for (const auto& s : scene.sources)
     sources.push_back(schema::CreateSourceFileDirect(fbb, s.path.c_str(), s.size, s.xxh3));
-  const bool triangles = input_kind_of(scene) == InputKind::kTriangles;
-  const Offset<void> input_table =
-      triangles ? triangle_scene(fbb, scene, input) : point_set(fbb, scene, input);
+  const InputKind kind = input_kind_of(scene);
+  schema::Input input_type = schema::Input::TriangleScene;
+  Offset<void> input_table;
+  if (kind == InputKind::kTriangles) {
+    input_table = triangle_scene(fbb, scene, input);
+  } else if (kind == InputKind::kPoint3) {
+    input_type = schema::Input::PointCloud, input_table = point_set(fbb, scene, input);
+  } else {
+    const auto [type, offset] = geo_input_table(fbb, scene, input);
+    input_type = schema::Input(type), input_table = Offset<void>(offset);
+  }
   const auto structure_offsets = structures(fbb, options, built, sections);
   const auto advice_offsets = advice_tables(fbb, options, advice);
   const auto manifest = schema::CreateManifestDirect(
-      fbb, kToolName, kToolVersion, &option_offsets, &sources,
-      triangles ? schema::Input::TriangleScene : schema::Input::PointCloud, input_table,
+      fbb, kToolName, kToolVersion, &option_offsets, &sources, input_type, input_table,
       &structure_offsets, advice.empty() ? nullptr : &advice_offsets);
   schema::FinishManifestBuffer(fbb, manifest);
   std::vector<std::byte> bytes(fbb.GetSize());

@@ -15,6 +15,11 @@ namespace kiln {
 struct InputSectionIndices {
   std::uint32_t positions = kNoSection, triangles = kNoSection, triangle_mesh = kNoSection,
                 normals = kNoSection;
+  // The 2D inputs (geo_input.cpp): a polygon layer's or a point table's arrays.
+  std::uint32_t vertices = kNoSection, ring_vertices = kNoSection, polygon_rings = kNoSection,
+                feature_polygons = kNoSection, points = kNoSection, feature_points = kNoSection,
+                id_offsets = kNoSection, id_bytes = kNoSection, name_offsets = kNoSection,
+                name_bytes = kNoSection;
 };
 
 /// The manifest FlatBuffer for a scene. `built[i]` is the structure `options.structures[i]` asked

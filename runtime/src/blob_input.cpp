@@ -87,7 +87,9 @@ void Blob::validate_input() {
               normals_ != kNoSection,
               scene->boundary_edges(),
               scene->non_manifold_edges(),
-              scene->closed()};
+              scene->closed(),
+              0,
+              {}};
   } else if (const auto* set = m.input_as_PointCloud()) {
     check_section("positions", set->positions(), format::kSectionPositions, sizeof(format::Float3),
                   set->point_count(), false);
@@ -96,6 +98,10 @@ void Blob::validate_input() {
     input_.kind = InputKind::kPoint3;
     input_.vertex_count = set->point_count();
     input_.bounds = to_box(set->bounds());
+  } else if (m.input_type() == schema::Input::PolygonLayer) {
+    validate_polygon_layer();
+  } else if (m.input_type() == schema::Input::PointTable) {
+    validate_point_table();
   } else if (m.input_type() == schema::Input::NONE) {
     fail_section(0, "manifest names no input");
   } else {

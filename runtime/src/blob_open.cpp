@@ -28,9 +28,9 @@ constexpr std::uint64_t kManifestMaxSize = 1u << 30;
 
 // The manifest's and the inputs' section kinds, and every registered structure kind's.
 bool is_known_kind(std::uint32_t kind) {
-  if (kind == format::kSectionManifest || kind == format::kSectionPositions ||
-      kind == format::kSectionNormals || kind == format::kSectionTriangles ||
-      kind == format::kSectionTriangleMesh)
+  if (kind == format::kSectionManifest ||
+      std::find(std::begin(format::kInputSectionKinds), std::end(format::kInputSectionKinds),
+                kind) != std::end(format::kInputSectionKinds))
     return true;
   for (const StructureKind* structure : structure_kinds())
     if (std::find(structure->sections.begin(), structure->sections.end(), kind) !=
