@@ -8,6 +8,7 @@
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/polygon_index.hpp"
 #include "kiln/runtime/predicates2.hpp"
+#include "predicates2_inline.hpp"
 
 namespace kiln {
 
@@ -90,7 +91,7 @@ bool PolygonIndexView::entry_contains(const PolygonIndexEntry& e, const Box2d& c
   const Double2 centre = format::quadtree_centre(cell);
   bool inside = e.centre_inside();
   for (const PolygonIndexEdge& edge : parts_.edges.subspan(e.first_edge, e.edges()))
-    inside ^= shifted_segment_crosses(centre, p, vertices[edge.a], vertices[edge.b]);
+    inside ^= detail::shifted_segment_crosses_inline(centre, p, vertices[edge.a], vertices[edge.b]);
   if (cost) cost->tests += e.edges();
   return inside;
 }

@@ -5,6 +5,8 @@
 // only when the previous one cannot certify the sign, so the common case costs a few flops.
 #include "kiln/runtime/predicates2.hpp"
 
+#include "predicates2_inline.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -21,7 +23,6 @@ using format::Double2;
 constexpr double kEpsilon = 0x1p-53;        // half an ulp of 1: the rounding unit
 constexpr double kSplitter = 0x1p27 + 1.0;  // splits a double into two 26-bit halves
 constexpr double kResultErrBound = (3.0 + 8.0 * kEpsilon) * kEpsilon;
-constexpr double kCcwErrBoundA = (3.0 + 16.0 * kEpsilon) * kEpsilon;
 constexpr double kCcwErrBoundB = (2.0 + 12.0 * kEpsilon) * kEpsilon;
 constexpr double kCcwErrBoundC = (9.0 + 64.0 * kEpsilon) * kEpsilon * kEpsilon;
 
@@ -99,8 +100,10 @@ double estimate(int len, const double* e) {
   return sum;
 }
 
+}  // namespace
+
 // The adaptive stages B, C and D (the paper's orient2dadapt).
-double orient2d_adapt(const Double2& a, const Double2& b, const Double2& c, double detsum) {
+double detail::orient2d_adapt(const Double2& a, const Double2& b, const Double2& c, double detsum) {
   const double acx = a.x - c.x, bcx = b.x - c.x, acy = a.y - c.y, bcy = b.y - c.y;
   double detleft, detlefttail, detright, detrighttail;
   two_product(acx, bcy, detleft, detlefttail);
@@ -135,26 +138,8 @@ double orient2d_adapt(const Double2& a, const Double2& b, const Double2& c, doub
   return D[dlen - 1];
 }
 
-}  // namespace
-
 double orient2d(const Double2& a, const Double2& b, const Double2& c) {
-  const double detleft = (a.x - c.x) * (b.y - c.y);
-  const double detright = (a.y - c.y) * (b.x - c.x);
-  const double det = detleft - detright;
-  double detsum;
-  if (detleft > 0.0) {
-    if (detright <= 0.0) return det;  // the two terms have opposite signs: no cancellation
-    detsum = detleft + detright;
-  } else if (detleft < 0.0) {
-    if (detright >= 0.0) return det;
-    detsum = -detleft - detright;
-  } else {
-    return det;  // detleft == 0 exactly: det = -detright, whose rounding keeps its sign
-  }
-  const double errbound = kCcwErrBoundA * detsum;
-  if (det >= errbound || -det >= errbound) return det;
-  if (!std::isfinite(detsum)) return det;  // no exact answer for overflowing inputs
-  return orient2d_adapt(a, b, c, detsum);
+  return detail::orient2d_inline(a, b, c);
 }
 
 bool crosses_ray(const Double2& a, const Double2& b, const Double2& p) {
@@ -164,38 +149,9 @@ bool crosses_ray(const Double2& a, const Double2& b, const Double2& p) {
   return false;
 }
 
-namespace {
-
-// Sign of orient2d(c + s, p + s, v), s = (eps, delta): orient(c, p, v) + d.y eps - d.x delta,
-// d = p - c, so the shift decides only when v is on the line: by d.y, else by -d.x.
-int side_of_shifted_line(const Double2& c, const Double2& p, const Double2& v) {
-  const double o = orient2d(c, p, v);
-  if (o != 0) return o > 0 ? 1 : -1;
-  if (p.y != c.y) return p.y > c.y ? 1 : -1;
-  return p.x > c.x ? -1 : p.x < c.x ? 1 : 0;
-}
-
-// Sign of orient2d(a, b, q + s): orient(a, b, q) + (b.x - a.x) delta - (b.y - a.y) eps.
-int side_of_shifted_point(const Double2& a, const Double2& b, const Double2& q) {
-  const double o = orient2d(a, b, q);
-  if (o != 0) return o > 0 ? 1 : -1;
-  if (b.y != a.y) return b.y > a.y ? -1 : 1;
-  return b.x > a.x ? 1 : b.x < a.x ? -1 : 0;
-}
-
-}  // namespace
-
 bool shifted_segment_crosses(const Double2& c, const Double2& p, const Double2& a,
                              const Double2& b) {
-  // Boxes first: the shifted segment reaches past its box by infinitesimals only on the max
-  // sides, so closed comparisons reject only edges it cannot meet.
-  if (std::max(a.x, b.x) < std::min(c.x, p.x) || std::min(a.x, b.x) > std::max(c.x, p.x) ||
-      std::max(a.y, b.y) < std::min(c.y, p.y) || std::min(a.y, b.y) > std::max(c.y, p.y))
-    return false;
-  const int sa = side_of_shifted_line(c, p, a), sb = side_of_shifted_line(c, p, b);
-  if (sa == 0 || sa == sb) return false;
-  const int sc = side_of_shifted_point(a, b, c), sp = side_of_shifted_point(a, b, p);
-  return sc != 0 && sc != sp;
+  return detail::shifted_segment_crosses_inline(c, p, a, b);
 }
 
 bool segment_meets_box(const Double2& a, const Double2& b, const Double2& lo, const Double2& hi) {
