@@ -7,7 +7,7 @@
 // only (-DKILN_BENCH_GEO=ON): the runtime never sees GEOS or Boost.
 //
 //   kiln_bench_polygons [--geo-dir ../shared/data/geo] [--repeats 5] [--random 1000000]
-//                       [--max-edges 16] [--max-depth 16] [--only-kiln]
+//                       [--max-edges 16] [--max-depth 16] [--only-kiln] [--sweep]
 #include <geos_c.h>
 
 #include <algorithm>
@@ -250,12 +250,40 @@ Engine boost_engine(const PolygonLayer& layer) {
           [] { return std::size_t(0); }};
 }
 
+// Deterministic cost of each max-edges setting (edges tested and cells visited per query, from
+// locate_counting), beside its size and build time: how the default was chosen.
+void sweep(const std::string& dir, const std::vector<Double2>& zips) {
+  for (const char* file : {"us-counties-10m.geojson.zst", "countries-land-10km.geojson.zst"}) {
+    const PolygonLayer layer = load_layer(dir + file);
+    std::printf("\n%s: max-edges sweep (max-depth 16)\n%9s %10s %12s %14s %14s\n", file,
+                "max-edges", "build ms", "index bytes", "zip edges/q", "zip cells/q");
+    for (const std::uint32_t max_edges : {4u, 8u, 16u, 32u, 64u, 128u}) {
+      std::vector<double> build;
+      kiln::FlatPolygonIndex index;
+      for (int r = 0; r < 3; ++r) {
+        const auto start = std::chrono::steady_clock::now();
+        index = kiln::build_polygon_index(kiln::view_of(layer), {max_edges, 16, 2});
+        build.push_back(seconds_since(start));
+      }
+      const kiln::PolygonIndexView view(
+          {kiln::view_of(layer), index.bounds, index.nodes, index.entries, index.edges});
+      kiln::Cost cost;
+      for (const Double2& p : zips) view.locate_counting(p, cost);
+      const std::size_t bytes =
+          index.nodes.size() * 8 + index.entries.size() * 12 + index.edges.size() * 8;
+      std::printf("%9u %10.1f %12zu %14.2f %14.2f\n", max_edges, 1e3 * median(build), bytes,
+                  double(cost.tests) / double(zips.size()), double(cost.nodes) / double(zips.size()));
+    }
+  }
+}
+
 struct Args {
   std::string dir = "../shared/data/geo/";
   int repeats = 5;
   std::size_t random = 1000000;
   kiln::PolygonIndexBuildOptions options{16, 16, 2};
   bool only_kiln = false;
+  bool sweep = false;
 };
 
 void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zips) {
@@ -334,6 +362,8 @@ int main(int argc, char** argv) {
       a.options.max_depth = std::stoul(value());
     else if (arg == "--only-kiln")
       a.only_kiln = true;
+    else if (arg == "--sweep")
+      a.sweep = true;
     else {
       std::fprintf(stderr, "kiln_bench_polygons: unknown argument '%s'\n", arg.c_str());
       return 2;
@@ -345,6 +375,10 @@ int main(int argc, char** argv) {
         "kiln_bench_polygons: %d repeats (medians), max-edges %u, max-depth %u, build on 2 "
         "threads\n",
         a.repeats, a.options.max_edges, a.options.max_depth);
+    if (a.sweep) {
+      sweep(a.dir, zips);
+      return 0;
+    }
     bench_layer(a, "us-counties-10m.geojson.zst", zips);
     bench_layer(a, "countries-land-10km.geojson.zst", zips);
   } catch (const std::exception& e) {
