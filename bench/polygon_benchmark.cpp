@@ -7,7 +7,7 @@
 // only (-DKILN_BENCH_GEO=ON): the runtime never sees GEOS or Boost.
 //
 //   kiln_bench_polygons [--geo-dir ../shared/data/geo] [--repeats 5] [--random 1000000]
-//                       [--max-edges 16] [--max-depth 16] [--only-kiln] [--sweep]
+//                       [--max-edges 16] [--max-depth 16] [--only-kiln] [--skip-boost] [--sweep]
 #include <geos_c.h>
 
 #include <algorithm>
@@ -272,7 +272,8 @@ void sweep(const std::string& dir, const std::vector<Double2>& zips) {
       const std::size_t bytes =
           index.nodes.size() * 8 + index.entries.size() * 12 + index.edges.size() * 8;
       std::printf("%9u %10.1f %12zu %14.2f %14.2f\n", max_edges, 1e3 * median(build), bytes,
-                  double(cost.tests) / double(zips.size()), double(cost.nodes) / double(zips.size()));
+                  double(cost.tests) / double(zips.size()),
+                  double(cost.nodes) / double(zips.size()));
     }
   }
 }
@@ -284,6 +285,7 @@ struct Args {
   kiln::PolygonIndexBuildOptions options{16, 16, 2};
   bool only_kiln = false;
   bool sweep = false;
+  bool skip_boost = false;
 };
 
 void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zips) {
@@ -294,8 +296,8 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
   std::vector<Double2> random(a.random);
   for (auto& p : random) p = {x(rng), y(rng)};
   std::vector<Engine> engines{kiln_engine(layer, a.options)};
-  if (!a.only_kiln)
-    engines.push_back(geos_engine(layer, 2)), engines.push_back(boost_engine(layer));
+  if (!a.only_kiln) engines.push_back(geos_engine(layer, 2));
+  if (!a.only_kiln && !a.skip_boost) engines.push_back(boost_engine(layer));
   struct Times {
     std::vector<double> build, zip1, zip2, rnd1, rnd2;
   };
@@ -337,7 +339,10 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
   // polygon, GEOS and Boost in none, so only points exactly on a border may differ.
   for (std::size_t e = 1; e < engines.size(); ++e) {
     std::size_t differ = 0;
-    for (std::size_t i = 0; i < random.size(); ++i) differ += answers[e][i] != answers[0][i];
+    for (std::size_t i = 0; i < random.size(); ++i)
+      if (answers[e][i] != answers[0][i] && ++differ <= 5)
+        std::printf("  (%.17g, %.17g): kiln %d, %s %d\n", random[i].x, random[i].y,
+                    int(answers[0][i]), engines[e].name.c_str(), int(answers[e][i]));
     std::printf("kiln vs %s: %zu of %zu random points differ\n", engines[e].name.c_str(), differ,
                 random.size());
   }
@@ -364,6 +369,8 @@ int main(int argc, char** argv) {
       a.only_kiln = true;
     else if (arg == "--sweep")
       a.sweep = true;
+    else if (arg == "--skip-boost")
+      a.skip_boost = true;
     else {
       std::fprintf(stderr, "kiln_bench_polygons: unknown argument '%s'\n", arg.c_str());
       return 2;
