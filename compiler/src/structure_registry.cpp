@@ -11,12 +11,13 @@ namespace kiln {
 
 extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointTreeBuilder,
     kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder;
+extern const StructureBuilder kPolygonIndexBuilder;  // polygon_index_entry.cpp
 
 namespace {
 
 const StructureBuilder* const kBuilders[] = {
     &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder, &kVoxelDagBuilder,
-    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder};
+    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder, &kPolygonIndexBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;
