@@ -10,14 +10,16 @@
 namespace kiln {
 
 extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointTreeBuilder,
-    kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder,
-    kQuadtreeBuilder;
+    kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder;
+extern const StructureBuilder kPolygonIndexBuilder;  // polygon_index_entry.cpp
+extern const StructureBuilder kQuadtreeBuilder;      // quadtree_entry.cpp
 
 namespace {
 
 const StructureBuilder* const kBuilders[] = {
-    &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder,  &kVoxelDagBuilder,
-    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder, &kQuadtreeBuilder};
+    &kBvhBuilder,        &kSbvhBuilder,         &kKdTreeBuilder,  &kPointTreeBuilder,
+    &kVoxelDagBuilder,   &kEsvoBuilder,         &kOctreeBuilder,  &kGridBuilder,
+    &kNestedGridBuilder, &kPolygonIndexBuilder, &kQuadtreeBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;
