@@ -106,11 +106,13 @@ bool paths_clash(const BuildArgs& args) {
 void print_stats(const BuildArgs& args, const BuildJobReport& job, double seconds) {
   const Blob blob = Blob::open_file(args.output);
   const InputInfo& input = blob.input();
-  std::fprintf(stderr,
-               "kiln build: %s: %llu triangles, %llu vertices, %llu bytes in %.3f s (%u threads)\n",
-               args.output.c_str(), (unsigned long long)input.triangle_count,
-               (unsigned long long)input.vertex_count, (unsigned long long)blob.header().file_size,
-               seconds, resolve_thread_count(args.threads));
+  const bool layer = input.kind == InputKind::kPolygons2 || input.kind == InputKind::kPoint2;
+  std::fprintf(
+      stderr, "kiln build: %s: %llu %s, %llu %s, %llu bytes in %.3f s (%u threads)\n",
+      args.output.c_str(), (unsigned long long)(layer ? input.feature_count : input.triangle_count),
+      layer ? "features" : "triangles", (unsigned long long)input.vertex_count,
+      input.kind == InputKind::kPoint2 ? "points" : "vertices",
+      (unsigned long long)blob.header().file_size, seconds, resolve_thread_count(args.threads));
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   std::fprintf(stderr, "kiln build: peak memory %.1f MiB\n", double(usage.ru_maxrss) / 1024.0);
@@ -120,7 +122,10 @@ void print_stats(const BuildArgs& args, const BuildJobReport& job, double second
     const double count = double(triangles ? input.triangle_count : input.vertex_count);
     std::fprintf(stderr, "kiln build: %s (%s): built in %.3f s (%.2f %s/s), %s\n", r.name.c_str(),
                  r.kind.c_str(), r.build_seconds, count / r.build_seconds * 1e-6,
-                 triangles ? "Mtris" : "Mvertices", r.summary.c_str());
+                 triangles                          ? "Mtris"
+                 : input.kind == InputKind::kPoint2 ? "Mpoints"
+                                                    : "Mvertices",
+                 r.summary.c_str());
   }
 }
 
