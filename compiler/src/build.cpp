@@ -5,9 +5,11 @@
 
 #include "kiln/compiler/advise.hpp"
 #include "kiln/compiler/import.hpp"
+#include "kiln/compiler/import_events.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
+#include "event_table_sections.hpp"
 #include "manifest_builder.hpp"
 
 namespace kiln {
@@ -60,6 +62,10 @@ InputSectionIndices add_input_sections(const Scene& scene, std::vector<SectionPa
     return std::uint32_t(sections.size() - 1);
   };
   InputSectionIndices indices;
+  if (scene.events) {  // issue 18: an event table's columns (event_table_sections.cpp)
+    add_event_sections(*scene.events, sections, indices);
+    return indices;
+  }
   indices.positions = add(format::kSectionPositions, sizeof(format::Float3), scene.positions.size(),
                           as_bytes(scene.positions));
   if (input_kind_of(scene) != InputKind::kTriangles) return indices;
@@ -76,13 +82,16 @@ InputSectionIndices add_input_sections(const Scene& scene, std::vector<SectionPa
 }  // namespace
 
 InputKind input_kind_of(const Scene& scene) {
+  if (scene.events) return InputKind::kEvents;
   if (scene.polygons) return InputKind::kPolygons2;
   if (scene.points2) return InputKind::kPoint2;
   return scene.triangles.empty() ? InputKind::kPoint3 : InputKind::kTriangles;
 }
 
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
-                   const BuildProgress& progress, const ImportLimits& limits) {
+                   const BuildProgress& progress, const ImportLimits& limits,
+                   const EventColumns& events) {
+  if (events.active()) return import_event_scene(inputs, events, limits);  // issue 18
   std::vector<ImportedFile> files(inputs.size());
   if (progress) progress("import", 0, inputs.size());
   parallel_for(inputs.size(), threads,

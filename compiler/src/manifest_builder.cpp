@@ -6,6 +6,7 @@
 #include <cstring>
 #include <map>
 
+#include "event_table_sections.hpp"
 #include "kiln/schema/manifest_generated.h"
 
 namespace kiln {
@@ -107,13 +108,17 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
   for (const auto& s : scene.sources)
     sources.push_back(schema::CreateSourceFileDirect(fbb, s.path.c_str(), s.size, s.xxh3));
   const bool triangles = input_kind_of(scene) == InputKind::kTriangles;
+  auto input_type = triangles ? schema::Input::TriangleScene : schema::Input::PointCloud;
+  if (scene.events) input_type = schema::Input::EventTable;  // issue 18
   const Offset<void> input_table =
-      triangles ? triangle_scene(fbb, scene, input) : point_set(fbb, scene, input);
+      scene.events ? Offset<void>(event_table_manifest(fbb, *scene.events, input))
+      : triangles  ? triangle_scene(fbb, scene, input)
+                   : point_set(fbb, scene, input);
   const auto structure_offsets = structures(fbb, options, built, sections);
   const auto advice_offsets = advice_tables(fbb, options, advice);
   const auto manifest = schema::CreateManifestDirect(
       fbb, kToolName, kToolVersion, &option_offsets, &sources,
-      triangles ? schema::Input::TriangleScene : schema::Input::PointCloud, input_table,
+      input_type, input_table,
       &structure_offsets, advice.empty() ? nullptr : &advice_offsets);
   schema::FinishManifestBuffer(fbb, manifest);
   std::vector<std::byte> bytes(fbb.GetSize());

@@ -15,6 +15,9 @@ namespace kiln {
 struct InputSectionIndices {
   std::uint32_t positions = kNoSection, triangles = kNoSection, triangle_mesh = kNoSection,
                 normals = kNoSection;
+  // An event table's (issue 18; event_table_sections.cpp).
+  std::uint32_t event_points = kNoSection, event_times = kNoSection, event_codes = kNoSection,
+                event_label_offsets = kNoSection, event_label_bytes = kNoSection;
 };
 
 /// The manifest FlatBuffer for a scene. `built[i]` is the structure `options.structures[i]` asked

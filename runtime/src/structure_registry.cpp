@@ -13,12 +13,14 @@ extern const StructureKind kVoxelDagKind;               // voxel_dag_kind.cpp
 extern const StructureKind kEsvoKind;                   // esvo_kind.cpp
 extern const StructureKind kOctreeKind;                 // octree_kind.cpp
 extern const StructureKind kGridKind, kNestedGridKind;  // grid_kind.cpp
+extern const StructureKind kNanocubeKind;               // nanocube_kind.cpp
 
 namespace {
 
 constexpr const StructureKind* kKinds[] = {
     &kBvhKind,  &kSbvhKind,   &kKdTreeKind, &kPointTreeKind,  &kVoxelDagKind,
     &kEsvoKind, &kOctreeKind, &kGridKind,   &kNestedGridKind,
+    &kNanocubeKind,  // issue 18
 };
 
 }  // namespace
