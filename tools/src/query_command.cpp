@@ -12,6 +12,7 @@
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/structure_choice.hpp"
+#include "query_events.hpp"
 
 namespace kiln::cli {
 
@@ -127,6 +128,8 @@ ChosenStructure choose_for(const Blob& blob, const QueryArgs& args) {
 }
 
 int run_query(const QueryArgs& args) {
+  if (is_event_op(args.op))  // issue 18: aggregate queries on event tables (query_events.cpp)
+    return run_event_query(args.blob, args.accel, args.op, args.in, args.out);
   try {
     const Blob blob = Blob::open_file(args.blob);
     const ChosenStructure chosen = choose_for(blob, args);
@@ -164,8 +167,10 @@ Command add_query_command(CLI::App& app) {
   command
       ->add_option("--op", args->op,
                    "closest, inside, box (surface queries); knn, radius (nearest neighbours among "
-                   "the vertices); occupied (voxel structures)")
-      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius", "occupied"}))
+                   "the vertices); occupied (voxel structures); count, series, tiles, topk (event "
+                   "tables: JSON lines in and out)")
+      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius", "occupied", "count",
+                             "series", "tiles", "topk"}))
       ->required();
   command->add_option("--in", args->in, "Queries: float32 x 3 per point, x 6 per box (min, max)")
       ->required();
