@@ -112,15 +112,21 @@ void check_series_bin(const EventGrid& grid, std::int64_t bin_seconds) {
                                 std::to_string(grid.time_bin) + " s)");
 }
 
+EventScan::EventScan(EventTableView table, EventGrid grid) : table_(std::move(table)), grid_(grid) {
+  cell_x_.resize(table_.rows()), cell_y_.resize(table_.rows());
+  for (std::size_t i = 0; i < table_.rows(); ++i) {
+    cell_x_[i] = format::mercator_cell_x(table_.points[i].x, grid_.max_level);
+    cell_y_[i] = format::mercator_cell_y(table_.points[i].y, grid_.max_level);
+  }
+}
+
 template <class F>
 void EventScan::scan(const ResolvedSelection& r, F&& f) const {
   if (r.empty) return;
-  const std::uint32_t level = grid_.max_level;
   for (std::size_t i = 0; i < table_.rows(); ++i) {
     const std::int64_t bin = floor_div(table_.times[i] - grid_.time_origin, grid_.time_bin);
     if (bin < r.b0 || bin >= r.b1) continue;
-    const std::uint32_t x = format::mercator_cell_x(table_.points[i].x, level);
-    const std::uint32_t y = format::mercator_cell_y(table_.points[i].y, level);
+    const std::uint32_t x = cell_x_[i], y = cell_y_[i];
     if (x < r.x0 || x > r.x1 || y < r.y0 || y > r.y1) continue;
     bool keep = true;
     for (std::size_t c = 0; c < r.allowed.size() && keep; ++c)

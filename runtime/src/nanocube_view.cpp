@@ -59,6 +59,21 @@ void check_nodes(const Walk& w, const NanocubeView& view,
   }
 }
 
+// The spatial dimension is a tree (the builder never shares a spatial node): each node has at
+// most one parent, so a traversal from the root visits each node once whatever the edges say.
+void check_space_tree(const Walk& w, const NanocubeView& view,
+                      std::span<const format::NanocubeEdge> edges) {
+  const auto dims = view.dimension_nodes();
+  std::vector<char> has_parent(dims[1], 0);
+  for (std::uint64_t i = 0; i < dims[1]; ++i) {
+    const format::NanocubeNode& n = view.nodes()[i];
+    for (std::uint64_t e = n.first_edge; e < n.first_edge + n.edge_count; ++e) {
+      if (has_parent[edges[e].node]) w.fail(w.d.edges(), "a spatial node has two parents");
+      has_parent[edges[e].node] = 1;
+    }
+  }
+}
+
 void check_series(const Walk& w, std::span<const format::NanocubeSeries> series,
                   std::span<const std::uint32_t> bins, std::span<const std::uint64_t> counts) {
   for (std::size_t s = 0; s < series.size(); ++s) {
@@ -93,6 +108,7 @@ NanocubeView NanocubeView::from_blob(const Blob& blob, const StructureInfo& info
   view.dimension_nodes_ = check_dimensions(w, view.table_.categories.size(), view.nodes_.size());
   view.root_ = d.root();
   check_nodes(w, view, view.edges_, view.series_.size());
+  check_space_tree(w, view, view.edges_);
   check_series(w, view.series_, view.series_bins_, view.series_counts_);
   return view;
 }
