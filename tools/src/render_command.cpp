@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "render_events.hpp"
 #include "commands.hpp"
 #include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
@@ -31,6 +32,7 @@ struct RenderArgs {
   std::string compare;  // comma-separated structure names
   unsigned threads = 0;
   bool json = false;
+  EventRenderArgs events;  // issue 18: render_events.cpp
 };
 
 // The checked options.
@@ -207,6 +209,8 @@ int fail(const std::string& message) {
 }
 
 int run_render(const RenderArgs& args) {
+  if (renders_events(args.blob, args.accel))  // issue 18: an event heatmap (render_events.cpp)
+    return run_event_render(args.blob, args.accel, args.out, args.size, args.events);
   try {
     std::string error;
     std::optional<Settings> s = check_options(args, error);
@@ -264,6 +268,7 @@ Command add_render_command(CLI::App& app) {
   add_threads_option(command, args->threads,
                      "Worker threads (0 = all cores); never changes the image");
   command->add_flag("--json", args->json, "Mean costs per structure as JSON on stdout");
+  add_event_render_options(command, args->events);
   return {command, [args] { return run_render(*args); }};
 }
 

@@ -162,6 +162,9 @@ struct EventLabelCount {
 class EventQueries {
  public:
   virtual ~EventQueries() = default;
+  /// The finest quadtree level (deepest tile zoom) and the time bin in seconds.
+  virtual std::uint32_t finest_level() const = 0;
+  virtual std::int64_t time_bin() const = 0;
   virtual EventSnap snap(const EventSelection& selection) const = 0;
   virtual std::uint64_t count(const EventSelection& selection) const = 0;
   /// Counts per bin of `bin_seconds` from the snapped t0 (the last bin may be shorter), every

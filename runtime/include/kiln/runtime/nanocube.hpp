@@ -54,6 +54,8 @@ class NanocubeView final : public EventQueries {
   std::span<const format::NanocubeNode> nodes() const { return nodes_; }
   std::span<const std::uint64_t> dimension_nodes() const { return dimension_nodes_; }
 
+  std::uint32_t finest_level() const override { return grid_.max_level; }
+  std::int64_t time_bin() const override { return grid_.time_bin; }
   EventSnap snap(const EventSelection& selection) const override;
   std::uint64_t count(const EventSelection& selection) const override;
   std::vector<std::pair<std::int64_t, std::uint64_t>> series(
@@ -92,6 +94,8 @@ class EventScan final : public EventQueries {
  public:
   /// Computes every row's finest cell once (what a scan would otherwise redo per query).
   EventScan(EventTableView table, EventGrid grid);
+  std::uint32_t finest_level() const override { return grid_.max_level; }
+  std::int64_t time_bin() const override { return grid_.time_bin; }
   EventSnap snap(const EventSelection& selection) const override;
   std::uint64_t count(const EventSelection& selection) const override;
   std::vector<std::pair<std::int64_t, std::uint64_t>> series(
