@@ -322,6 +322,11 @@ TEST(EventTable, CliBuildsQueriesAndRefusesBadInput) {
                      test::quoted(dir.path().string() + "/a.jsonl"));
   EXPECT_EQ(r.exit_code, 1);  // the first line has no "by"
   EXPECT_EQ(r.err, "kiln query: " + dir.path().string() + "/q.jsonl:1: 'topk' needs \"by\"\n");
+  r = test::run_kiln("render " + test::quoted(blob) + " -o " +
+                     test::quoted(dir.path().string() + "/map.png") + " --where origin=ORD");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("2 events"), std::string::npos) << r.out;
+  EXPECT_EQ(test::read_text(dir.path().string() + "/map.png").substr(1, 3), "PNG");
   test::write_text(csv, "time,origin,delay_min,origin_lat,origin_lon\nsoon,ORD,5,41.9,-87.9\n");
   r = test::run_kiln("build " + test::quoted(csv) + " -o " + test::quoted(blob) +
                      " --accel nanocube" + flags);
