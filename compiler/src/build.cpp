@@ -3,13 +3,13 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "event_table_sections.hpp"
 #include "kiln/compiler/advise.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/compiler/import_events.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
-#include "event_table_sections.hpp"
 #include "manifest_builder.hpp"
 
 namespace kiln {

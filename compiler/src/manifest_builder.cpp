@@ -117,8 +117,7 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
   const auto structure_offsets = structures(fbb, options, built, sections);
   const auto advice_offsets = advice_tables(fbb, options, advice);
   const auto manifest = schema::CreateManifestDirect(
-      fbb, kToolName, kToolVersion, &option_offsets, &sources,
-      input_type, input_table,
+      fbb, kToolName, kToolVersion, &option_offsets, &sources, input_type, input_table,
       &structure_offsets, advice.empty() ? nullptr : &advice_offsets);
   schema::FinishManifestBuffer(fbb, manifest);
   std::vector<std::byte> bytes(fbb.GetSize());

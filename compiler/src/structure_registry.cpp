@@ -16,9 +16,8 @@ extern const StructureBuilder kNanocubeBuilder;  // nanocube_entry.cpp (issue 18
 namespace {
 
 const StructureBuilder* const kBuilders[] = {
-    &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder, &kVoxelDagBuilder,
-    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder,
-    &kNanocubeBuilder};
+    &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder,  &kVoxelDagBuilder,
+    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder, &kNanocubeBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;

@@ -18,8 +18,8 @@ extern const StructureKind kNanocubeKind;               // nanocube_kind.cpp
 namespace {
 
 constexpr const StructureKind* kKinds[] = {
-    &kBvhKind,  &kSbvhKind,   &kKdTreeKind, &kPointTreeKind,  &kVoxelDagKind,
-    &kEsvoKind, &kOctreeKind, &kGridKind,   &kNestedGridKind,
+    &kBvhKind,      &kSbvhKind,   &kKdTreeKind, &kPointTreeKind,  &kVoxelDagKind,
+    &kEsvoKind,     &kOctreeKind, &kGridKind,   &kNestedGridKind,
     &kNanocubeKind,  // issue 18
 };
 

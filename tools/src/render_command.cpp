@@ -10,13 +10,13 @@
 #include <string>
 #include <vector>
 
-#include "render_events.hpp"
 #include "commands.hpp"
 #include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/structure_registry.hpp"
 #include "kiln/tools/render.hpp"
+#include "render_events.hpp"
 
 namespace kiln::cli {
 

@@ -4,9 +4,9 @@
 // calls, for code that knows what it holds.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
-#include <array>
 #include <optional>
 #include <span>
 #include <string>
