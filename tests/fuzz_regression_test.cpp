@@ -67,8 +67,9 @@ TEST(FuzzRegression, SeedsAreAccepted) {
 // as that format's fuzzer imports it. Reproducers must be refused in one line or imported, never
 // crash or throw anything else; every seed must import.
 const std::pair<const char*, const char*> kImportTargets[] = {
-    {"obj", ".obj"}, {"ply", ".ply"}, {"stl", ".stl"},     {"gltf", ".gltf"},
-    {"glb", ".glb"}, {"drc", ".drc"}, {"zst", ".ply.zst"},
+    {"obj", ".obj"},     {"ply", ".ply"},         {"stl", ".stl"},
+    {"gltf", ".gltf"},   {"glb", ".glb"},         {"drc", ".drc"},
+    {"zst", ".ply.zst"}, {"geojson", ".geojson"}, {"csv", ".csv"},
 };
 
 TEST(FuzzRegression, ImporterSeedsImportAndReproducersAreRefusedOrImported) {

@@ -4,7 +4,10 @@
 #include <stdexcept>
 
 #include "event_table_sections.hpp"
+#include "geo_input.hpp"
 #include "kiln/compiler/advise.hpp"
+#include "kiln/compiler/file_accesses.hpp"
+#include "kiln/compiler/geo_import.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/compiler/import_events.hpp"
 #include "kiln/formats/section_kinds.hpp"
@@ -43,7 +46,9 @@ void check_requests(const Scene& scene, const BuildOptions& options) {
   const std::string what = scene.sources.empty() ? "the scene" : scene.sources.front().path;
   // Every other input kind lacks triangles, and triangles are what most structures consume.
   const std::string is = what + ": is a " + std::string(input_kind_name(input)) + " (no triangles)";
-  if (requests.empty()) throw ImportError(is + "; it needs " + kinds_for(input));
+  // A 2D layer alone is a map (kiln render draws it); a 3D point set alone is likely a mistake.
+  if (requests.empty() && input == InputKind::kPoint3)
+    throw ImportError(is + "; it needs " + kinds_for(input));
   for (const StructureRequest& request : requests) {
     const StructureBuilder* builder = find_structure_builder(request.kind);
     if (!builder) throw std::invalid_argument("unknown structure kind '" + request.kind + "'");
@@ -64,6 +69,10 @@ InputSectionIndices add_input_sections(const Scene& scene, std::vector<SectionPa
   InputSectionIndices indices;
   if (scene.events) {  // issue 18: an event table's columns (event_table_sections.cpp)
     add_event_sections(*scene.events, sections, indices);
+    return indices;
+  }
+  if (scene.polygons || scene.points2) {
+    add_geo_input_sections(scene, indices, add);
     return indices;
   }
   indices.positions = add(format::kSectionPositions, sizeof(format::Float3), scene.positions.size(),
@@ -88,10 +97,35 @@ InputKind input_kind_of(const Scene& scene) {
   return scene.triangles.empty() ? InputKind::kPoint3 : InputKind::kTriangles;
 }
 
+namespace {
+
+// A blob holds one input: a 2D one (GeoJSON, CSV) alone, never several nor beside meshes.
+Scene import_geo_scene(const std::vector<std::string>& inputs, const BuildProgress& progress,
+                       const ImportLimits& limits, const GeoImportOptions& geo) {
+  for (const std::string& input : inputs)
+    if (is_geo_input_name(input) && inputs.size() > 1)
+      throw ImportError(input + ": a 2D input (GeoJSON, CSV) must be the blob's only input (" +
+                        std::to_string(inputs.size()) + " inputs given: build one blob each)");
+  if (progress) progress("import", 0, 1);
+  GeoInput in = import_geo_file(inputs.front(), geo, limits);
+  if (progress) progress("import", 1, 1);
+  Scene scene;
+  scene.sources.push_back(std::move(in.source));
+  scene.accessed.read.push_back(inputs.front());
+  normalize_accesses(scene.accessed);
+  scene.polygons = std::move(in.polygons);
+  scene.points2 = std::move(in.points);
+  return scene;
+}
+
+}  // namespace
+
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
                    const BuildProgress& progress, const ImportLimits& limits,
-                   const EventColumns& events) {
+                   const GeoImportOptions& geo, const EventColumns& events) {
   if (events.active()) return import_event_scene(inputs, events, limits);  // issue 18
+  for (const std::string& input : inputs)
+    if (is_geo_input_name(input)) return import_geo_scene(inputs, progress, limits, geo);
   std::vector<ImportedFile> files(inputs.size());
   if (progress) progress("import", 0, inputs.size());
   parallel_for(inputs.size(), threads,

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "event_table_sections.hpp"
+#include "geo_input.hpp"
 #include "kiln/schema/manifest_generated.h"
 
 namespace kiln {
@@ -107,13 +108,20 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
   std::vector<Offset<schema::SourceFile>> sources;
   for (const auto& s : scene.sources)
     sources.push_back(schema::CreateSourceFileDirect(fbb, s.path.c_str(), s.size, s.xxh3));
-  const bool triangles = input_kind_of(scene) == InputKind::kTriangles;
-  auto input_type = triangles ? schema::Input::TriangleScene : schema::Input::PointCloud;
-  if (scene.events) input_type = schema::Input::EventTable;  // issue 18
-  const Offset<void> input_table =
-      scene.events ? Offset<void>(event_table_manifest(fbb, *scene.events, input))
-      : triangles  ? triangle_scene(fbb, scene, input)
-                   : point_set(fbb, scene, input);
+  const InputKind kind = input_kind_of(scene);
+  schema::Input input_type = schema::Input::TriangleScene;
+  Offset<void> input_table;
+  if (kind == InputKind::kTriangles) {
+    input_table = triangle_scene(fbb, scene, input);
+  } else if (kind == InputKind::kEvents) {  // issue 18 (event_table_sections.cpp)
+    input_type = schema::Input::EventTable;
+    input_table = Offset<void>(event_table_manifest(fbb, *scene.events, input));
+  } else if (kind == InputKind::kPoint3) {
+    input_type = schema::Input::PointCloud, input_table = point_set(fbb, scene, input);
+  } else {
+    const auto [type, offset] = geo_input_table(fbb, scene, input);
+    input_type = schema::Input(type), input_table = Offset<void>(offset);
+  }
   const auto structure_offsets = structures(fbb, options, built, sections);
   const auto advice_offsets = advice_tables(fbb, options, advice);
   const auto manifest = schema::CreateManifestDirect(

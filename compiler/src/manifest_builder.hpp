@@ -18,6 +18,11 @@ struct InputSectionIndices {
   // An event table's (issue 18; event_table_sections.cpp).
   std::uint32_t event_points = kNoSection, event_times = kNoSection, event_codes = kNoSection,
                 event_label_offsets = kNoSection, event_label_bytes = kNoSection;
+  // The 2D inputs (geo_input.cpp): a polygon layer's or a point table's arrays.
+  std::uint32_t vertices = kNoSection, ring_vertices = kNoSection, polygon_rings = kNoSection,
+                feature_polygons = kNoSection, points = kNoSection, feature_points = kNoSection,
+                id_offsets = kNoSection, id_bytes = kNoSection, name_offsets = kNoSection,
+                name_bytes = kNoSection;
 };
 
 /// The manifest FlatBuffer for a scene. `built[i]` is the structure `options.structures[i]` asked

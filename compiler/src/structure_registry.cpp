@@ -11,13 +11,15 @@ namespace kiln {
 
 extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointTreeBuilder,
     kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder;
-extern const StructureBuilder kNanocubeBuilder;  // nanocube_entry.cpp (issue 18)
+extern const StructureBuilder kNanocubeBuilder;      // nanocube_entry.cpp (issue 18)
+extern const StructureBuilder kPolygonIndexBuilder;  // polygon_index_entry.cpp
 
 namespace {
 
 const StructureBuilder* const kBuilders[] = {
-    &kBvhBuilder,  &kSbvhBuilder,   &kKdTreeBuilder, &kPointTreeBuilder,  &kVoxelDagBuilder,
-    &kEsvoBuilder, &kOctreeBuilder, &kGridBuilder,   &kNestedGridBuilder, &kNanocubeBuilder};
+    &kBvhBuilder,        &kSbvhBuilder,         &kKdTreeBuilder,  &kPointTreeBuilder,
+    &kVoxelDagBuilder,   &kEsvoBuilder,         &kOctreeBuilder,  &kGridBuilder,
+    &kNestedGridBuilder, &kPolygonIndexBuilder, &kNanocubeBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;

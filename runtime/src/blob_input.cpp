@@ -89,7 +89,9 @@ void Blob::validate_input() {
               normals_ != kNoSection,
               scene->boundary_edges(),
               scene->non_manifold_edges(),
-              scene->closed()};
+              scene->closed(),
+              0,
+              {}};
   } else if (const auto* set = m.input_as_PointCloud()) {
     check_section("positions", set->positions(), format::kSectionPositions, sizeof(format::Float3),
                   set->point_count(), false);
@@ -100,6 +102,10 @@ void Blob::validate_input() {
     input_.bounds = to_box(set->bounds());
   } else if (const auto* events = m.input_as_EventTable()) {
     input_ = validate_event_input(*this, *events);  // issue 18: blob_events.cpp
+  } else if (m.input_type() == schema::Input::PolygonLayer) {
+    validate_polygon_layer();
+  } else if (m.input_type() == schema::Input::PointTable) {
+    validate_point_table();
   } else if (m.input_type() == schema::Input::NONE) {
     fail_section(0, "manifest names no input");
   } else {

@@ -32,9 +32,9 @@ bool is_event_section_kind(std::uint32_t kind);  // blob_events.cpp (issue 18)
 namespace {
 
 bool is_known_kind(std::uint32_t kind) {
-  if (kind == format::kSectionManifest || kind == format::kSectionPositions ||
-      kind == format::kSectionNormals || kind == format::kSectionTriangles ||
-      kind == format::kSectionTriangleMesh)
+  if (kind == format::kSectionManifest ||
+      std::find(std::begin(format::kInputSectionKinds), std::end(format::kInputSectionKinds),
+                kind) != std::end(format::kInputSectionKinds))
     return true;
   if (is_event_section_kind(kind)) return true;  // issue 18: blob_events.cpp
   for (const StructureKind* structure : structure_kinds())

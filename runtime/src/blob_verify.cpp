@@ -30,6 +30,8 @@ void Blob::verify() const {
 // Finite positions, triangles naming stored vertices, and each mesh owning its triangle range
 // with its triangles indexing only its own vertices.
 void Blob::verify_input() const {
+  if (input_.kind == InputKind::kPolygons2 || input_.kind == InputKind::kPoint2)
+    return verify_geo_input();
   const auto scene_positions = positions();
   for (std::size_t v = 0; v < scene_positions.size(); ++v) {
     const auto& p = scene_positions[v];

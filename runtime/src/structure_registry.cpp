@@ -14,12 +14,13 @@ extern const StructureKind kEsvoKind;                   // esvo_kind.cpp
 extern const StructureKind kOctreeKind;                 // octree_kind.cpp
 extern const StructureKind kGridKind, kNestedGridKind;  // grid_kind.cpp
 extern const StructureKind kNanocubeKind;               // nanocube_kind.cpp
+extern const StructureKind kPolygonIndexKind;           // polygon_index_kind.cpp
 
 namespace {
 
 constexpr const StructureKind* kKinds[] = {
     &kBvhKind,      &kSbvhKind,   &kKdTreeKind, &kPointTreeKind,  &kVoxelDagKind,
-    &kEsvoKind,     &kOctreeKind, &kGridKind,   &kNestedGridKind,
+    &kEsvoKind,     &kOctreeKind, &kGridKind,   &kNestedGridKind, &kPolygonIndexKind,
     &kNanocubeKind,  // issue 18
 };
 

@@ -36,6 +36,41 @@ inline void query_box(const Blob& blob, Float3& lo, Float3& hi) {
   }
 }
 
+// The 2D capabilities (point in polygon, point ranges and neighbours) over the x, y of the box.
+inline void exercise_2d(const StructureView& view, const Float3& lo, const Float3& hi) {
+  using format::Double2;
+  const Double2 a{lo.x, lo.y}, b{hi.x, hi.y}, c{(a.x + b.x) * 0.5, (a.y + b.y) * 0.5};
+  const Double2 points[] = {c, a, b, {b.x + 1, a.y - 1}, {a.x, c.y}};
+  const format::Box2d box{a, c}, all{{a.x - 1, a.y - 1}, {b.x + 1, b.y + 1}};
+  std::vector<std::uint32_t> ids;
+  std::vector<IndexCell2> cells;
+  if (const PolygonQueries* polygons = view.polygons()) {
+    for (const Double2& p : points) {
+      (void)polygons->locate(p);
+      Cost cost;
+      (void)polygons->locate_counting(p, cost);
+      polygons->locate_all(p, ids);
+    }
+    polygons->features_in_box(box, ids);
+    polygons->features_in_box(all, ids);
+    polygons->features_in_box({b, a}, ids);  // an empty (inverted) box
+    polygons->cells(cells);
+  }
+  if (const Point2Queries* points2 = view.points2()) {
+    Neighbor2 found[4];
+    std::vector<Neighbor2> within;
+    for (const Double2& p : points) {
+      (void)points2->nearest(p, found);
+      points2->within_radius(p, (b.x - a.x + b.y - a.y) * 0.25, within);
+    }
+    points2->range(box, ids);
+    Cost cost;
+    points2->range_counting(all, ids, cost);
+    points2->range({b, a}, ids);
+    points2->cells(cells);
+  }
+}
+
 inline void exercise(const StructureView& view, const Float3& lo, const Float3& hi) {
   const Float3 c{(lo.x + hi.x) * 0.5f, (lo.y + hi.y) * 0.5f, (lo.z + hi.z) * 0.5f};
   const Float3 ext{hi.x - lo.x + 1e-3f, hi.y - lo.y + 1e-3f, hi.z - lo.z + 1e-3f};
@@ -89,6 +124,7 @@ inline void exercise(const StructureView& view, const Float3& lo, const Float3& 
   if (const OccupancyQueries* occupancy = view.occupancy()) {
     for (const Float3& p : points) (void)occupancy->occupied(p);
   }
+  exercise_2d(view, lo, hi);
 }
 
 // What a program reads besides the structures (kiln dump's header, sources, meshes and input);
@@ -113,6 +149,18 @@ inline void read_metadata(const Blob& blob) {
   touch(blob.normals());
   touch(blob.triangles());
   touch(blob.triangle_mesh_ids());
+  if (blob.input().kind == InputKind::kPolygons2) {
+    const PolygonLayerView layer = blob.polygon_layer();
+    touch(layer.vertices);
+    if (layer.ring_count() > 0) touch(layer.ring(layer.ring_count() - 1));
+    if (layer.feature_count() > 0)
+      (void)layer.ids[layer.feature_count() - 1], (void)layer.names[layer.feature_count() - 1];
+  } else if (blob.input().kind == InputKind::kPoint2) {
+    const PointTableView table = blob.point_table();
+    touch(table.points);
+    touch(table.feature_points);
+    if (!table.names.empty()) (void)table.names[table.names.size() - 1];
+  }
 }
 
 /// What blob_fuzzer does with one input: open the bytes (64-byte aligned) as a blob, read its

@@ -2,6 +2,7 @@
 // flags, and `--accel KIND[:key=value,...]`), the rest is the build job's.
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -34,6 +35,8 @@ struct BuildArgs {
   unsigned threads = 0;
   bool stats = false;
   ImportLimits limits;
+  GeoImportOptions geo;
+  std::string lon_column, lat_column;         // --lon-column/--lat-column: geo.x_column/y_column
   std::vector<std::string> accels;            // as given: KIND[:key=value,...]
   std::map<std::string, std::string> values;  // global structure flag -> its value text
   std::map<std::string, CLI::Option*> flags;  // global structure flag -> its option
@@ -50,8 +53,6 @@ void add_event_flags(CLI::App* command, BuildArgs& args) {
   command->add_option("--category", args.categories,
                       "Event table: a categorical dimension (repeatable): COLUMN, NAME=COLUMN, "
                       "or NAME=COLUMN:E0,E1,... to cut a numeric column at edges (-inf, inf ok)");
-  command->add_flag("--skip-invalid", args.events.skip_invalid,
-                    "Drop (and count) rows that cannot be read instead of failing");
 }
 
 // Adds every structure kind's global flags, each once (flags may be shared between kinds; the
@@ -151,6 +152,21 @@ BuildOptions build_options(const BuildArgs& args) {
   options.events = args.events;  // issue 18
   for (const auto& category : args.categories)
     options.events.categories.push_back(parse_event_category(category));
+  options.geo = args.geo;
+  options.events.skip_invalid = args.geo.skip_invalid;  // one --skip-invalid for both readers
+  // --lon-column/--lat-column are --x-column/--y-column for geographic data.
+  const auto column = [](std::string& xy, const std::string& lonlat, const char* flags) {
+    if (lonlat.empty()) return;
+    if (!xy.empty() && xy != lonlat) throw std::invalid_argument(std::string(flags) + " differ");
+    xy = lonlat;
+  };
+  column(options.geo.x_column, args.lon_column, "--lon-column and --x-column");
+  column(options.geo.y_column, args.lat_column, "--lat-column and --y-column");
+  const bool csv = std::any_of(args.inputs.begin(), args.inputs.end(),
+                               [](const std::string& input) { return is_csv_input_name(input); });
+  if (!csv && (!options.geo.x_column.empty() || !options.geo.y_column.empty()))
+    throw std::invalid_argument(
+        "--lon-column/--lat-column (--x-column/--y-column) apply to a CSV input only");
   return options;
 }
 
@@ -186,6 +202,23 @@ int run_build(const BuildArgs& args) {
   return 0;
 }
 
+// How a 2D input is read (geo_import.hpp).
+void add_geo_flags(CLI::App* command, BuildArgs& args) {
+  command
+      ->add_option("--name-property", args.geo.name_property,
+                   "GeoJSON: the feature property kept as each feature's name")
+      ->capture_default_str();
+  command->add_option("--lon-column", args.lon_column,
+                      "CSV points: the longitude (x) column, by header name");
+  command->add_option("--lat-column", args.lat_column,
+                      "CSV points: the latitude (y) column, by header name");
+  command->add_option("--x-column", args.geo.x_column, "CSV points: the x column (= --lon-column)");
+  command->add_option("--y-column", args.geo.y_column, "CSV points: the y column (= --lat-column)");
+  command->add_flag("--skip-invalid", args.geo.skip_invalid,
+                    "GeoJSON/CSV: drop a broken feature or row (kept empty, counted in the "
+                    "blob) instead of refusing the input");
+}
+
 }  // namespace
 
 Command add_build_command(CLI::App& app) {
@@ -193,8 +226,9 @@ Command add_build_command(CLI::App& app) {
   auto* command = app.add_subcommand("build", "Import meshes and write a .kiln blob");
   command
       ->add_option("inputs", args->inputs,
-                   "Mesh files (OBJ, PLY, STL, FBX, DAE, 3DS, OFF, 3MF, glTF/GLB, DRC; "
-                   "a .zst suffix is inflated first)")
+                   "Mesh files (OBJ, PLY, STL, FBX, DAE, 3DS, OFF, 3MF, glTF/GLB, DRC), or one "
+                   "2D input: GeoJSON (.geojson, .json) or a CSV point table (.csv); a .zst "
+                   "suffix is inflated first")
       ->required();
   command->add_option("-o,--output", args->output, "The blob to write (atomically)")->required();
   command->add_flag("--compress", args->compress,
@@ -223,6 +257,7 @@ Command add_build_command(CLI::App& app) {
                    "Refuse an OBJ polygon with more corners than this")
       ->check(CLI::Range(3u, 1u << 30))
       ->capture_default_str();
+  add_geo_flags(command, *args);
   command
       ->add_option("--accel", args->accels,
                    "A structure to build (repeatable): KIND[:key=value,...], each key an option "

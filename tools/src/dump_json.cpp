@@ -45,9 +45,31 @@ Json bounds_json(const format::Box3f& b) {
   return {{"min", {b.min.x, b.min.y, b.min.z}}, {"max", {b.max.x, b.max.y, b.max.z}}};
 }
 
+Json bounds2_json(const format::Box2d& b) {
+  return {{"min", {b.min.x, b.min.y}}, {"max", {b.max.x, b.max.y}}};
+}
+
+// A polygon layer's or a point table's counts and exact bounds.
+Json geo_input_json(const Blob& blob) {
+  const InputInfo& in = blob.input();
+  if (in.kind == InputKind::kPolygons2) {
+    const PolygonLayerView layer = blob.polygon_layer();
+    return {{"feature_count", layer.feature_count()},     {"polygon_count", layer.polygon_count()},
+            {"ring_count", layer.ring_count()},           {"vertex_count", layer.vertices.size()},
+            {"features_skipped", layer.features_skipped}, {"name_property", layer.name_property},
+            {"bounds", bounds2_json(in.bounds2)}};
+  }
+  const PointTableView table = blob.point_table();
+  return {{"point_count", table.points.size()}, {"row_count", table.feature_count()},
+          {"rows_skipped", table.rows_skipped}, {"x_column", table.x_column},
+          {"y_column", table.y_column},         {"bounds", bounds2_json(in.bounds2)}};
+}
+
 // A triangle scene's counts and topology, or a 3D point set's size.
 Json input_json(const Blob& blob) {
   const InputInfo& in = blob.input();
+  if (in.kind == InputKind::kPolygons2 || in.kind == InputKind::kPoint2)
+    return geo_input_json(blob);
   if (in.kind != InputKind::kTriangles)
     return {{"point_count", in.vertex_count}, {"bounds", bounds_json(in.bounds)}};
   return {{"vertex_count", in.vertex_count},
@@ -119,7 +141,11 @@ Json manifest_json(const Blob& blob) {
                    {"options", std::move(options)},
                    {"sources", std::move(sources)},
                    {"input", input_kind_name(blob.input().kind)}};
-  manifest[triangles ? "scene" : "point_set"] = input_json(blob);
+  const InputKind kind = blob.input().kind;
+  manifest[triangles                       ? "scene"
+           : kind == InputKind::kPolygons2 ? "polygon_layer"
+           : kind == InputKind::kPoint2    ? "point_table"
+                                           : "point_set"] = input_json(blob);
   manifest["meshes"] = meshes_json(blob);
   manifest["structures"] = structures_json(blob);
   const std::vector<Description> advice = describe_advice(blob);

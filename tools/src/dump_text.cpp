@@ -49,9 +49,36 @@ void write_options_and_sources(const Blob& blob, std::ostream& out) {
                          (unsigned long long)sources[i].size, hex64(sources[i].xxh3).c_str());
 }
 
+// A polygon layer's or a point table's counts, with its exact (double) bounds.
+void write_geo_input(const Blob& blob, std::ostream& out) {
+  const InputInfo& in = blob.input();
+  out << "\ninput: " << input_kind_name(in.kind) << "\n";
+  if (in.kind == InputKind::kPolygons2) {
+    const PolygonLayerView layer = blob.polygon_layer();
+    out << "  features   " << layer.feature_count() << "  (skipped as invalid "
+        << layer.features_skipped << ", name property '" << layer.name_property << "')\n";
+    out << "  polygons   " << layer.polygon_count() << "\n";
+    out << "  rings      " << layer.ring_count() << "  (holes "
+        << layer.ring_count() - layer.polygon_count() << ")\n";
+    out << "  vertices   " << layer.vertices.size() << "\n";
+  } else {
+    const PointTableView table = blob.point_table();
+    out << "  points     " << table.points.size() << "\n";
+    out << "  rows       " << table.feature_count() << "  (skipped as invalid "
+        << table.rows_skipped << ")\n";
+    if (!table.x_column.empty())
+      out << "  columns    x = " << table.x_column << ", y = " << table.y_column << "\n";
+  }
+  const auto& b = in.bounds2;
+  out << printf_string("  bounds     (%.17g, %.17g) .. (%.17g, %.17g)\n", b.min.x, b.min.y, b.max.x,
+                       b.max.y);
+}
+
 void write_input(const Blob& blob, std::ostream& out) {
   const InputInfo& in = blob.input();
   const auto& b = in.bounds;
+  if (in.kind == InputKind::kPolygons2 || in.kind == InputKind::kPoint2)
+    return write_geo_input(blob, out);
   if (in.kind == InputKind::kTriangles) {
     out << "\nscene\n";
     out << "  triangles  " << in.triangle_count << "  (imported " << in.input_triangle_count

@@ -13,6 +13,7 @@
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/structure_choice.hpp"
 #include "query_events.hpp"
+#include "query_polygon.hpp"
 
 namespace kiln::cli {
 
@@ -22,6 +23,7 @@ constexpr std::size_t kBatch = 1024;
 
 struct QueryArgs {
   std::string blob, op, in, out, accel;
+  PolygonQueryArgs polygon;  // --op polygon, polygons-in-box (query_polygon.cpp)
   float max_distance = std::numeric_limits<float>::infinity();
   unsigned k = 1;
   float radius = 0;
@@ -130,6 +132,12 @@ ChosenStructure choose_for(const Blob& blob, const QueryArgs& args) {
 int run_query(const QueryArgs& args) {
   if (is_event_op(args.op))  // issue 18: aggregate queries on event tables (query_events.cpp)
     return run_event_query(args.blob, args.accel, args.op, args.in, args.out);
+  if (is_polygon_op(args.op)) {
+    PolygonQueryArgs p = args.polygon;
+    p.blob = args.blob, p.op = args.op, p.in = args.in, p.out = args.out, p.accel = args.accel;
+    p.threads = args.threads;
+    return run_polygon_query(p);
+  }
   try {
     const Blob blob = Blob::open_file(args.blob);
     const ChosenStructure chosen = choose_for(blob, args);
@@ -167,14 +175,25 @@ Command add_query_command(CLI::App& app) {
   command
       ->add_option("--op", args->op,
                    "closest, inside, box (surface queries); knn, radius (nearest neighbours among "
-                   "the vertices); occupied (voxel structures); count, series, tiles, topk (event "
-                   "tables: JSON lines in and out)")
-      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius", "occupied", "count",
-                             "series", "tiles", "topk"}))
+                   "the vertices); occupied (voxel structures); polygon, polygons-in-box (2D "
+                   "polygon layers); count, series, tiles, topk (event tables: JSON lines)")
+      ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius", "occupied", "polygon",
+                             "polygons-in-box", "count", "series", "tiles", "topk"}))
       ->required();
-  command->add_option("--in", args->in, "Queries: float32 x 3 per point, x 6 per box (min, max)")
+  command
+      ->add_option("--in", args->in,
+                   "Queries: float32 x 3 per point, x 6 per box (min, max); polygon: CSV (.csv) "
+                   "or float64 x 2 per point; polygons-in-box: CSV rows min_x,min_y,max_x,max_y "
+                   "or float64 x 4 per box")
       ->required();
-  command->add_option("--out", args->out, "Answers (docs/FORMAT.md)")->required();
+  command
+      ->add_option(
+          "--out", args->out,
+          "Answers (docs/FORMAT.md); polygon: CSV in gives CSV (the input's columns, then "
+          "polygon_index (-1: none), polygon_id, polygon_name), binary in gives uint32 per "
+          "point (0xFFFFFFFF: none); polygons-in-box: rows box_index,feature_index (CSV) "
+          "or uint32 pairs")
+      ->required();
   command->add_option("--accel", args->accel,
                       "Structure to use, by name (default: the first that answers --op)");
   command->add_option("--max-distance", args->max_distance, "closest: ignore surfaces farther away")
@@ -182,6 +201,7 @@ Command add_query_command(CLI::App& app) {
   command->add_option("--k", args->k, "knn: neighbours per query")->check(CLI::Range(1u, 4096u));
   command->add_option("--radius", args->radius, "radius: search radius")
       ->check(CLI::NonNegativeNumber);
+  add_polygon_query_options(command, args->polygon);
   add_threads_option(command, args->threads);
   return {command, [args] { return run_query(*args); }};
 }

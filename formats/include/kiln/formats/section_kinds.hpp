@@ -26,6 +26,12 @@ inline constexpr std::uint32_t kSectionPointFeatures = fourcc('P', '2', 'F', 'E'
 inline constexpr std::uint32_t kSectionStringOffsets = fourcc('S', 'T', 'R', 'O');  // uint64
 inline constexpr std::uint32_t kSectionStringBytes = fourcc('S', 'T', 'R', 'B');    // UTF-8
 
+/// Every section kind an input may own (structures list theirs in the runtime's registry).
+inline constexpr std::uint32_t kInputSectionKinds[] = {
+    kSectionPositions,     kSectionNormals,       kSectionTriangles,     kSectionTriangleMesh,
+    kSectionLayerVertices, kSectionLayerRings,    kSectionLayerPolygons, kSectionLayerFeatures,
+    kSectionPoints2,       kSectionPointFeatures, kSectionStringOffsets, kSectionStringBytes};
+
 inline std::string fourcc_to_string(std::uint32_t kind) {
   std::string text;
   for (int i = 0; i < 4; ++i) {

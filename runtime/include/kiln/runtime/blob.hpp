@@ -138,6 +138,9 @@ class Blob {
   void validate_input();
   void validate_structures();
   void verify_input() const;
+  void validate_polygon_layer();  // blob_geo_input.cpp
+  void validate_point_table();
+  void verify_geo_input() const;
 
   std::string name_;
   MappedFile file_;
@@ -149,6 +152,13 @@ class Blob {
   InputInfo input_;
   std::uint32_t positions_ = kNoSection, normals_ = kNoSection, triangles_ = kNoSection,
                 triangle_mesh_ = kNoSection;
+  // A 2D input's sections (blob_geo_input.cpp).
+  struct GeoSections {
+    std::uint32_t vertices = kNoSection, ring_vertices = kNoSection, polygon_rings = kNoSection,
+                  feature_polygons = kNoSection, points = kNoSection, feature_points = kNoSection,
+                  id_offsets = kNoSection, id_bytes = kNoSection, name_offsets = kNoSection,
+                  name_bytes = kNoSection;
+  } geo_;
   std::vector<StructureInfo> structures_;
 };
 
