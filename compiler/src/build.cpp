@@ -3,11 +3,13 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "event_table_sections.hpp"
 #include "geo_input.hpp"
 #include "kiln/compiler/advise.hpp"
 #include "kiln/compiler/file_accesses.hpp"
 #include "kiln/compiler/geo_import.hpp"
 #include "kiln/compiler/import.hpp"
+#include "kiln/compiler/import_events.hpp"
 #include "kiln/formats/section_kinds.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
@@ -65,6 +67,10 @@ InputSectionIndices add_input_sections(const Scene& scene, std::vector<SectionPa
     return std::uint32_t(sections.size() - 1);
   };
   InputSectionIndices indices;
+  if (scene.events) {  // issue 18: an event table's columns (event_table_sections.cpp)
+    add_event_sections(*scene.events, sections, indices);
+    return indices;
+  }
   if (scene.polygons || scene.points2) {
     add_geo_input_sections(scene, indices, add);
     return indices;
@@ -85,6 +91,7 @@ InputSectionIndices add_input_sections(const Scene& scene, std::vector<SectionPa
 }  // namespace
 
 InputKind input_kind_of(const Scene& scene) {
+  if (scene.events) return InputKind::kEvents;
   if (scene.polygons) return InputKind::kPolygons2;
   if (scene.points2) return InputKind::kPoint2;
   return scene.triangles.empty() ? InputKind::kPoint3 : InputKind::kTriangles;
@@ -115,7 +122,8 @@ Scene import_geo_scene(const std::vector<std::string>& inputs, const BuildProgre
 
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
                    const BuildProgress& progress, const ImportLimits& limits,
-                   const GeoImportOptions& geo) {
+                   const GeoImportOptions& geo, const EventColumns& events) {
+  if (events.active()) return import_event_scene(inputs, events, limits);  // issue 18
   for (const std::string& input : inputs)
     if (is_geo_input_name(input)) return import_geo_scene(inputs, progress, limits, geo);
   std::vector<ImportedFile> files(inputs.size());

@@ -193,7 +193,7 @@ std::string toolchain_fingerprint() {
 Hash128 direct_key(const BuildOptions& options, std::span<const Hash128> input_hashes,
                    std::string_view fingerprint) {
   // The limits only refuse inputs: a blob that is written never depends on them.
-  const auto& [inputs, structures, compression, threads, limits, geo] = options;
+  const auto& [inputs, structures, compression, threads, limits, events, geo] = options;
   if (input_hashes.size() != inputs.size())
     throw std::invalid_argument("direct_key: one hash per input expected");
   Hasher h;
@@ -204,6 +204,7 @@ Hash128 direct_key(const BuildOptions& options, std::span<const Hash128> input_h
   if (compress) h.u64(std::uint64_t(level));  // the level is ignored without compression
   h.u64(structures.size());
   for (const StructureRequest& request : structures) hash_request(h, request);
+  if (events.active()) h.text(events.key_text());  // issue 18: how the CSV is read
   // How a 2D input is read changes the blob (names, coordinates, skipped features).
   const auto& [name_property, x_column, y_column, skip_invalid] = geo;
   h.text(name_property);

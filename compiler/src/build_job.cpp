@@ -32,7 +32,7 @@ void write_depfile_text(const BuildJob& job, const std::string& text) {
 FileAccesses build_and_write(const BuildJob& job, const BuildProgress& progress,
                              BuildJobReport& report) {
   Scene scene = import_scene(job.options.inputs, job.options.threads, progress, job.options.limits,
-                             job.options.geo);
+                             job.options.geo, job.options.events);
   report.read_files = scene.accessed.read;
   const std::string depfile = depfile_text(job, report.read_files);
   if (progress) progress("compile", 0, 1);

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <map>
 
+#include "event_table_sections.hpp"
 #include "geo_input.hpp"
 #include "kiln/schema/manifest_generated.h"
 
@@ -112,6 +113,9 @@ std::vector<std::byte> build_manifest(const Scene& scene, const BuildOptions& op
   Offset<void> input_table;
   if (kind == InputKind::kTriangles) {
     input_table = triangle_scene(fbb, scene, input);
+  } else if (kind == InputKind::kEvents) {  // issue 18 (event_table_sections.cpp)
+    input_type = schema::Input::EventTable;
+    input_table = Offset<void>(event_table_manifest(fbb, *scene.events, input));
   } else if (kind == InputKind::kPoint3) {
     input_type = schema::Input::PointCloud, input_table = point_set(fbb, scene, input);
   } else {

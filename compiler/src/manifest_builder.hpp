@@ -15,6 +15,9 @@ namespace kiln {
 struct InputSectionIndices {
   std::uint32_t positions = kNoSection, triangles = kNoSection, triangle_mesh = kNoSection,
                 normals = kNoSection;
+  // An event table's (issue 18; event_table_sections.cpp).
+  std::uint32_t event_points = kNoSection, event_times = kNoSection, event_codes = kNoSection,
+                event_label_offsets = kNoSection, event_label_bytes = kNoSection;
   // The 2D inputs (geo_input.cpp): a polygon layer's or a point table's arrays.
   std::uint32_t vertices = kNoSection, ring_vertices = kNoSection, polygon_rings = kNoSection,
                 feature_polygons = kNoSection, points = kNoSection, feature_points = kNoSection,

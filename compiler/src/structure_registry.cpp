@@ -11,6 +11,7 @@ namespace kiln {
 
 extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointTreeBuilder,
     kVoxelDagBuilder, kEsvoBuilder, kOctreeBuilder, kGridBuilder, kNestedGridBuilder;
+extern const StructureBuilder kNanocubeBuilder;      // nanocube_entry.cpp (issue 18)
 extern const StructureBuilder kPolygonIndexBuilder;  // polygon_index_entry.cpp
 extern const StructureBuilder kQuadtreeBuilder;      // quadtree_entry.cpp
 
@@ -19,7 +20,7 @@ namespace {
 const StructureBuilder* const kBuilders[] = {
     &kBvhBuilder,        &kSbvhBuilder,         &kKdTreeBuilder,  &kPointTreeBuilder,
     &kVoxelDagBuilder,   &kEsvoBuilder,         &kOctreeBuilder,  &kGridBuilder,
-    &kNestedGridBuilder, &kPolygonIndexBuilder, &kQuadtreeBuilder};
+    &kNestedGridBuilder, &kPolygonIndexBuilder, &kQuadtreeBuilder, &kNanocubeBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;

@@ -8,6 +8,8 @@
 
 namespace kiln {
 
+InputInfo validate_event_input(const Blob& blob, const schema::EventTable& table);
+
 namespace {
 
 format::Box3f to_box(const schema::Bounds* b) {
@@ -98,6 +100,8 @@ void Blob::validate_input() {
     input_.kind = InputKind::kPoint3;
     input_.vertex_count = set->point_count();
     input_.bounds = to_box(set->bounds());
+  } else if (const auto* events = m.input_as_EventTable()) {
+    input_ = validate_event_input(*this, *events);  // issue 18: blob_events.cpp
   } else if (m.input_type() == schema::Input::PolygonLayer) {
     validate_polygon_layer();
   } else if (m.input_type() == schema::Input::PointTable) {

@@ -27,11 +27,16 @@ constexpr flatbuffers::uoffset_t kManifestMaxTables = 1u << 22;
 constexpr std::uint64_t kManifestMaxSize = 1u << 30;
 
 // The manifest's and the inputs' section kinds, and every registered structure kind's.
+}  // namespace
+bool is_event_section_kind(std::uint32_t kind);  // blob_events.cpp (issue 18)
+namespace {
+
 bool is_known_kind(std::uint32_t kind) {
   if (kind == format::kSectionManifest ||
       std::find(std::begin(format::kInputSectionKinds), std::end(format::kInputSectionKinds),
                 kind) != std::end(format::kInputSectionKinds))
     return true;
+  if (is_event_section_kind(kind)) return true;  // issue 18: blob_events.cpp
   for (const StructureKind* structure : structure_kinds())
     if (std::find(structure->sections.begin(), structure->sections.end(), kind) !=
         structure->sections.end())

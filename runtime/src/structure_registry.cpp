@@ -13,6 +13,7 @@ extern const StructureKind kVoxelDagKind;               // voxel_dag_kind.cpp
 extern const StructureKind kEsvoKind;                   // esvo_kind.cpp
 extern const StructureKind kOctreeKind;                 // octree_kind.cpp
 extern const StructureKind kGridKind, kNestedGridKind;  // grid_kind.cpp
+extern const StructureKind kNanocubeKind;               // nanocube_kind.cpp
 extern const StructureKind kPolygonIndexKind;           // polygon_index_kind.cpp
 extern const StructureKind kQuadtreeKind;               // quadtree_kind.cpp
 
@@ -20,7 +21,7 @@ namespace {
 
 constexpr const StructureKind* kKinds[] = {
     &kBvhKind,    &kSbvhKind, &kKdTreeKind,     &kPointTreeKind,    &kVoxelDagKind, &kEsvoKind,
-    &kOctreeKind, &kGridKind, &kNestedGridKind, &kPolygonIndexKind, &kQuadtreeKind,
+    &kOctreeKind, &kGridKind, &kNestedGridKind, &kPolygonIndexKind, &kQuadtreeKind, &kNanocubeKind,
 };
 
 }  // namespace

@@ -40,7 +40,20 @@ struct BuildArgs {
   std::vector<std::string> accels;            // as given: KIND[:key=value,...]
   std::map<std::string, std::string> values;  // global structure flag -> its value text
   std::map<std::string, CLI::Option*> flags;  // global structure flag -> its option
+  EventColumns events;                        // issue 18: --lat/--lon/--time/--category
+  std::vector<std::string> categories;
 };
+
+// Issue 18: the flags that read a CSV as an event table (add_event_flags, build_options).
+void add_event_flags(CLI::App* command, BuildArgs& args) {
+  command->add_option("--lat", args.events.lat, "Event table: the latitude column");
+  command->add_option("--lon", args.events.lon, "Event table: the longitude column");
+  command->add_option("--time", args.events.time,
+                      "Event table: the time column (ISO 8601 with Z or an offset, or Unix s)");
+  command->add_option("--category", args.categories,
+                      "Event table: a categorical dimension (repeatable): COLUMN, NAME=COLUMN, "
+                      "or NAME=COLUMN:E0,E1,... to cut a numeric column at edges (-inf, inf ok)");
+}
 
 // Adds every structure kind's global flags, each once (flags may be shared between kinds; the
 // first kind declaring one gives its help and shown default).
@@ -141,7 +154,11 @@ BuildOptions build_options(const BuildArgs& args) {
   options.compression = {args.compress, args.level};
   options.threads = args.threads;
   options.limits = args.limits;
+  options.events = args.events;  // issue 18
+  for (const auto& category : args.categories)
+    options.events.categories.push_back(parse_event_category(category));
   options.geo = args.geo;
+  options.events.skip_invalid = args.geo.skip_invalid;  // one --skip-invalid for both readers
   // --lon-column/--lat-column are --x-column/--y-column for geographic data.
   const auto column = [](std::string& xy, const std::string& lonlat, const char* flags) {
     if (lonlat.empty()) return;
@@ -253,6 +270,7 @@ Command add_build_command(CLI::App& app) {
                    "name=NAME to name it (default: the kind)")
       ->allow_extra_args(false);
   add_structure_flags(command, *args);
+  add_event_flags(command, *args);
   command->footer(kinds_footer());
   return {command, [args] { return run_build(*args); }};
 }

@@ -12,6 +12,7 @@
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "kiln/tools/structure_choice.hpp"
+#include "query_events.hpp"
 #include "query_points2d.hpp"
 #include "query_polygon.hpp"
 
@@ -130,6 +131,8 @@ ChosenStructure choose_for(const Blob& blob, const QueryArgs& args) {
 }
 
 int run_query(const QueryArgs& args) {
+  if (is_event_op(args.op))  // issue 18: aggregate queries on event tables (query_events.cpp)
+    return run_event_query(args.blob, args.accel, args.op, args.in, args.out);
   if (is_polygon_op(args.op)) {
     PolygonQueryArgs p = args.polygon;
     p.blob = args.blob, p.op = args.op, p.in = args.in, p.out = args.out, p.accel = args.accel;
@@ -174,9 +177,11 @@ Command add_query_command(CLI::App& app) {
       ->add_option("--op", args->op,
                    "closest, inside, box (surface queries); knn, radius (nearest neighbours among "
                    "the vertices); occupied (voxel structures); polygon, polygons-in-box (2D "
-                   "polygon layers); range, knn2d, radius2d (2D point tables: CSV rows out)")
+                   "polygon layers); range, knn2d, radius2d (2D point tables: CSV rows out); "
+                   "count, series, tiles, topk (event tables: JSON lines)")
       ->check(CLI::IsMember({"closest", "inside", "box", "knn", "radius", "occupied", "polygon",
-                             "polygons-in-box", "range", "knn2d", "radius2d"}))
+                             "polygons-in-box", "range", "knn2d", "radius2d", "count", "series",
+                             "tiles", "topk"}))
       ->required();
   command
       ->add_option("--in", args->in,

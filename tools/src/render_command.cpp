@@ -17,6 +17,7 @@
 #include "kiln/runtime/structure_registry.hpp"
 #include "kiln/tools/render.hpp"
 #include "kiln/tools/render_map.hpp"
+#include "render_events.hpp"
 
 namespace kiln::cli {
 
@@ -32,6 +33,7 @@ struct RenderArgs {
   std::string compare;  // comma-separated structure names
   unsigned threads = 0;
   bool json = false;
+  EventRenderArgs events;  // issue 18: render_events.cpp
 };
 
 // The checked options.
@@ -208,6 +210,8 @@ int fail(const std::string& message) {
 }
 
 int run_render(const RenderArgs& args) {
+  if (renders_events(args.blob, args.accel))  // issue 18: an event heatmap (render_events.cpp)
+    return run_event_render(args.blob, args.accel, args.out, args.size, args.events);
   try {
     std::string ignored;  // a blob that does not open gets the 3D path's messages
     if (const auto blob = Blob::try_open_file(args.blob, ignored);
@@ -273,6 +277,7 @@ Command add_render_command(CLI::App& app) {
   add_threads_option(command, args->threads,
                      "Worker threads (0 = all cores); never changes the image");
   command->add_flag("--json", args->json, "Mean costs per structure as JSON on stdout");
+  add_event_render_options(command, args->events);
   return {command, [args] { return run_render(*args); }};
 }
 

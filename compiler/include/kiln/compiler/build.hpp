@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "kiln/compiler/blob_writer.hpp"
+#include "kiln/compiler/event_table.hpp"
 #include "kiln/compiler/geo_import.hpp"
 #include "kiln/compiler/import.hpp"
 #include "kiln/compiler/scene.hpp"
@@ -34,6 +35,7 @@ struct BuildOptions {
   CompressionOptions compression;
   unsigned threads = 0;  // 0 = all hardware threads; never affects the output
   ImportLimits limits;   // refuse hostile inputs early; never affects an output that is written
+  EventColumns events;   // issue 18: --lat/--lon/--time/--category make the CSV an event table
   GeoImportOptions geo;  // how a 2D input (GeoJSON, CSV) is read; enters the cache key
 };
 
@@ -47,10 +49,11 @@ using BuildProgress = std::function<void(std::string_view, std::uint64_t, std::u
 // scene's `accessed` lists every file the import read. Throws ImportError naming the first
 // failing input in command-line order, or when nothing is left: no triangle and no vertex.
 // A 2D input (is_geo_input_name: GeoJSON, CSV) is read with `geo` into `scene.polygons` or
-// `scene.points2`; it must be the blob's only input.
+// `scene.points2`; it must be the blob's only input. With `events` active (issue 18), the one
+// input is read as an event table instead.
 Scene import_scene(const std::vector<std::string>& inputs, unsigned threads,
                    const BuildProgress& progress = {}, const ImportLimits& limits = {},
-                   const GeoImportOptions& geo = {});
+                   const GeoImportOptions& geo = {}, const EventColumns& events = {});
 
 /// A compiled blob as pieces (BlobPieces) with what they borrow: each structure's sections and
 /// the manifest. The input's sections borrow the scene, which must outlive it.

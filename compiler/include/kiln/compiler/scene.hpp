@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "kiln/compiler/event_table.hpp"
 #include "kiln/compiler/file_accesses.hpp"
 #include "kiln/compiler/geo_layer.hpp"
 #include "kiln/compiler/transform.hpp"
@@ -67,6 +68,8 @@ struct Scene {
   // and `accessed` name the one file it was read from.
   std::optional<PolygonLayer> polygons;
   std::optional<PointTable2> points2;
+  // An event table (CSV with --lat/--lon/--time; issue 18): what the nanocube consumes.
+  std::optional<EventTable> events;
 };
 
 // Edge manifoldness over welded positions: what "closed" means for point-inside queries.

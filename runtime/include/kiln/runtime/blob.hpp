@@ -16,6 +16,7 @@
 #include "kiln/formats/container.hpp"
 #include "kiln/formats/geometry.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"
+#include "kiln/runtime/event_table.hpp"
 #include "kiln/runtime/geo_layer.hpp"
 #include "kiln/runtime/input_kind.hpp"
 #include "kiln/runtime/mapped_file.hpp"
@@ -100,6 +101,9 @@ class Blob {
   PolygonLayerView polygon_layer() const;
   /// The 2D point table this blob was built from; throws BlobError for another input kind.
   PointTableView point_table() const;
+  /// The event table this blob was built from (issue 18; blob_events.cpp); throws BlobError for
+  /// another input kind.
+  EventTableView event_table() const;
 
   std::span<const StructureInfo> structures() const { return structures_; }
   /// The structure named `name`, or nullptr.

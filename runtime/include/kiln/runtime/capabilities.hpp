@@ -4,9 +4,14 @@
 // calls, for code that knows what it holds.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
+#include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "kiln/formats/geometry.hpp"
@@ -123,6 +128,57 @@ class Point2Queries {
   virtual void cells(std::vector<IndexCell2>& out) const = 0;
 };
 
+/// Issue 18: which events an aggregate query covers. Every field is optional (absent: all).
+struct EventSelection {
+  /// [min_lon, min_lat, max_lon, max_lat], snapped outward to the quadtree's finest cells.
+  std::optional<format::Box2d> box;
+  std::optional<std::array<std::uint32_t, 3>> tile;  ///< z, x, y (Web-Mercator, y south)
+  /// [t0, t1) in Unix seconds, snapped outward to whole time bins.
+  std::optional<std::array<std::int64_t, 2>> time;
+  /// category name -> labels to keep (an unknown label matches nothing).
+  std::vector<std::pair<std::string, std::vector<std::string>>> where;
+};
+
+/// What a selection became once snapped: the box of the covered finest cells and the time
+/// interval of the covered bins.
+struct EventSnap {
+  format::Box2d box;
+  std::int64_t t0 = 0, t1 = 0;
+};
+
+struct EventTileCount {
+  std::uint32_t z = 0, x = 0, y = 0;
+  std::uint64_t count = 0;
+};
+
+struct EventLabelCount {
+  std::string label;
+  std::uint64_t count = 0;
+};
+
+/// Aggregate queries over an event table (the nanocube). Bad requests (an unknown category, a
+/// zoom past the finest level, a series bin that is not a whole number of the time bin) throw
+/// std::invalid_argument with one line.
+class EventQueries {
+ public:
+  virtual ~EventQueries() = default;
+  /// The finest quadtree level (deepest tile zoom) and the time bin in seconds.
+  virtual std::uint32_t finest_level() const = 0;
+  virtual std::int64_t time_bin() const = 0;
+  virtual EventSnap snap(const EventSelection& selection) const = 0;
+  virtual std::uint64_t count(const EventSelection& selection) const = 0;
+  /// Counts per bin of `bin_seconds` from the snapped t0 (the last bin may be shorter), every
+  /// bin listed, zero or not: (bin start in Unix seconds, count).
+  virtual std::vector<std::pair<std::int64_t, std::uint64_t>> series(
+      const EventSelection& selection, std::int64_t bin_seconds) const = 0;
+  /// Counts per tile at `zoom` of the selected events, tiles with none left out, sorted by x, y.
+  virtual std::vector<EventTileCount> tiles(const EventSelection& selection,
+                                            std::uint32_t zoom) const = 0;
+  /// The `k` labels of category `by` with the largest counts (> 0), ties broken by label.
+  virtual std::vector<EventLabelCount> topk(const EventSelection& selection, std::string_view by,
+                                            std::size_t k) const = 0;
+};
+
 /// An opened, validated structure: the capabilities it has (nullptr for those it lacks).
 /// Borrows the Blob it was opened from, which must outlive it.
 class StructureView {
@@ -134,6 +190,7 @@ class StructureView {
   virtual const OccupancyQueries* occupancy() const { return nullptr; }
   virtual const PolygonQueries* polygons() const { return nullptr; }
   virtual const Point2Queries* points2() const { return nullptr; }
+  virtual const EventQueries* events() const { return nullptr; }  ///< issue 18
 };
 
 }  // namespace kiln

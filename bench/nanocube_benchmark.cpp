@@ -1,0 +1,123 @@
+// Nanocube query latency (issue 18): p50/p99 per query type on one thread, against the
+// brute-force scan of the mapped table and (with --sqlite) SQLite over an indexed table of the
+// same columns. Usage: kiln_bench_nanocube BLOB [--queries N] [--scan-queries M] [--sqlite].
+// Build the blob first with `kiln build ... --accel nanocube` (docs/BENCHMARKS.md, "Nanocube").
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/nanocube.hpp"
+#include "nanocube_bench.hpp"
+
+namespace {
+
+using namespace kiln;
+using Clock = std::chrono::steady_clock;
+
+using Query = bench::EventQuery;
+
+// Queries of one type: a random box around an event (0.5 to 30 degrees), a random month-or-less,
+// a filter on the first category half of the time; tiles: a 256 x 256-tile view.
+std::vector<Query> make_queries(const std::string& type, const EventTableView& t, std::uint32_t L,
+                                std::size_t n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Query> out;
+  for (std::size_t i = 0; i < n; ++i) {
+    Query q;
+    const auto& p = t.points[std::size_t(u(rng) * double(t.rows())) % t.rows()];
+    if (type == "tiles") {
+      const std::uint32_t z = std::min<std::uint32_t>(L - std::min(L, 8u), 1 + rng() % 4);
+      q.s.tile = std::array<std::uint32_t, 3>{z, format::mercator_cell_x(p.x, z),
+                                              format::mercator_cell_y(p.y, z)};
+      q.zoom = std::min(L, z + 8);
+    } else {
+      const double w = 0.5 * std::pow(60.0, u(rng));
+      q.s.box = format::Box2d{{p.x - w, p.y - w / 2}, {p.x + w, p.y + w / 2}};
+    }
+    const double span = double(t.time_max - t.time_min);
+    const auto t0 = t.time_min + std::int64_t(u(rng) * span * 0.8);
+    q.s.time = std::array<std::int64_t, 2>{t0, t0 + std::int64_t(u(rng) * 31 * 86400)};
+    if (!t.categories.empty() && u(rng) < 0.5 && type != "topk")
+      q.s.where = {{t.categories[0].name,
+                    {std::string(t.label(0, std::uint32_t(rng() % t.categories[0].label_count)))}}};
+    out.push_back(q);
+  }
+  return out;
+}
+
+// Runs each query once, returns (p50, p99) in milliseconds and a checksum of the answers.
+std::pair<double, double> latency(const std::vector<Query>& qs,
+                                  const std::function<std::uint64_t(const Query&)>& run,
+                                  std::uint64_t& checksum) {
+  std::vector<double> ms;
+  for (const Query& q : qs) {
+    const auto start = Clock::now();
+    checksum += run(q);
+    ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+  }
+  std::sort(ms.begin(), ms.end());
+  return {ms[ms.size() / 2], ms[std::min(ms.size() - 1, ms.size() * 99 / 100)]};
+}
+
+std::function<std::uint64_t(const Query&)> runner(const EventQueries& e, const std::string& type,
+                                                  const std::string& by) {
+  if (type == "count") return [&e](const Query& q) { return e.count(q.s); };
+  if (type == "series")
+    return [&e](const Query& q) { return std::uint64_t(e.series(q.s, 86400).size()); };
+  if (type == "tiles")
+    return [&e](const Query& q) { return std::uint64_t(e.tiles(q.s, q.zoom).size()); };
+  return [&e, by](const Query& q) {
+    const auto top = e.topk(q.s, by, 10);
+    return top.empty() ? 0 : top.front().count;
+  };
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: %s BLOB [--queries N] [--scan-queries M] [--sqlite]\n", argv[0]);
+    return 2;
+  }
+  std::size_t queries = 1000, scan_queries = 20;
+  bool sqlite = false;
+  for (int i = 2; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--queries") && i + 1 < argc)
+      queries = std::stoul(argv[++i]);
+    else if (!std::strcmp(argv[i], "--scan-queries") && i + 1 < argc)
+      scan_queries = std::stoul(argv[++i]);
+    else if (!std::strcmp(argv[i], "--sqlite"))
+      sqlite = true;
+  }
+  const Blob blob = Blob::open_file(argv[1]);
+  const NanocubeView cube = NanocubeView::from_blob(blob, *blob.structure("nanocube"));
+  const EventScan scan(blob.event_table(), cube.grid());
+  const EventTableView& t = cube.table();
+  const std::string by = t.categories.empty() ? "" : t.categories[0].name;
+  std::printf("%zu events, max level %u, %zu queries per type (scan: %zu), 1 thread\n", t.rows(),
+              cube.grid().max_level, queries, scan_queries);
+  std::printf("%-7s %12s %12s %12s %12s\n", "query", "cube p50 ms", "cube p99 ms", "scan p50 ms",
+              "scan p99 ms");
+  std::vector<std::pair<std::string, std::vector<Query>>> sets;
+  for (const std::string type : {"count", "series", "tiles", "topk"}) {
+    if (type == "topk" && by.empty()) continue;
+    const auto qs = make_queries(type, t, cube.grid().max_level, queries, 42);
+    std::uint64_t a = 0, b = 0, c = 0;
+    const auto [p50, p99] = latency(qs, runner(cube, type, by), a);
+    const std::vector<Query> few(qs.begin(), qs.begin() + std::min(scan_queries, qs.size()));
+    const auto [s50, s99] = latency(few, runner(scan, type, by), b);
+    latency(few, runner(cube, type, by), c);
+    std::printf("%-7s %12.4f %12.4f %12.2f %12.2f%s\n", type.c_str(), p50, p99, s50, s99,
+                b == c ? "" : "  ANSWERS DIFFER");
+    sets.emplace_back(type, few);
+  }
+  return sqlite ? kiln::bench::sqlite_latency(t, cube.grid(), sets) : 0;
+}

@@ -1,0 +1,76 @@
+// The nanocube's flattened layout (docs/FORMAT.md, "Nanocube"): every dimension's nodes in one
+// array (space first, then each category), child edges sorted by key, and per leaf of the last
+// dimension a sparse cumulative count series over time bins.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+
+#include "kiln/formats/container.hpp"
+
+namespace kiln::format {
+
+inline constexpr std::uint32_t kSectionNanocubeNodes = fourcc('N', 'C', 'N', 'D');
+inline constexpr std::uint32_t kSectionNanocubeEdges = fourcc('N', 'C', 'E', 'D');
+inline constexpr std::uint32_t kSectionNanocubeSeries = fourcc('N', 'C', 'S', 'R');
+inline constexpr std::uint32_t kSectionNanocubeSeriesBins = fourcc('N', 'C', 'T', 'B');
+inline constexpr std::uint32_t kSectionNanocubeSeriesCounts = fourcc('N', 'C', 'T', 'C');
+
+/// The deepest quadtree the format allows (cells of 2^30 per axis fit uint32 keys).
+inline constexpr std::uint32_t kNanocubeMaxLevel = 30;
+
+/// A node of one dimension. Its children are edges first_edge .. first_edge + edge_count - 1,
+/// keys strictly increasing, each child's index below the node's own (children are written
+/// first, so the graph is acyclic). `content` is a node of the next dimension (its root over
+/// this node's events) or, in the last dimension, a series index. A shared content link is a
+/// content equal to a child's; a shared child link points into a structure built earlier.
+struct NanocubeNode {
+  std::uint64_t first_edge;
+  std::uint32_t edge_count;
+  std::uint32_t content;
+};
+static_assert(sizeof(NanocubeNode) == 16);
+
+/// A child edge: key = quadrant (x bit | y bit << 1) in space, the label code in a category.
+struct NanocubeEdge {
+  std::uint32_t key;
+  std::uint32_t node;
+};
+static_assert(sizeof(NanocubeEdge) == 8);
+
+/// Entries first .. first + count - 1 of the series arrays: bins strictly increasing, counts
+/// cumulative (events in bins <= that bin), so events in [b0, b1) are two binary searches.
+struct NanocubeSeries {
+  std::uint64_t first;
+  std::uint64_t count;
+};
+static_assert(sizeof(NanocubeSeries) == 16);
+
+/// Web-Mercator cells at `level` (x east from -180 degrees, y south from +85.0511 degrees):
+/// the cell of a longitude or latitude, clamped to the grid (NaN goes to cell 0), and a cell
+/// edge's coordinate. The nanocube, its queries and the brute-force scan all use these.
+inline std::uint32_t mercator_cell_x(double lon, std::uint32_t level) {
+  const double n = std::ldexp(1.0, int(level));
+  const double x = (lon + 180.0) / 360.0 * n;
+  if (!(x > 0)) return 0;
+  return std::uint32_t(std::min(std::floor(x), n - 1));
+}
+inline std::uint32_t mercator_cell_y(double lat, std::uint32_t level) {
+  constexpr double kPi = 3.14159265358979323846, kMaxLat = 85.0511287798066;
+  const double n = std::ldexp(1.0, int(level));
+  const double clamped = std::clamp(lat, -kMaxLat, kMaxLat);
+  const double y = (1.0 - std::asinh(std::tan(clamped * kPi / 180.0)) / kPi) / 2.0 * n;
+  if (!(y > 0)) return 0;
+  return std::uint32_t(std::min(std::floor(y), n - 1));
+}
+inline double mercator_lon(std::uint64_t x, std::uint32_t level) {
+  return std::ldexp(double(x), -int(level)) * 360.0 - 180.0;
+}
+inline double mercator_lat(std::uint64_t y, std::uint32_t level) {
+  constexpr double kPi = 3.14159265358979323846;
+  return std::atan(std::sinh(kPi * (1.0 - 2.0 * std::ldexp(double(y), -int(level))))) * 180.0 / kPi;
+}
+
+}  // namespace kiln::format

@@ -1,0 +1,147 @@
+// The nanocube kind of the runtime registry ("nanocube"): its manifest checks, view (the
+// EventQueries capability), deep check and description.
+#include <memory>
+#include <string>
+
+#include "kiln/formats/nanocube.hpp"
+#include "kiln/runtime/manifest.hpp"
+#include "kiln/runtime/nanocube.hpp"
+#include "kiln/runtime/structure_registry.hpp"
+#include "text_format.hpp"
+
+namespace kiln {
+
+// format_event_time lives in the compiler; the dump prints times itself.
+namespace {
+
+constexpr std::uint32_t kSections[] = {
+    format::kSectionNanocubeNodes, format::kSectionNanocubeEdges, format::kSectionNanocubeSeries,
+    format::kSectionNanocubeSeriesBins, format::kSectionNanocubeSeriesCounts};
+
+class NanocubeStructure final : public StructureView {
+ public:
+  explicit NanocubeStructure(NanocubeView view) : view_(std::move(view)) {}
+  const EventQueries* events() const override { return &view_; }
+
+ private:
+  NanocubeView view_;
+};
+
+std::uint64_t nodes_in(const schema::NanocubeDesc& d) {
+  const auto* dims = d.dimension_nodes();
+  return dims == nullptr || dims->size() == 0 ? 0 : dims->Get(dims->size() - 1);
+}
+
+void check(const Blob& blob, const StructureInfo& info) {
+  const auto& d = desc_of<schema::NanocubeDesc>(blob, info);
+  const auto where = "structure '" + info.name + "' ";
+  if (d.event_count() != blob.input().vertex_count)
+    blob.fail_section(0, where + "counts another number of events than its input");
+  blob.check_section(where + "nodes", d.nodes(), format::kSectionNanocubeNodes,
+                     sizeof(format::NanocubeNode), nodes_in(d), false);
+  const std::uint64_t edges =
+      d.edges() < blob.sections().size() ? blob.sections()[d.edges()].element_count : 0;
+  blob.check_section(where + "edges", d.edges(), format::kSectionNanocubeEdges,
+                     sizeof(format::NanocubeEdge), edges, false);
+  const std::uint64_t series =
+      d.series() < blob.sections().size() ? blob.sections()[d.series()].element_count : 0;
+  blob.check_section(where + "series", d.series(), format::kSectionNanocubeSeries,
+                     sizeof(format::NanocubeSeries), series, false);
+  blob.check_section(where + "series bins", d.series_bins(), format::kSectionNanocubeSeriesBins,
+                     sizeof(std::uint32_t), d.series_entry_count(), false);
+  blob.check_section(where + "series counts", d.series_counts(),
+                     format::kSectionNanocubeSeriesCounts, sizeof(std::uint64_t),
+                     d.series_entry_count(), false);
+}
+
+std::unique_ptr<StructureView> open(const Blob& blob, const StructureInfo& info) {
+  return std::make_unique<NanocubeStructure>(NanocubeView::from_blob(blob, info));
+}
+
+// Beyond open's walk: the root's total equals the number of events.
+void verify(const Blob& blob, const StructureInfo& info) {
+  const NanocubeView view = NanocubeView::from_blob(blob, info);
+  if (view.count({}) != view.table().rows())
+    blob.fail("nanocube '" + info.name + "' does not count every event once");
+}
+
+std::string utc(std::int64_t t) {
+  const std::int64_t days = (t >= 0 ? t : t - 86399) / 86400, rest = t - days * 86400;
+  const std::int64_t z = days + 719468, era = (z >= 0 ? z : z - 146096) / 146097;
+  const auto doe = unsigned(z - era * 146097);
+  const unsigned yoe = (doe - doe / 1460 + doe / 36524 - doe / 146096) / 365;
+  const unsigned doy = doe - (365 * yoe + yoe / 4 - yoe / 100), mp = (5 * doy + 2) / 153;
+  const unsigned day = doy - (153 * mp + 2) / 5 + 1, month = mp < 10 ? mp + 3 : mp - 9;
+  const long long year = (long long)(yoe) + era * 400 + (month <= 2);
+  return printf_string("%04lld-%02u-%02uT%02d:%02dZ", year, month, day, int(rest / 3600),
+                       int(rest / 60 % 60));
+}
+
+Description describe(const Blob& blob, const StructureInfo& info) {
+  const auto& d = desc_of<schema::NanocubeDesc>(blob, info);
+  const EventTableView table = blob.event_table();
+  const auto* dims = d.dimension_nodes();
+  auto nodes = [&](std::size_t i) {
+    return dims && i + 1 < dims->size() ? dims->Get(i + 1) - dims->Get(i) : 0;
+  };
+  Description out;
+  const std::int64_t t1 = d.time_origin() + std::int64_t(d.bin_count()) * d.time_bin();
+  out.lines.push_back(printf_string("space: quadtree levels 0..%u (Web Mercator), %llu nodes",
+                                    d.max_level(), (unsigned long long)nodes(0)));
+  DescTable dim_table{"dimensions", {"name", "kind", "labels", "nodes"}, {}};
+  dim_table.rows.push_back(
+      {std::string("space"), std::string("quadtree"), std::uint64_t(0), std::uint64_t(nodes(0))});
+  for (std::size_t c = 0; c < table.categories.size(); ++c) {
+    const EventCategoryInfo& cat = table.categories[c];
+    std::string labels;
+    for (std::uint64_t l = 0; l < cat.label_count && l < 8; ++l)
+      labels += (l ? ", " : "") + std::string(table.label(c, std::uint32_t(l)));
+    if (cat.label_count > 8) labels += ", ...";
+    out.lines.push_back(printf_string("category %s (column %s): %llu labels (%s), %llu nodes",
+                                      cat.name.c_str(), cat.column.c_str(),
+                                      (unsigned long long)cat.label_count, labels.c_str(),
+                                      (unsigned long long)nodes(c + 1)));
+    dim_table.rows.push_back({cat.name, std::string(cat.edges.empty() ? "labels" : "bins"),
+                              std::uint64_t(cat.label_count), std::uint64_t(nodes(c + 1))});
+  }
+  out.lines.push_back(
+      printf_string("time: %s .. %s, bins of %lld s (%u bins), %llu series, "
+                    "%llu entries",
+                    utc(d.time_origin()).c_str(), utc(t1).c_str(), (long long)d.time_bin(),
+                    d.bin_count(), (unsigned long long)blob.sections()[d.series()].element_count,
+                    (unsigned long long)d.series_entry_count()));
+  std::uint64_t bytes = 0;
+  for (const std::uint32_t s : info.sections)
+    bytes += blob.sections()[s].element_count * blob.sections()[s].element_size;
+  const double per_event = d.event_count() ? double(bytes) / double(d.event_count()) : 0.0;
+  out.lines.push_back(printf_string(
+      "sharing %s: %llu shared content links, %llu shared child links; %llu events, %.2f "
+      "bytes/event",
+      d.sharing() ? "on" : "off", (unsigned long long)d.shared_content_links(),
+      (unsigned long long)d.shared_child_links(), (unsigned long long)d.event_count(), per_event));
+  out.field("max_level", d.max_level()).field("time_bin", std::uint64_t(d.time_bin()));
+  out.field("time_origin", utc(d.time_origin())).field("time_end", utc(t1));
+  out.field("bin_count", d.bin_count()).field("sharing", d.sharing());
+  out.field("shared_content_links", d.shared_content_links());
+  out.field("shared_child_links", d.shared_child_links());
+  out.field("event_count", d.event_count()).field("bytes", bytes);
+  out.field("bytes_per_event", per_event);
+  out.tables.push_back(std::move(dim_table));
+  return out;
+}
+
+}  // namespace
+
+extern const StructureKind kNanocubeKind;
+
+const StructureKind kNanocubeKind{"nanocube",
+                                  "nanocube over an event table: count, series, tiles, top-k",
+                                  InputKind::kEvents,
+                                  kSections,
+                                  std::uint8_t(schema::StructureDesc::NanocubeDesc),
+                                  check,
+                                  open,
+                                  verify,
+                                  describe};
+
+}  // namespace kiln

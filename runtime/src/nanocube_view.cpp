@@ -1,0 +1,116 @@
+// The nanocube view's open: every index checked once, so queries index freely.
+#include <string>
+
+#include "kiln/runtime/blob.hpp"
+#include "kiln/runtime/manifest.hpp"
+#include "kiln/runtime/nanocube.hpp"
+
+namespace kiln {
+
+namespace {
+
+struct Walk {
+  const Blob& blob;
+  const schema::NanocubeDesc& d;
+  const std::string& name;
+  [[noreturn]] void fail(std::uint32_t section, const std::string& what) const {
+    blob.fail_section(section, "nanocube '" + name + "': " + what);
+  }
+};
+
+std::vector<std::uint64_t> check_dimensions(const Walk& w, std::size_t categories,
+                                            std::uint64_t node_count) {
+  const auto* dims = w.d.dimension_nodes();
+  if (w.d.dimension_count() != categories + 1 || dims == nullptr ||
+      dims->size() != w.d.dimension_count() + 1)
+    w.fail(0, "dimensions do not match the event table's categories");
+  std::vector<std::uint64_t> out(dims->begin(), dims->end());
+  if (out.front() != 0 || out.back() != node_count) w.fail(0, "dimension ranges are invalid");
+  for (std::size_t i = 1; i < out.size(); ++i)
+    if (out[i] <= out[i - 1]) w.fail(0, "a dimension has no node");
+  if (w.d.root() >= out[1]) w.fail(0, "root is not a spatial node");
+  return out;
+}
+
+// Children before parents within the node's dimension, keys increasing and in range, content in
+// the next dimension (or a series).
+void check_nodes(const Walk& w, const NanocubeView& view,
+                 std::span<const format::NanocubeEdge> edges, std::size_t series_count) {
+  const auto nodes = view.nodes();
+  const auto dims = view.dimension_nodes();
+  const auto& table = view.table();
+  for (std::size_t d = 0; d + 1 < dims.size(); ++d) {
+    const std::uint64_t keys = d == 0 ? 4 : table.categories[d - 1].label_count;
+    for (std::uint64_t i = dims[d]; i < dims[d + 1]; ++i) {
+      const format::NanocubeNode& n = nodes[i];
+      if (n.first_edge > edges.size() || n.edge_count > edges.size() - n.first_edge)
+        w.fail(w.d.nodes(), "node " + std::to_string(i) + " has edges out of range");
+      for (std::uint64_t e = n.first_edge; e < n.first_edge + n.edge_count; ++e) {
+        const format::NanocubeEdge& edge = edges[e];
+        if (edge.key >= keys || (e > n.first_edge && edge.key <= edges[e - 1].key) ||
+            edge.node < dims[d] || edge.node >= i)
+          w.fail(w.d.edges(),
+                 "edge " + std::to_string(e) + " of node " + std::to_string(i) + " is invalid");
+      }
+      const bool last = d + 2 == dims.size();
+      if (last ? n.content >= series_count : (n.content < dims[d + 1] || n.content >= dims[d + 2]))
+        w.fail(w.d.nodes(), "node " + std::to_string(i) + " has an invalid content");
+    }
+  }
+}
+
+// The spatial dimension is a tree (the builder never shares a spatial node): each node has at
+// most one parent, so a traversal from the root visits each node once whatever the edges say.
+void check_space_tree(const Walk& w, const NanocubeView& view,
+                      std::span<const format::NanocubeEdge> edges) {
+  const auto dims = view.dimension_nodes();
+  std::vector<char> has_parent(dims[1], 0);
+  for (std::uint64_t i = 0; i < dims[1]; ++i) {
+    const format::NanocubeNode& n = view.nodes()[i];
+    for (std::uint64_t e = n.first_edge; e < n.first_edge + n.edge_count; ++e) {
+      if (has_parent[edges[e].node]) w.fail(w.d.edges(), "a spatial node has two parents");
+      has_parent[edges[e].node] = 1;
+    }
+  }
+}
+
+void check_series(const Walk& w, std::span<const format::NanocubeSeries> series,
+                  std::span<const std::uint32_t> bins, std::span<const std::uint64_t> counts) {
+  for (std::size_t s = 0; s < series.size(); ++s) {
+    const auto [first, count] = series[s];
+    if (first > bins.size() || count > bins.size() - first || count == 0)
+      w.fail(w.d.series(), "series " + std::to_string(s) + " is out of range");
+    for (std::uint64_t i = first; i < first + count; ++i)
+      if (bins[i] >= w.d.bin_count() ||
+          (i > first && (bins[i] <= bins[i - 1] || counts[i] < counts[i - 1])))
+        w.fail(w.d.series_bins(), "series " + std::to_string(s) + " is not increasing");
+  }
+}
+
+}  // namespace
+
+NanocubeView NanocubeView::from_blob(const Blob& blob, const StructureInfo& info) {
+  const auto& d = desc_of<schema::NanocubeDesc>(blob, info);
+  const Walk w{blob, d, info.name};
+  NanocubeView view;
+  view.table_ = blob.event_table();
+  if (d.max_level() > format::kNanocubeMaxLevel || d.time_bin() <= 0 ||
+      d.time_bin() > (std::int64_t(1) << 40) || d.time_origin() % d.time_bin() != 0 ||
+      d.time_origin() < -(std::int64_t(1) << 60) || d.time_origin() > (std::int64_t(1) << 60) ||
+      std::int64_t(d.bin_count()) > ((std::int64_t(1) << 60) / d.time_bin()))
+    w.fail(0, "invalid grid parameters");
+  view.grid_ = {d.max_level(), d.time_bin(), d.time_origin(), d.bin_count()};
+  view.nodes_ = blob.section_view<format::NanocubeNode>(d.nodes());
+  view.edges_ = blob.section_view<format::NanocubeEdge>(d.edges());
+  view.series_ = blob.section_view<format::NanocubeSeries>(d.series());
+  view.series_bins_ = blob.section_view<std::uint32_t>(d.series_bins());
+  view.series_counts_ = blob.section_view<std::uint64_t>(d.series_counts());
+  view.dimension_nodes_ = check_dimensions(w, view.table_.categories.size(), view.nodes_.size());
+  view.root_ = d.root();
+  check_nodes(w, view, view.edges_, view.series_.size());
+  check_space_tree(w, view, view.edges_);
+  check_series(w, view.series_, view.series_bins_, view.series_counts_);
+  return view;
+}
+
+}  // namespace kiln
