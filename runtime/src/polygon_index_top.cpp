@@ -74,9 +74,12 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
   g->node_level.resize(cells);
   fill(parts, *g, 0, 0, 0, 0);
   const auto offsets = parts.layer.feature_polygons;
-  g->feature.resize(parts.layer.polygon_count());
+  // Bounded by the table's size too: a view made from raw parts has no Blob::open checks.
+  g->feature.assign(parts.layer.polygon_count(), PolygonQueries::kNone);
   for (std::size_t f = 0; f + 1 < offsets.size(); ++f)
-    for (std::uint64_t q = offsets[f]; q < offsets[f + 1]; ++q) g->feature[q] = std::uint32_t(f);
+    for (std::uint64_t q = offsets[f];
+         q < std::min<std::uint64_t>(offsets[f + 1], g->feature.size()); ++q)
+      g->feature[q] = std::uint32_t(f);
   return g;
 }
 
