@@ -21,6 +21,7 @@ using format::PolygonIndexNode;
 PolygonIndexView::PolygonIndexView(const PolygonIndexParts& parts, const std::string& name)
     : parts_(parts) {
   validate(name);
+  top_ = make_polygon_index_top_grid(parts_);
 }
 
 namespace {
@@ -77,11 +78,8 @@ void PolygonIndexView::validate(const std::string& name) const {
 }
 
 std::uint32_t PolygonIndexView::feature_of(std::uint32_t polygon) const {
-  // feature_polygons is non-decreasing (checked by Blob::open): the feature f with
-  // feature_polygons[f] <= polygon < feature_polygons[f + 1].
-  const auto offsets = parts_.layer.feature_polygons;
-  const auto it = std::upper_bound(offsets.begin(), offsets.end(), std::uint64_t(polygon));
-  return std::uint32_t(it - offsets.begin() - 1);
+  // Tabled at open: the feature f with feature_polygons[f] <= polygon < feature_polygons[f + 1].
+  return polygon < top_->feature.size() ? top_->feature[polygon] : PolygonQueries::kNone;
 }
 
 bool PolygonIndexView::entry_contains(const PolygonIndexEntry& e, const Box2d& cell,
@@ -100,9 +98,9 @@ bool PolygonIndexView::entry_contains(const PolygonIndexEntry& e, const Box2d& c
 // false.
 template <class Visit>
 void PolygonIndexView::visit_leaf(const Double2& p, Visit&& visit, Cost* cost) const {
-  Box2d box = parts_.bounds;
-  if (!box.contains(p)) return;
-  const PolygonIndexNode* n = &parts_.nodes[0];
+  if (!parts_.bounds.contains(p)) return;
+  Box2d box;
+  const PolygonIndexNode* n = top_cell(p, box);  // one lookup for the first levels
   if (cost) ++cost->nodes;
   while (!n->is_leaf()) {
     const std::uint32_t child = format::quadtree_child_of(box, p);

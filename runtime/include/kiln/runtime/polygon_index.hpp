@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -33,6 +34,23 @@ struct PolygonIndexParts {
 struct PolygonIndexLevel {
   std::uint64_t leaves = 0, interior = 0, boundary_leaves = 0, edge_refs = 0, entries = 0;
 };
+
+/// The quadtree's cells at one level k as a flat 2^k x 2^k table, derived from the validated
+/// nodes at open: a query finds its cell by one lookup, then descends only below level k.
+/// `xs` / `ys` hold the 2^k + 1 split coordinates of level k exactly as the descent computes
+/// them (each a midpoint of its two neighbours of the level above), so the lookup lands in the
+/// cell the descent would. A cell whose leaf lies above level k names that leaf and its level.
+struct PolygonIndexTopGrid {
+  std::uint32_t level = 0;               ///< k
+  std::vector<double> xs, ys;            ///< split lines, 2^k + 1 each, non-decreasing
+  std::vector<std::uint32_t> node;       ///< per cell (row-major, y outer): node index
+  std::vector<std::uint8_t> node_level;  ///< per cell: the named node's depth (<= k)
+  std::vector<std::uint32_t> feature;    ///< per polygon: its feature (no search per answer)
+};
+
+/// The top-level table of a validated index (O(4^k + nodes above level k)).
+std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
+    const PolygonIndexParts& parts);
 
 /// A validated view of one polygon index. Creating it walks the nodes once (O(nodes + entries)):
 /// children after their parent and each node reached once, no deeper than
@@ -70,8 +88,10 @@ class PolygonIndexView {
   bool entry_contains(const format::PolygonIndexEntry& e, const format::Box2d& cell,
                       const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
+  const format::PolygonIndexNode* top_cell(const format::Double2& p, format::Box2d& box) const;
 
   PolygonIndexParts parts_;
+  std::shared_ptr<const PolygonIndexTopGrid> top_;  // shared: views copy cheaply
 };
 
 }  // namespace kiln
