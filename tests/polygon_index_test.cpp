@@ -38,7 +38,8 @@ constexpr bool kSanitized = true;
 constexpr bool kSanitized = false;
 #endif
 
-const std::string kGeo = "../shared/data/geo/";
+// The shared data beside the project (as in CI), whatever directory the test runs in.
+const std::string kGeo = KILN_MESH_DIR "/../geo/";
 
 // ---- exact references ----------------------------------------------------------------------
 
