@@ -91,12 +91,9 @@ std::uint64_t NanocubeView::count(const EventSelection& s) const {
 
 std::vector<std::pair<std::int64_t, std::uint64_t>> NanocubeView::series(const EventSelection& s,
                                                                          std::int64_t width) const {
-  check_series_bin(grid_, width);
   const ResolvedSelection r = resolve_event_selection(s, table_, grid_);
-  const std::int64_t per = width / grid_.time_bin, bins = (r.b1 - r.b0 + per - 1) / per;
-  if (bins > 10'000'000) throw std::invalid_argument("a series of more than 10^7 bins");
-  std::vector<std::pair<std::int64_t, std::uint64_t>> out(std::size_t(bins), {0, 0});
-  for (std::int64_t i = 0; i < bins; ++i) out[std::size_t(i)].first = r.snap.t0 + i * width;
+  auto out = empty_series(grid_, r, width);
+  const std::int64_t per = width / grid_.time_bin;
   if (r.empty) return out;
   auto add = [&](std::uint32_t id, std::uint32_t) {
     const format::NanocubeSeries range = series_[id];

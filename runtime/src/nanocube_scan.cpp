@@ -105,11 +105,18 @@ std::vector<EventLabelCount> top_labels(std::vector<EventLabelCount> all, std::s
   return all;
 }
 
-void check_series_bin(const EventGrid& grid, std::int64_t bin_seconds) {
+std::vector<std::pair<std::int64_t, std::uint64_t>> empty_series(const EventGrid& grid,
+                                                                 const ResolvedSelection& r,
+                                                                 std::int64_t bin_seconds) {
   if (bin_seconds <= 0 || bin_seconds % grid.time_bin != 0)
     throw std::invalid_argument("series bin of " + std::to_string(bin_seconds) +
                                 " s is not a multiple of the cube's time bin (" +
                                 std::to_string(grid.time_bin) + " s)");
+  const std::int64_t per = bin_seconds / grid.time_bin, bins = (r.b1 - r.b0 + per - 1) / per;
+  if (bins > 10'000'000) throw std::invalid_argument("a series of more than 10^7 bins");
+  std::vector<std::pair<std::int64_t, std::uint64_t>> out(std::size_t(bins), {0, 0});
+  for (std::int64_t i = 0; i < bins; ++i) out[std::size_t(i)].first = r.snap.t0 + i * bin_seconds;
+  return out;
 }
 
 EventScan::EventScan(EventTableView table, EventGrid grid) : table_(std::move(table)), grid_(grid) {
@@ -147,12 +154,9 @@ std::uint64_t EventScan::count(const EventSelection& s) const {
 
 std::vector<std::pair<std::int64_t, std::uint64_t>> EventScan::series(const EventSelection& s,
                                                                       std::int64_t width) const {
-  check_series_bin(grid_, width);
   const ResolvedSelection r = resolve_event_selection(s, table_, grid_);
-  const std::int64_t per = width / grid_.time_bin, bins = (r.b1 - r.b0 + per - 1) / per;
-  if (bins > 10'000'000) throw std::invalid_argument("a series of more than 10^7 bins");
-  std::vector<std::pair<std::int64_t, std::uint64_t>> out(std::size_t(bins), {0, 0});
-  for (std::int64_t i = 0; i < bins; ++i) out[std::size_t(i)].first = r.snap.t0 + i * width;
+  auto out = empty_series(grid_, r, width);
+  const std::int64_t per = width / grid_.time_bin;
   scan(r, [&](std::size_t, std::uint32_t, std::uint32_t, std::int64_t bin) {
     ++out[std::size_t((bin - r.b0) / per)].second;
   });

@@ -115,7 +115,11 @@ class EventScan final : public EventQueries {
 
 /// Orders topk answers: larger counts first, ties by label; keeps the first k with count > 0.
 std::vector<EventLabelCount> top_labels(std::vector<EventLabelCount> all, std::size_t k);
-/// Checks a series request: bin_seconds a positive multiple of the grid's bin.
-void check_series_bin(const EventGrid& grid, std::int64_t bin_seconds);
+/// The series a request asks for, every count zero: one entry per `bin_seconds` from the
+/// snapped start. Throws std::invalid_argument unless bin_seconds is a positive multiple of the
+/// grid's bin, or for more than 10^7 bins.
+std::vector<std::pair<std::int64_t, std::uint64_t>> empty_series(const EventGrid& grid,
+                                                                 const ResolvedSelection& r,
+                                                                 std::int64_t bin_seconds);
 
 }  // namespace kiln
