@@ -18,8 +18,8 @@ extern const StructureBuilder kQuadtreeBuilder;      // quadtree_entry.cpp
 namespace {
 
 const StructureBuilder* const kBuilders[] = {
-    &kBvhBuilder,        &kSbvhBuilder,         &kKdTreeBuilder,  &kPointTreeBuilder,
-    &kVoxelDagBuilder,   &kEsvoBuilder,         &kOctreeBuilder,  &kGridBuilder,
+    &kBvhBuilder,        &kSbvhBuilder,         &kKdTreeBuilder,   &kPointTreeBuilder,
+    &kVoxelDagBuilder,   &kEsvoBuilder,         &kOctreeBuilder,   &kGridBuilder,
     &kNestedGridBuilder, &kPolygonIndexBuilder, &kQuadtreeBuilder, &kNanocubeBuilder};
 
 std::string join(const std::vector<std::string>& items) {
