@@ -210,13 +210,15 @@ int fail(const std::string& message) {
 }
 
 int run_render(const RenderArgs& args) {
-  if (renders_events(args.blob, args.accel))  // issue 18: an event heatmap (render_events.cpp)
-    return run_event_render(args.blob, args.accel, args.out, args.size, args.events);
   try {
-    std::string ignored;  // a blob that does not open gets the 3D path's messages
-    if (const auto blob = Blob::try_open_file(args.blob, ignored);
-        blob && render::is_map_blob(*blob))
-      return render::render_map_command(*blob, args.out, args.accel, args.mode, args.size,
+    // Opened once: an event table draws a heatmap (render_events.cpp), a 2D layer a map; a blob
+    // that does not open gets the 3D path's messages.
+    std::string ignored;
+    std::optional<Blob> opened = Blob::try_open_file(args.blob, ignored);
+    if (opened && opened->input().kind == InputKind::kEvents)
+      return run_event_render(*opened, args.accel, args.out, args.size, args.events);
+    if (opened && render::is_map_blob(*opened))
+      return render::render_map_command(*opened, args.out, args.accel, args.mode, args.size,
                                         args.threads, args.json);
     std::string error;
     std::optional<Settings> s = check_options(args, error);
@@ -225,7 +227,7 @@ int run_render(const RenderArgs& args) {
     if (std::filesystem::exists(args.out, ec) &&
         std::filesystem::equivalent(args.blob, args.out, ec))
       return fail("output " + args.out + " is the blob itself");
-    const Blob blob = Blob::open_file(args.blob);
+    const Blob blob = opened ? std::move(*opened) : Blob::open_file(args.blob);
     const std::vector<std::string> names =
         !args.compare.empty() ? split_names(args.compare)
         : args.accel.empty()  ? std::vector<std::string>{render::default_structure(blob)}

@@ -96,24 +96,12 @@ void add_event_render_options(CLI::App* command, EventRenderArgs& args) {
   command->add_option("--box", args.box, "Event tables: min_lon,min_lat,max_lon,max_lat to show");
 }
 
-bool renders_events(const std::string& blob_path, const std::string& accel) {
-  try {
-    const Blob blob = Blob::open_file(blob_path);
-    if (blob.input().kind != InputKind::kEvents) return false;
-    return choose_structure(blob, accel, &StructureView::events, "answer event queries").view !=
-           nullptr;
-  } catch (const std::exception&) {
-    return false;  // the ray renderer reports what is wrong
-  }
-}
-
-int run_event_render(const std::string& blob_path, const std::string& accel, const std::string& out,
+int run_event_render(const Blob& blob, const std::string& accel, const std::string& out,
                      const std::string& size_text, const EventRenderArgs& args) {
   try {
     std::string error;
     const auto size = render::parse_size(size_text, error);
     if (!size) throw std::invalid_argument(error);
-    const Blob blob = Blob::open_file(blob_path);
     const ChosenStructure chosen =
         choose_structure(blob, accel, &StructureView::events, "answer event queries");
     const auto& cube = *chosen.view->events();

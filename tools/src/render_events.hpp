@@ -9,6 +9,10 @@ namespace CLI {
 class App;
 }
 
+namespace kiln {
+class Blob;
+}
+
 namespace kiln::cli {
 
 struct EventRenderArgs {
@@ -19,12 +23,10 @@ struct EventRenderArgs {
 
 void add_event_render_options(CLI::App* command, EventRenderArgs& args);
 
-/// Whether the blob's structure `accel` (empty: the first) answers event queries.
-bool renders_events(const std::string& blob, const std::string& accel);
-
-/// Writes the heatmap PNG of size at most `width` x `height`; prints one line about it.
-/// Returns the exit status (1 with one line on stderr on failure).
-int run_event_render(const std::string& blob, const std::string& accel, const std::string& out,
+/// Writes the heatmap PNG of a blob built from an event table, through its structure `accel`
+/// (empty: the first that answers event queries), of size at most `size` ("WxH"); prints one
+/// line about it. Returns the exit status (1 with one line on stderr on failure).
+int run_event_render(const Blob& blob, const std::string& accel, const std::string& out,
                      const std::string& size, const EventRenderArgs& args);
 
 }  // namespace kiln::cli
