@@ -248,6 +248,8 @@ void CubeBuilder::run() {
   if (bins >= std::int64_t(kNone))
     throw std::invalid_argument("nanocube: more than 2^32 time bins");
   out_.bin_count = std::uint32_t(bins);
+  if (!format::nanocube_grid_valid(options_.max_level, bin, out_.time_origin, out_.bin_count))
+    throw std::invalid_argument("nanocube: time bin or time span outside the format's range");
   for (std::size_t i = 0; i < rows; ++i) {
     cx_[i] = format::mercator_cell_x(table_.points[i].x, options_.max_level);
     cy_[i] = format::mercator_cell_y(table_.points[i].y, options_.max_level);

@@ -37,6 +37,9 @@ void check(const Blob& blob, const StructureInfo& info) {
   const auto where = "structure '" + info.name + "' ";
   if (d.event_count() != blob.input().vertex_count)
     blob.fail_section(0, where + "counts another number of events than its input");
+  // describe() prints the grid's time span without opening the view.
+  if (!format::nanocube_grid_valid(d.max_level(), d.time_bin(), d.time_origin(), d.bin_count()))
+    blob.fail_section(0, where + "has invalid grid parameters");
   blob.check_section(where + "nodes", d.nodes(), format::kSectionNanocubeNodes,
                      sizeof(format::NanocubeNode), nodes_in(d), false);
   const std::uint64_t edges =

@@ -94,10 +94,7 @@ NanocubeView NanocubeView::from_blob(const Blob& blob, const StructureInfo& info
   const Walk w{blob, d, info.name};
   NanocubeView view;
   view.table_ = blob.event_table();
-  if (d.max_level() > format::kNanocubeMaxLevel || d.time_bin() <= 0 ||
-      d.time_bin() > (std::int64_t(1) << 40) || d.time_origin() % d.time_bin() != 0 ||
-      d.time_origin() < -(std::int64_t(1) << 60) || d.time_origin() > (std::int64_t(1) << 60) ||
-      std::int64_t(d.bin_count()) > ((std::int64_t(1) << 60) / d.time_bin()))
+  if (!format::nanocube_grid_valid(d.max_level(), d.time_bin(), d.time_origin(), d.bin_count()))
     w.fail(0, "invalid grid parameters");
   view.grid_ = {d.max_level(), d.time_bin(), d.time_origin(), d.bin_count()};
   view.nodes_ = blob.section_view<format::NanocubeNode>(d.nodes());

@@ -21,6 +21,17 @@ inline constexpr std::uint32_t kSectionNanocubeSeriesCounts = fourcc('N', 'C', '
 /// The deepest quadtree the format allows (cells of 2^30 per axis fit uint32 keys).
 inline constexpr std::uint32_t kNanocubeMaxLevel = 30;
 
+/// Whether a cube's space and time grid is one the format allows: bins of 1 s .. 2^40 s, an
+/// origin on a bin boundary within +-2^60 s, and origin + bin_count * time_bin within 2^61 s, so
+/// no time computed from the grid overflows int64.
+inline bool nanocube_grid_valid(std::uint32_t max_level, std::int64_t time_bin,
+                                std::int64_t time_origin, std::uint32_t bin_count) {
+  constexpr std::int64_t kMaxOrigin = std::int64_t(1) << 60;
+  return max_level <= kNanocubeMaxLevel && time_bin > 0 && time_bin <= (std::int64_t(1) << 40) &&
+         time_origin % time_bin == 0 && time_origin >= -kMaxOrigin && time_origin <= kMaxOrigin &&
+         std::int64_t(bin_count) <= kMaxOrigin / time_bin;
+}
+
 /// A node of one dimension. Its children are edges first_edge .. first_edge + edge_count - 1,
 /// keys strictly increasing, each child's index below the node's own (children are written
 /// first, so the graph is acyclic). `content` is a node of the next dimension (its root over
