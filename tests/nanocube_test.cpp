@@ -164,6 +164,32 @@ TEST(Nanocube, GeneratedTableAgreesWithBruteForce) {
   EXPECT_GT(non_empty, 600u);
 }
 
+// Topkube's rankings: the root's equals per-label counts over the whole table, verify's deep
+// check holds, and a top-k over everything counts only a few of the 40 Zipf-like labels exactly
+// (the rest are ruled out by the rankings' bound) yet equals the scan.
+TEST(Nanocube, TopkubeRankingsPruneAndAgreeWithTheScan) {
+  const EventTable table = generated_table(6000, 9);
+  const Opened o(cube_blob(table, "max-level=10,time-bin=1d"));
+  const auto& cube = static_cast<const NanocubeView&>(o.cube());
+  EXPECT_TRUE(cube.rankings_consistent());
+  const std::uint32_t root = static_cast<std::uint32_t>(cube.dimension_nodes()[1] - 1);
+  std::vector<std::uint64_t> counts(table.categories[0].labels.size(), 0);
+  for (std::size_t r = 0; r < table.rows(); ++r) ++counts[table.codes[r]];
+  const auto ranked = cube.ranking(0, root);
+  std::uint64_t total = 0;
+  for (std::size_t i = 0; i < ranked.size(); ++i) {
+    EXPECT_EQ(ranked[i].count, counts[ranked[i].label]);
+    if (i > 0) EXPECT_GE(ranked[i - 1].count, ranked[i].count);
+    total += ranked[i].count;
+  }
+  EXPECT_EQ(total, table.rows());
+  std::size_t counted = 0;
+  const auto top = cube.topk_counting({}, "kind", 3, counted);
+  EXPECT_TRUE(same_topk(top, o.scan->topk({}, "kind", 3)));
+  EXPECT_GE(counted, 3u);
+  EXPECT_LT(counted, 10u) << "the rankings should rule out most labels";
+}
+
 TEST(Nanocube, SharingOffGivesTheSameAnswersAndMoreBytes) {
   const EventTable table = generated_table(3000, 2);
   const auto shared = cube_blob(table, "max-level=10,time-bin=1d");

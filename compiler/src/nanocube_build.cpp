@@ -86,6 +86,7 @@ class CubeBuilder {
   std::uint32_t series(std::span<const std::uint32_t> ev, const std::vector<Run>& runs);
   std::uint32_t add_node(std::size_t dim, std::span<const format::NanocubeEdge> edges,
                          std::uint32_t content);
+  void rank(std::span<const std::uint32_t> ev, std::span<const format::NanocubeEdge> children);
   std::uint32_t child_of(std::size_t dim, std::uint32_t node, std::uint32_t key) const;
   // A shared child link: the runs are one part built before.
   bool shared(const std::vector<Run>& runs) {
@@ -108,7 +109,38 @@ class CubeBuilder {
   std::vector<std::uint32_t> perm_, scratch_, cx_, cy_, bin_;
   std::vector<std::vector<TmpNode>> nodes_;
   std::vector<std::vector<format::NanocubeEdge>> edges_;
+  std::vector<std::vector<format::NanocubeRankList>> ranks_;  // per category, per spatial node
+  std::vector<std::vector<std::uint32_t>> tally_;             // per category, per label: zeros
 };
+
+// Topkube's stored rankings of the spatial node about to be added: per category, its events'
+// labels by count. A node with one child has that child's events, so (with sharing) it shares
+// the child's entries.
+void CubeBuilder::rank(std::span<const std::uint32_t> ev,
+                       std::span<const format::NanocubeEdge> children) {
+  const std::size_t rows = table_.rows();
+  std::vector<std::uint32_t> seen;
+  for (std::size_t c = 0; c + 1 < dims_; ++c) {
+    if (options_.sharing && children.size() == 1) {
+      ranks_[c].push_back(ranks_[c][children[0].node]);
+      continue;
+    }
+    std::vector<std::uint32_t>& tally = tally_[c];
+    seen.clear();
+    for (const std::uint32_t e : ev)
+      if (tally[table_.codes[c * rows + e]]++ == 0) seen.push_back(table_.codes[c * rows + e]);
+    const std::size_t first = out_.rank_entries.size();
+    for (const std::uint32_t code : seen) {
+      out_.rank_entries.push_back({code, tally[code]});
+      tally[code] = 0;
+    }
+    std::sort(out_.rank_entries.begin() + std::ptrdiff_t(first), out_.rank_entries.end(),
+              [](const format::NanocubeRankEntry& a, const format::NanocubeRankEntry& b) {
+                return a.count != b.count ? a.count > b.count : a.label < b.label;
+              });
+    ranks_[c].push_back({first, std::uint32_t(seen.size()), 0});
+  }
+}
 
 std::uint32_t CubeBuilder::add_node(std::size_t dim, std::span<const format::NanocubeEdge> edges,
                                     std::uint32_t content) {
@@ -163,6 +195,7 @@ std::uint32_t CubeBuilder::space(std::uint32_t level, std::span<std::uint32_t> e
   } else {
     c = content(1, ev, std::move(content_runs));
   }
+  rank(ev, children);
   return add_node(0, children, c);
 }
 
@@ -257,7 +290,8 @@ void CubeBuilder::run() {
   }
   perm_.resize(rows), scratch_.resize(rows);
   for (std::size_t i = 0; i < rows; ++i) perm_[i] = std::uint32_t(i);
-  nodes_.resize(dims_), edges_.resize(dims_);
+  nodes_.resize(dims_), edges_.resize(dims_), ranks_.resize(dims_ - 1);
+  for (const auto& category : table_.categories) tally_.emplace_back(category.labels.size(), 0);
   out_.root = space(0, perm_, {{kNone, rows}});
   flatten();
 }
@@ -281,6 +315,8 @@ void CubeBuilder::flatten() {
     nodes_[d] = {}, edges_[d] = {};
   }
   if (out_.nodes.size() >= kNone) throw std::invalid_argument("nanocube: too many nodes");
+  for (auto& lists : ranks_) out_.rank_lists.insert(out_.rank_lists.end(), lists.begin(), lists.end());
+  ranks_ = {};
 }
 
 }  // namespace

@@ -39,7 +39,9 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
                     raw_section(format::kSectionNanocubeEdges, cube->edges),
                     raw_section(format::kSectionNanocubeSeries, cube->series),
                     raw_section(format::kSectionNanocubeSeriesBins, cube->series_bins),
-                    raw_section(format::kSectionNanocubeSeriesCounts, cube->series_counts)};
+                    raw_section(format::kSectionNanocubeSeriesCounts, cube->series_counts),
+                    raw_section(format::kSectionNanocubeRankLists, cube->rank_lists),
+                    raw_section(format::kSectionNanocubeRankEntries, cube->rank_entries)};
   const std::uint64_t events = scene.events->rows();
   built.describe = [o = options, c = cube.get(), events](flatbuffers::FlatBufferBuilder& fbb,
                                                          std::span<const std::uint32_t> index) {
@@ -47,7 +49,7 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
         fbb, o.max_level, o.time_bin, c->time_origin, c->bin_count, o.sharing,
         std::uint32_t(c->dimension_nodes.size() - 1), &c->dimension_nodes, c->root,
         c->shared_content_links, c->shared_child_links, events, c->series_bins.size(), index[0],
-        index[1], index[2], index[3], index[4]);
+        index[1], index[2], index[3], index[4], index[5], index[6]);
     return std::pair{std::uint8_t(schema::StructureDesc::NanocubeDesc), desc.o};
   };
   char line[256];

@@ -16,7 +16,8 @@ namespace {
 
 constexpr std::uint32_t kSections[] = {
     format::kSectionNanocubeNodes, format::kSectionNanocubeEdges, format::kSectionNanocubeSeries,
-    format::kSectionNanocubeSeriesBins, format::kSectionNanocubeSeriesCounts};
+    format::kSectionNanocubeSeriesBins, format::kSectionNanocubeSeriesCounts,
+    format::kSectionNanocubeRankLists, format::kSectionNanocubeRankEntries};
 
 class NanocubeStructure final : public StructureView {
  public:
@@ -55,6 +56,15 @@ void check(const Blob& blob, const StructureInfo& info) {
   blob.check_section(where + "series counts", d.series_counts(),
                      format::kSectionNanocubeSeriesCounts, sizeof(std::uint64_t),
                      d.series_entry_count(), false);
+  const std::uint64_t lists =
+      d.rank_lists() < blob.sections().size() ? blob.sections()[d.rank_lists()].element_count : 0;
+  blob.check_section(where + "rank lists", d.rank_lists(), format::kSectionNanocubeRankLists,
+                     sizeof(format::NanocubeRankList), lists, false);
+  const std::uint64_t entries = d.rank_entries() < blob.sections().size()
+                                    ? blob.sections()[d.rank_entries()].element_count
+                                    : 0;
+  blob.check_section(where + "rank entries", d.rank_entries(), format::kSectionNanocubeRankEntries,
+                     sizeof(format::NanocubeRankEntry), entries, false);
 }
 
 std::unique_ptr<StructureView> open(const Blob& blob, const StructureInfo& info) {
@@ -66,6 +76,8 @@ void verify(const Blob& blob, const StructureInfo& info) {
   const NanocubeView view = NanocubeView::from_blob(blob, info);
   if (view.count({}) != view.table().rows())
     blob.fail("nanocube '" + info.name + "' does not count every event once");
+  if (!view.rankings_consistent())
+    blob.fail("nanocube '" + info.name + "': a top-k ranking disagrees with the events it ranks");
 }
 
 std::string utc(std::int64_t t) {
@@ -127,6 +139,13 @@ Description describe(const Blob& blob, const StructureInfo& info) {
   out.field("bin_count", d.bin_count()).field("sharing", d.sharing());
   out.field("shared_content_links", d.shared_content_links());
   out.field("shared_child_links", d.shared_child_links());
+  const std::uint64_t rank_entries =
+      d.rank_entries() < blob.sections().size() ? blob.sections()[d.rank_entries()].element_count
+                                                : 0;
+  out.lines.push_back(printf_string("topkube rankings: %llu entries over %llu spatial nodes",
+                                    (unsigned long long)rank_entries,
+                                    (unsigned long long)nodes(0)));
+  out.field("rank_entries", rank_entries);
   out.field("event_count", d.event_count()).field("bytes", bytes);
   out.field("bytes_per_event", per_event);
   out.tables.push_back(std::move(dim_table));

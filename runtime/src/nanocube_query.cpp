@@ -2,7 +2,10 @@
 // each one's content through the categories (the root's content when a category is not
 // filtered, each kept label's otherwise) to series, and count bins with two binary searches.
 #include <algorithm>
+#include <functional>
 #include <map>
+#include <queue>
+#include <utility>
 #include <stdexcept>
 
 #include "kiln/runtime/nanocube.hpp"
@@ -46,10 +49,11 @@ void NanocubeView::cover(const ResolvedSelection& r, std::uint32_t node, std::ui
 }
 
 // Calls f(series, label) for each series under `node` (of dimension `dim`) that the filters
-// keep; `label` is the code taken in category `by` (kNoCategory: none).
+// keep; `label` is the code taken in category `by` (kNoCategory: none). With `only` set, category
+// `by` follows that one label's edge (a binary search: keys are increasing).
 template <class F>
 void NanocubeView::leaves(const ResolvedSelection& r, std::size_t dim, std::uint32_t node,
-                          std::size_t by, std::uint32_t label, F&& f) const {
+                          std::size_t by, std::uint32_t label, F&& f, std::uint32_t only) const {
   const std::uint32_t content = nodes_[node].content;
   if (dim + 1 == dimension_nodes_.size() - 1) {
     f(content, label);
@@ -58,13 +62,20 @@ void NanocubeView::leaves(const ResolvedSelection& r, std::size_t dim, std::uint
   const std::size_t c = dim;  // the next dimension, dim + 1, is category dim
   const format::NanocubeNode& root = nodes_[content];
   if (r.allowed[c].empty() && by != c) {
-    leaves(r, dim + 1, content, by, label, f);
+    leaves(r, dim + 1, content, by, label, f, only);
     return;
   }
-  for (std::uint64_t e = root.first_edge; e < root.first_edge + root.edge_count; ++e) {
-    const format::NanocubeEdge& edge = edges_[e];
+  auto edges = edges_.subspan(root.first_edge, root.edge_count);
+  if (by == c && only != kAnyLabel) {
+    const auto it = std::lower_bound(
+        edges.begin(), edges.end(), only,
+        [](const format::NanocubeEdge& e, std::uint32_t key) { return e.key < key; });
+    if (it == edges.end() || it->key != only) return;
+    edges = edges.subspan(std::size_t(it - edges.begin()), 1);
+  }
+  for (const format::NanocubeEdge& edge : edges) {
     if (!r.allowed[c].empty() && !r.allowed[c][edge.key]) continue;
-    leaves(r, dim + 1, edge.node, by, by == c ? edge.key : label, f);
+    leaves(r, dim + 1, edge.node, by, by == c ? edge.key : label, f, only);
   }
 }
 
@@ -157,23 +168,104 @@ std::vector<EventTileCount> NanocubeView::tiles(const EventSelection& s, std::ui
   return merged;
 }
 
-// Counts per label of `by` over the covered nodes: one pass over each node's labels present in
-// the cube (never over labels absent there), then the k largest.
+std::uint64_t NanocubeView::label_count(const ResolvedSelection& r, std::uint32_t node,
+                                        std::size_t c, std::uint32_t label) const {
+  std::uint64_t total = 0;
+  leaves(
+      r, 0, node, c, 0,
+      [&](std::uint32_t s, std::uint32_t) { total += series_count(s, r.b0, r.b1); }, label);
+  return total;
+}
+
+std::span<const format::NanocubeRankEntry> NanocubeView::ranking(std::size_t c,
+                                                                 std::uint32_t node) const {
+  const format::NanocubeRankList& list = rank_lists_[c * dimension_nodes_[1] + node];
+  return rank_entries_.subspan(list.first, list.count);
+}
+
+bool NanocubeView::rankings_consistent() const {
+  const ResolvedSelection all = resolve_event_selection({}, table_, grid_);
+  std::vector<std::uint64_t> expected;
+  for (std::size_t c = 0; c < table_.categories.size(); ++c) {
+    expected.assign(table_.categories[c].label_count, 0);
+    for (std::uint32_t node = 0; node < dimension_nodes_[1]; ++node) {
+      const format::NanocubeNode& n = nodes_[node];
+      const auto mine = ranking(c, node);
+      std::uint64_t total = 0;
+      for (const format::NanocubeRankEntry& e : mine) total += e.count;
+      if (n.edge_count == 0) {
+        if (total != node_count(all, node)) return false;
+        continue;
+      }
+      for (std::uint64_t e = n.first_edge; e < n.first_edge + n.edge_count; ++e)
+        for (const format::NanocubeRankEntry& x : ranking(c, edges_[e].node))
+          expected[x.label] += x.count;
+      for (const format::NanocubeRankEntry& e : mine) {
+        if (expected[e.label] != e.count) return false;
+        expected[e.label] = 0;
+      }
+      for (std::uint64_t e = n.first_edge; e < n.first_edge + n.edge_count; ++e)
+        for (const format::NanocubeRankEntry& x : ranking(c, edges_[e].node))
+          if (std::exchange(expected[x.label], 0) != 0) return false;  // a label it lacks
+    }
+  }
+  return true;
+}
+
 std::vector<EventLabelCount> NanocubeView::topk(const EventSelection& s, std::string_view by,
                                                 std::size_t k) const {
+  std::size_t counted = 0;
+  return topk_counting(s, by, k, counted);
+}
+
+// Topkube's top-k: Fagin's threshold algorithm over the covered nodes' stored rankings. Walk the
+// rankings in step, depth by depth, counting each label met exactly (over every covered node,
+// in the selection's time and filters). A label not met yet has, in each ranking, at most the
+// count at the next depth, and a ranking counts all time (a superset of any selection), so the
+// sum of those is a bound on it: the walk stops once k labels count more than the bound.
+std::vector<EventLabelCount> NanocubeView::topk_counting(const EventSelection& s,
+                                                         std::string_view by, std::size_t k,
+                                                         std::size_t& counted) const {
+  counted = 0;
   const auto c = table_.category(by);
   if (!c) throw std::invalid_argument("no category '" + std::string(by) + "' in the event table");
   const ResolvedSelection r = resolve_event_selection(s, table_, grid_);
-  std::vector<std::uint64_t> counts(table_.categories[*c].label_count, 0);
-  if (!r.empty)
-    cover(r, root_, 0, 0, 0, [&](std::uint32_t node, std::uint32_t, std::uint64_t, std::uint64_t) {
-      leaves(r, 0, node, *c, 0, [&](std::uint32_t series, std::uint32_t label) {
-        counts[label] += series_count(series, r.b0, r.b1);
-      });
-    });
+  if (r.empty || k == 0) return {};
+  std::vector<std::uint32_t> covered;
+  cover(r, root_, 0, 0, 0, [&](std::uint32_t node, std::uint32_t, std::uint64_t, std::uint64_t) {
+    covered.push_back(node);
+  });
+  std::vector<std::span<const format::NanocubeRankEntry>> rankings;
+  std::size_t deepest = 0;
+  for (const std::uint32_t node : covered) {
+    rankings.push_back(ranking(*c, node));
+    deepest = std::max(deepest, rankings.back().size());
+  }
+  const std::vector<char>& allowed = r.allowed[*c];
+  std::vector<char> met(table_.categories[*c].label_count, 0);
+  std::vector<std::pair<std::uint32_t, std::uint64_t>> hits;  // label code, exact count
+  std::priority_queue<std::uint64_t, std::vector<std::uint64_t>, std::greater<>> best;  // k largest
+  for (std::size_t depth = 0; depth < deepest; ++depth) {
+    for (const auto& ranked : rankings) {
+      if (depth >= ranked.size() || met[ranked[depth].label]) continue;
+      const std::uint32_t label = ranked[depth].label;
+      met[label] = 1;
+      if (!allowed.empty() && !allowed[label]) continue;
+      std::uint64_t n = 0;
+      for (const std::uint32_t node : covered) n += label_count(r, node, *c, label);
+      ++counted;
+      if (n == 0) continue;
+      hits.push_back({label, n});
+      best.push(n);
+      if (best.size() > k) best.pop();
+    }
+    std::uint64_t bound = 0;
+    for (const auto& ranked : rankings)
+      if (depth + 1 < ranked.size()) bound += ranked[depth + 1].count;
+    if (bound == 0 || (best.size() == k && best.top() > bound)) break;
+  }
   std::vector<EventLabelCount> all;
-  for (std::uint32_t i = 0; i < counts.size(); ++i)
-    if (counts[i] != 0) all.push_back({std::string(table_.label(*c, i)), counts[i]});
+  for (const auto& [label, n] : hits) all.push_back({std::string(table_.label(*c, label)), n});
   return top_labels(std::move(all), k);
 }
 

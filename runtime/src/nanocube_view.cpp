@@ -87,6 +87,31 @@ void check_series(const Walk& w, std::span<const format::NanocubeSeries> series,
   }
 }
 
+// One ranking per category and spatial node, inside the entries, labels in range, counts
+// non-increasing with ties by label (a forged ranking can make top-k wrong, never unsafe).
+void check_rankings(const Walk& w, const NanocubeView& view,
+                    std::span<const format::NanocubeRankList> lists,
+                    std::span<const format::NanocubeRankEntry> entries) {
+  const auto& categories = view.table().categories;
+  const std::uint64_t spatial = view.dimension_nodes()[1];
+  if (lists.size() != categories.size() * spatial)
+    w.fail(w.d.rank_lists(), "has " + std::to_string(lists.size()) + " rankings, not one per "
+                                 "category and spatial node");
+  for (std::size_t i = 0; i < lists.size(); ++i) {
+    const format::NanocubeRankList& l = lists[i];
+    const std::uint64_t labels = categories[i / spatial].label_count;
+    if (l.reserved != 0 || l.first > entries.size() || l.count > entries.size() - l.first)
+      w.fail(w.d.rank_lists(), "ranking " + std::to_string(i) + " is out of range");
+    for (std::uint64_t e = l.first; e < l.first + l.count; ++e) {
+      const format::NanocubeRankEntry& x = entries[e];
+      const bool ordered = e == l.first || x.count < entries[e - 1].count ||
+                           (x.count == entries[e - 1].count && x.label > entries[e - 1].label);
+      if (x.label >= labels || !ordered)
+        w.fail(w.d.rank_entries(), "ranking " + std::to_string(i) + " is not ordered");
+    }
+  }
+}
+
 }  // namespace
 
 NanocubeView NanocubeView::from_blob(const Blob& blob, const StructureInfo& info) {
@@ -102,11 +127,14 @@ NanocubeView NanocubeView::from_blob(const Blob& blob, const StructureInfo& info
   view.series_ = blob.section_view<format::NanocubeSeries>(d.series());
   view.series_bins_ = blob.section_view<std::uint32_t>(d.series_bins());
   view.series_counts_ = blob.section_view<std::uint64_t>(d.series_counts());
+  view.rank_lists_ = blob.section_view<format::NanocubeRankList>(d.rank_lists());
+  view.rank_entries_ = blob.section_view<format::NanocubeRankEntry>(d.rank_entries());
   view.dimension_nodes_ = check_dimensions(w, view.table_.categories.size(), view.nodes_.size());
   view.root_ = d.root();
   check_nodes(w, view, view.edges_, view.series_.size());
   check_space_tree(w, view, view.edges_);
   check_series(w, view.series_, view.series_bins_, view.series_counts_);
+  check_rankings(w, view, view.rank_lists_, view.rank_entries_);
   return view;
 }
 

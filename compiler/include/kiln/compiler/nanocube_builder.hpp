@@ -25,6 +25,8 @@ struct NanocubeData {
   std::vector<format::NanocubeSeries> series;
   std::vector<std::uint32_t> series_bins;
   std::vector<std::uint64_t> series_counts;
+  std::vector<format::NanocubeRankList> rank_lists;  ///< per category, per spatial node
+  std::vector<format::NanocubeRankEntry> rank_entries;
   std::vector<std::uint64_t> dimension_nodes;  ///< where each dimension starts, + the end
   std::uint32_t root = 0;
   std::uint64_t shared_content_links = 0, shared_child_links = 0;
@@ -33,7 +35,8 @@ struct NanocubeData {
 
   std::uint64_t bytes() const {
     return nodes.size() * sizeof(nodes[0]) + edges.size() * sizeof(edges[0]) +
-           series.size() * sizeof(series[0]) + series_bins.size() * 4 + series_counts.size() * 8;
+           series.size() * sizeof(series[0]) + series_bins.size() * 4 + series_counts.size() * 8 +
+           rank_lists.size() * sizeof(rank_lists[0]) + rank_entries.size() * sizeof(rank_entries[0]);
   }
 };
 

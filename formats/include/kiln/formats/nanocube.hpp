@@ -17,6 +17,8 @@ inline constexpr std::uint32_t kSectionNanocubeEdges = fourcc('N', 'C', 'E', 'D'
 inline constexpr std::uint32_t kSectionNanocubeSeries = fourcc('N', 'C', 'S', 'R');
 inline constexpr std::uint32_t kSectionNanocubeSeriesBins = fourcc('N', 'C', 'T', 'B');
 inline constexpr std::uint32_t kSectionNanocubeSeriesCounts = fourcc('N', 'C', 'T', 'C');
+inline constexpr std::uint32_t kSectionNanocubeRankLists = fourcc('N', 'C', 'R', 'L');
+inline constexpr std::uint32_t kSectionNanocubeRankEntries = fourcc('N', 'C', 'R', 'E');
 
 /// The deepest quadtree the format allows (cells of 2^30 per axis fit uint32 keys).
 inline constexpr std::uint32_t kNanocubeMaxLevel = 30;
@@ -58,6 +60,24 @@ struct NanocubeSeries {
   std::uint64_t count;
 };
 static_assert(sizeof(NanocubeSeries) == 16);
+
+/// Topkube's stored ranking (Miranda et al. 2018) of one category over one spatial node's
+/// events: rank entries first .. first + count - 1, counts non-increasing, ties by label code.
+/// List `c * spatial_nodes + n` ranks category c under spatial node n; a node with one child
+/// shares its child's entries.
+struct NanocubeRankList {
+  std::uint64_t first;
+  std::uint32_t count;
+  std::uint32_t reserved;  ///< 0
+};
+static_assert(sizeof(NanocubeRankList) == 16);
+
+/// A label code and how many of the node's events (over all time) carry it.
+struct NanocubeRankEntry {
+  std::uint32_t label;
+  std::uint32_t count;
+};
+static_assert(sizeof(NanocubeRankEntry) == 8);
 
 /// Web-Mercator cells at `level` (x east from -180 degrees, y south from +85.0511 degrees):
 /// the cell of a longitude or latitude, clamped to the grid (NaN goes to cell 0), and a cell

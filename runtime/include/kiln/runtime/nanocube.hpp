@@ -64,6 +64,14 @@ class NanocubeView final : public EventQueries {
                                     std::uint32_t zoom) const override;
   std::vector<EventLabelCount> topk(const EventSelection& selection, std::string_view by,
                                     std::size_t k) const override;
+  /// topk, and how many labels it counted exactly (the rest were ruled out by the rankings).
+  std::vector<EventLabelCount> topk_counting(const EventSelection& selection, std::string_view by,
+                                             std::size_t k, std::size_t& labels_counted) const;
+  /// Topkube's ranking of category `c` under spatial node `node` (counts over all time).
+  std::span<const format::NanocubeRankEntry> ranking(std::size_t c, std::uint32_t node) const;
+  /// The deep check of the rankings (kiln verify): a leaf's ranking adds up to its events, an
+  /// inner node's counts each label as its children's rankings do together.
+  bool rankings_consistent() const;
 
   /// Events in series `s` with bins in [b0, b1): two binary searches.
   std::uint64_t series_count(std::uint32_t s, std::int64_t b0, std::int64_t b1) const;
@@ -72,10 +80,13 @@ class NanocubeView final : public EventQueries {
   template <class F>
   void cover(const ResolvedSelection& r, std::uint32_t node, std::uint32_t level, std::uint64_t x,
              std::uint64_t y, F&& f) const;
+  static constexpr std::uint32_t kAnyLabel = 0xFFFFFFFFu;
   template <class F>
   void leaves(const ResolvedSelection& r, std::size_t dim, std::uint32_t node, std::size_t by,
-              std::uint32_t label, F&& f) const;
+              std::uint32_t label, F&& f, std::uint32_t only = kAnyLabel) const;
   std::uint64_t node_count(const ResolvedSelection& r, std::uint32_t node) const;
+  std::uint64_t label_count(const ResolvedSelection& r, std::uint32_t node, std::size_t c,
+                            std::uint32_t label) const;
 
   EventTableView table_;
   EventGrid grid_;
@@ -85,6 +96,8 @@ class NanocubeView final : public EventQueries {
   std::span<const format::NanocubeSeries> series_;
   std::span<const std::uint32_t> series_bins_;
   std::span<const std::uint64_t> series_counts_;
+  std::span<const format::NanocubeRankList> rank_lists_;
+  std::span<const format::NanocubeRankEntry> rank_entries_;
   std::vector<std::uint64_t> dimension_nodes_;
 };
 
