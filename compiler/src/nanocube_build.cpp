@@ -315,7 +315,8 @@ void CubeBuilder::flatten() {
     nodes_[d] = {}, edges_[d] = {};
   }
   if (out_.nodes.size() >= kNone) throw std::invalid_argument("nanocube: too many nodes");
-  for (auto& lists : ranks_) out_.rank_lists.insert(out_.rank_lists.end(), lists.begin(), lists.end());
+  for (auto& lists : ranks_)
+    out_.rank_lists.insert(out_.rank_lists.end(), lists.begin(), lists.end());
   ranks_ = {};
 }
 

@@ -110,7 +110,7 @@ EventTableView Blob::event_table() const {
     for (const auto* c : *table->categories()) {
       EventCategoryInfo info{
           text(c->name()), text(c->column()), {}, c->first_label(), c->label_count()};
-      if (c->edges() != nullptr) info.edges.assign(c->edges()->begin(), c->edges()->end());
+      info.edges = copy_vector(c->edges());
       view.categories.push_back(std::move(info));
     }
   view.time_min = table->time_min(), view.time_max = table->time_max();

@@ -15,9 +15,10 @@ namespace kiln {
 namespace {
 
 constexpr std::uint32_t kSections[] = {
-    format::kSectionNanocubeNodes, format::kSectionNanocubeEdges, format::kSectionNanocubeSeries,
-    format::kSectionNanocubeSeriesBins, format::kSectionNanocubeSeriesCounts,
-    format::kSectionNanocubeRankLists, format::kSectionNanocubeRankEntries};
+    format::kSectionNanocubeNodes,        format::kSectionNanocubeEdges,
+    format::kSectionNanocubeSeries,       format::kSectionNanocubeSeriesBins,
+    format::kSectionNanocubeSeriesCounts, format::kSectionNanocubeRankLists,
+    format::kSectionNanocubeRankEntries};
 
 class NanocubeStructure final : public StructureView {
  public:
@@ -29,8 +30,8 @@ class NanocubeStructure final : public StructureView {
 };
 
 std::uint64_t nodes_in(const schema::NanocubeDesc& d) {
-  const auto* dims = d.dimension_nodes();
-  return dims == nullptr || dims->size() == 0 ? 0 : dims->Get(dims->size() - 1);
+  const std::vector<std::uint64_t> dims = copy_vector(d.dimension_nodes());
+  return dims.empty() ? 0 : dims.back();
 }
 
 void check(const Blob& blob, const StructureInfo& info) {
@@ -95,9 +96,9 @@ std::string utc(std::int64_t t) {
 Description describe(const Blob& blob, const StructureInfo& info) {
   const auto& d = desc_of<schema::NanocubeDesc>(blob, info);
   const EventTableView table = blob.event_table();
-  const auto* dims = d.dimension_nodes();
-  auto nodes = [&](std::size_t i) {
-    return dims && i + 1 < dims->size() ? dims->Get(i + 1) - dims->Get(i) : 0;
+  const std::vector<std::uint64_t> dims = copy_vector(d.dimension_nodes());
+  auto nodes = [&](std::size_t i) -> std::uint64_t {
+    return i + 1 < dims.size() ? dims[i + 1] - dims[i] : 0;
   };
   Description out;
   const std::int64_t t1 = d.time_origin() + std::int64_t(d.bin_count()) * d.time_bin();
@@ -139,9 +140,9 @@ Description describe(const Blob& blob, const StructureInfo& info) {
   out.field("bin_count", d.bin_count()).field("sharing", d.sharing());
   out.field("shared_content_links", d.shared_content_links());
   out.field("shared_child_links", d.shared_child_links());
-  const std::uint64_t rank_entries =
-      d.rank_entries() < blob.sections().size() ? blob.sections()[d.rank_entries()].element_count
-                                                : 0;
+  const std::uint64_t rank_entries = d.rank_entries() < blob.sections().size()
+                                         ? blob.sections()[d.rank_entries()].element_count
+                                         : 0;
   out.lines.push_back(printf_string("topkube rankings: %llu entries over %llu spatial nodes",
                                     (unsigned long long)rank_entries,
                                     (unsigned long long)nodes(0)));

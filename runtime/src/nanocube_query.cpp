@@ -5,8 +5,8 @@
 #include <functional>
 #include <map>
 #include <queue>
-#include <utility>
 #include <stdexcept>
+#include <utility>
 
 #include "kiln/runtime/nanocube.hpp"
 

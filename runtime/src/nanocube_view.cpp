@@ -20,11 +20,9 @@ struct Walk {
 
 std::vector<std::uint64_t> check_dimensions(const Walk& w, std::size_t categories,
                                             std::uint64_t node_count) {
-  const auto* dims = w.d.dimension_nodes();
-  if (w.d.dimension_count() != categories + 1 || dims == nullptr ||
-      dims->size() != w.d.dimension_count() + 1)
+  std::vector<std::uint64_t> out = copy_vector(w.d.dimension_nodes());
+  if (w.d.dimension_count() != categories + 1 || out.size() != w.d.dimension_count() + 1)
     w.fail(0, "dimensions do not match the event table's categories");
-  std::vector<std::uint64_t> out(dims->begin(), dims->end());
   if (out.front() != 0 || out.back() != node_count) w.fail(0, "dimension ranges are invalid");
   for (std::size_t i = 1; i < out.size(); ++i)
     if (out[i] <= out[i - 1]) w.fail(0, "a dimension has no node");
@@ -95,7 +93,8 @@ void check_rankings(const Walk& w, const NanocubeView& view,
   const auto& categories = view.table().categories;
   const std::uint64_t spatial = view.dimension_nodes()[1];
   if (lists.size() != categories.size() * spatial)
-    w.fail(w.d.rank_lists(), "has " + std::to_string(lists.size()) + " rankings, not one per "
+    w.fail(w.d.rank_lists(), "has " + std::to_string(lists.size()) +
+                                 " rankings, not one per "
                                  "category and spatial node");
   for (std::size_t i = 0; i < lists.size(); ++i) {
     const format::NanocubeRankList& l = lists[i];

@@ -36,7 +36,8 @@ struct NanocubeData {
   std::uint64_t bytes() const {
     return nodes.size() * sizeof(nodes[0]) + edges.size() * sizeof(edges[0]) +
            series.size() * sizeof(series[0]) + series_bins.size() * 4 + series_counts.size() * 8 +
-           rank_lists.size() * sizeof(rank_lists[0]) + rank_entries.size() * sizeof(rank_entries[0]);
+           rank_lists.size() * sizeof(rank_lists[0]) +
+           rank_entries.size() * sizeof(rank_entries[0]);
   }
 };
 

@@ -3,6 +3,9 @@
 // stays free of generated types.
 #pragma once
 
+#include <cstring>
+#include <vector>
+
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/error.hpp"
 #include "kiln/schema/manifest_generated.h"
@@ -19,6 +22,16 @@ inline const schema::Structure& structure_table(const Blob& blob, const Structur
 
 /// The description table of structure `info`, of the kind's type `Desc` (checked when the blob
 /// was opened: the registry matches each kind to its union member).
+/// A manifest vector of 8-byte scalars ([double], [uint64]) copied out with memcpy: the
+/// FlatBuffers verifier aligns a vector's length to 4 bytes only, so in forged bytes its
+/// elements may sit at 4 mod 8, where reading them in place is undefined.
+template <class T>
+std::vector<T> copy_vector(const flatbuffers::Vector<T>* v) {
+  std::vector<T> out(v != nullptr ? v->size() : 0);
+  if (!out.empty()) std::memcpy(out.data(), v->Data(), out.size() * sizeof(T));
+  return out;
+}
+
 template <class Desc>
 const Desc& desc_of(const Blob& blob, const StructureInfo& info) {
   const Desc* desc = structure_table(blob, info).desc_as<Desc>();
