@@ -6,10 +6,19 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <random>
 #include <vector>
 
 int main(int argc, char** argv) {
+  const bool help = argc >= 2 && (!std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h"));
+  if (help) {
+    std::printf(
+        "usage: %s ROWS [SEED] > events.csv\n"
+        "Synthetic events: clustered points, seasonal times over 2001, Zipf labels.\n",
+        argv[0]);
+    return 0;
+  }
   if (argc < 2) {
     std::fprintf(stderr, "usage: %s ROWS [SEED] > events.csv\n", argv[0]);
     return 2;

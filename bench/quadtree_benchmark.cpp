@@ -268,6 +268,14 @@ int main(int argc, char** argv) {
   std::string zip;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::printf(
+          "usage: %s [ZIP_POINTS.csv[.zst]] [--rounds=N] [--queries=N]\n"
+          "Range queries on the quadtree against Boost.Geometry's R-tree and a scan, on the ZIP\n"
+          "points (when given) and 10^6 uniform points; medians of alternating rounds.\n",
+          argv[0]);
+      return 0;
+    }
     if (arg.rfind("--rounds=", 0) == 0)
       bench.rounds = std::stoi(arg.substr(9));
     else if (arg.rfind("--queries=", 0) == 0)

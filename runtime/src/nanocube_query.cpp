@@ -218,11 +218,10 @@ std::vector<EventLabelCount> NanocubeView::topk(const EventSelection& s, std::st
   return topk_counting(s, by, k, counted);
 }
 
-// Topkube's top-k: Fagin's threshold algorithm over the covered nodes' stored rankings. Walk the
-// rankings in step, depth by depth, counting each label met exactly (over every covered node,
-// in the selection's time and filters). A label not met yet has, in each ranking, at most the
-// count at the next depth, and a ranking counts all time (a superset of any selection), so the
-// sum of those is a bound on it: the walk stops once k labels count more than the bound.
+// Topkube's top-k (docs/FORMAT.md §24.3), by the cheapest of three exact ways: with no time
+// limit and no filter on another category, the covered nodes' rankings ARE the counts (added
+// label by label); where the rankings are short (few labels under each node), each node's labels
+// are counted along its label edges; otherwise the threshold algorithm walks the rankings.
 std::vector<EventLabelCount> NanocubeView::topk_counting(const EventSelection& s,
                                                          std::string_view by, std::size_t k,
                                                          std::size_t& counted) const {
@@ -236,14 +235,50 @@ std::vector<EventLabelCount> NanocubeView::topk_counting(const EventSelection& s
     covered.push_back(node);
   });
   std::vector<std::span<const format::NanocubeRankEntry>> rankings;
-  std::size_t deepest = 0;
+  std::size_t entries = 0;
   for (const std::uint32_t node : covered) {
     rankings.push_back(ranking(*c, node));
-    deepest = std::max(deepest, rankings.back().size());
+    entries += rankings.back().size();
   }
+  bool exact = r.b0 <= 0 && r.b1 >= std::int64_t(grid_.bin_count);
+  for (std::size_t other = 0; other < r.allowed.size(); ++other)
+    exact = exact && (other == *c || r.allowed[other].empty());
+  std::vector<std::uint64_t> counts(table_.categories[*c].label_count, 0);
   const std::vector<char>& allowed = r.allowed[*c];
-  std::vector<char> met(table_.categories[*c].label_count, 0);
-  std::vector<std::pair<std::uint32_t, std::uint64_t>> hits;  // label code, exact count
+  if (exact) {
+    for (const auto& ranked : rankings)
+      for (const format::NanocubeRankEntry& e : ranked)
+        if (allowed.empty() || allowed[e.label]) counts[e.label] += e.count;
+  } else if (entries <= 2 * k * covered.size()) {
+    for (const std::uint32_t node : covered)
+      leaves(r, 0, node, *c, 0, [&](std::uint32_t series, std::uint32_t label) {
+        counts[label] += series_count(series, r.b0, r.b1);
+      });
+    counted = entries;
+  } else {
+    return threshold_topk(r, *c, k, covered, rankings, counted);
+  }
+  std::vector<EventLabelCount> all;
+  for (std::uint32_t i = 0; i < counts.size(); ++i)
+    if (counts[i] != 0) all.push_back({std::string(table_.label(*c, i)), counts[i]});
+  return top_labels(std::move(all), k);
+}
+
+// Fagin's threshold algorithm over the covered nodes' rankings. Walk them in step, depth by
+// depth, counting each label met exactly (over every covered node, in the selection's time and
+// filters). A label not met yet has, in each ranking, at most the count at the next depth, and
+// a ranking counts all time (a superset of any selection), so the sum of those bounds it: the
+// walk stops once k labels count strictly more.
+std::vector<EventLabelCount> NanocubeView::threshold_topk(
+    const ResolvedSelection& r, std::size_t c, std::size_t k,
+    std::span<const std::uint32_t> covered,
+    std::span<const std::span<const format::NanocubeRankEntry>> rankings,
+    std::size_t& counted) const {
+  std::size_t deepest = 0;
+  for (const auto& ranked : rankings) deepest = std::max(deepest, ranked.size());
+  const std::vector<char>& allowed = r.allowed[c];
+  std::vector<char> met(table_.categories[c].label_count, 0);
+  std::vector<EventLabelCount> hits;
   std::priority_queue<std::uint64_t, std::vector<std::uint64_t>, std::greater<>> best;  // k largest
   for (std::size_t depth = 0; depth < deepest; ++depth) {
     for (const auto& ranked : rankings) {
@@ -252,10 +287,10 @@ std::vector<EventLabelCount> NanocubeView::topk_counting(const EventSelection& s
       met[label] = 1;
       if (!allowed.empty() && !allowed[label]) continue;
       std::uint64_t n = 0;
-      for (const std::uint32_t node : covered) n += label_count(r, node, *c, label);
+      for (const std::uint32_t node : covered) n += label_count(r, node, c, label);
       ++counted;
       if (n == 0) continue;
-      hits.push_back({label, n});
+      hits.push_back({std::string(table_.label(c, label)), n});
       best.push(n);
       if (best.size() > k) best.pop();
     }
@@ -264,9 +299,7 @@ std::vector<EventLabelCount> NanocubeView::topk_counting(const EventSelection& s
       if (depth + 1 < ranked.size()) bound += ranked[depth + 1].count;
     if (bound == 0 || (best.size() == k && best.top() > bound)) break;
   }
-  std::vector<EventLabelCount> all;
-  for (const auto& [label, n] : hits) all.push_back({std::string(table_.label(*c, label)), n});
-  return top_labels(std::move(all), k);
+  return top_labels(std::move(hits), k);
 }
 
 }  // namespace kiln

@@ -64,7 +64,8 @@ class NanocubeView final : public EventQueries {
                                     std::uint32_t zoom) const override;
   std::vector<EventLabelCount> topk(const EventSelection& selection, std::string_view by,
                                     std::size_t k) const override;
-  /// topk, and how many labels it counted exactly (the rest were ruled out by the rankings).
+  /// topk, and how many (node, label) counts it read from the series (0 when the rankings alone
+  /// answer it; with the threshold algorithm, labels ruled out by the rankings are never read).
   std::vector<EventLabelCount> topk_counting(const EventSelection& selection, std::string_view by,
                                              std::size_t k, std::size_t& labels_counted) const;
   /// Topkube's ranking of category `c` under spatial node `node` (counts over all time).
@@ -87,6 +88,11 @@ class NanocubeView final : public EventQueries {
   std::uint64_t node_count(const ResolvedSelection& r, std::uint32_t node) const;
   std::uint64_t label_count(const ResolvedSelection& r, std::uint32_t node, std::size_t c,
                             std::uint32_t label) const;
+  std::vector<EventLabelCount> threshold_topk(
+      const ResolvedSelection& r, std::size_t c, std::size_t k,
+      std::span<const std::uint32_t> covered,
+      std::span<const std::span<const format::NanocubeRankEntry>> rankings,
+      std::size_t& counted) const;
 
   EventTableView table_;
   EventGrid grid_;
