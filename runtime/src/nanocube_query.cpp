@@ -250,32 +250,58 @@ std::vector<EventLabelCount> NanocubeView::topk_counting(const EventSelection& s
       for (const format::NanocubeRankEntry& e : ranked)
         if (allowed.empty() || allowed[e.label]) counts[e.label] += e.count;
   } else if (entries <= 2 * k * covered.size()) {
-    for (const std::uint32_t node : covered)
-      leaves(r, 0, node, *c, 0, [&](std::uint32_t series, std::uint32_t label) {
-        counts[label] += series_count(series, r.b0, r.b1);
-      });
     counted = entries;
+    return counted_topk(r, *c, k, covered);
   } else {
     return threshold_topk(r, *c, k, covered, rankings, counted);
   }
+  return labels_by_count(counts, *c, k);
+}
+
+// Each covered node's labels of category c counted along its label edges.
+std::vector<EventLabelCount> NanocubeView::counted_topk(
+    const ResolvedSelection& r, std::size_t c, std::size_t k,
+    std::span<const std::uint32_t> covered) const {
+  std::vector<std::uint64_t> counts(table_.categories[c].label_count, 0);
+  for (const std::uint32_t node : covered)
+    leaves(r, 0, node, c, 0, [&](std::uint32_t series, std::uint32_t label) {
+      counts[label] += series_count(series, r.b0, r.b1);
+    });
+  return labels_by_count(counts, c, k);
+}
+
+std::vector<EventLabelCount> NanocubeView::labels_by_count(std::span<const std::uint64_t> counts,
+                                                           std::size_t c, std::size_t k) const {
   std::vector<EventLabelCount> all;
   for (std::uint32_t i = 0; i < counts.size(); ++i)
-    if (counts[i] != 0) all.push_back({std::string(table_.label(*c, i)), counts[i]});
+    if (counts[i] != 0) all.push_back({std::string(table_.label(c, i)), counts[i]});
   return top_labels(std::move(all), k);
 }
 
 // Fagin's threshold algorithm over the covered nodes' rankings. Walk them in step, depth by
-// depth, counting each label met exactly (over every covered node, in the selection's time and
-// filters). A label not met yet has, in each ranking, at most the count at the next depth, and
-// a ranking counts all time (a superset of any selection), so the sum of those bounds it: the
-// walk stops once k labels count strictly more.
+// depth, counting each label met exactly in every covered node (in the selection's time and
+// filters). In node j a label not met yet has at most the ranking's count at the next depth
+// (rankings count all time, a superset of any selection) and at most what the labels met leave
+// of the node's selected events; the sum over nodes bounds it, and the walk stops once k labels
+// count strictly more. Where the bound is loose (the selection holds under half of the nodes'
+// events: a short interval, a filter) or the walk would read more counts than the nodes' rankings
+// hold entries, it counts each node's labels instead: never much more than that plain count.
 std::vector<EventLabelCount> NanocubeView::threshold_topk(
     const ResolvedSelection& r, std::size_t c, std::size_t k,
     std::span<const std::uint32_t> covered,
     std::span<const std::span<const format::NanocubeRankEntry>> rankings,
     std::size_t& counted) const {
-  std::size_t deepest = 0;
+  std::size_t deepest = 0, entries = 0;
   for (const auto& ranked : rankings) deepest = std::max(deepest, ranked.size());
+  for (const auto& ranked : rankings) entries += ranked.size();
+  std::vector<std::uint64_t> left(covered.size());  // selected events of node j not yet placed
+  std::uint64_t selected = 0, ranked_events = 0;
+  for (std::size_t j = 0; j < covered.size(); ++j) selected += left[j] = node_count(r, covered[j]);
+  for (const auto& ranked : rankings)
+    for (const format::NanocubeRankEntry& e : ranked) ranked_events += e.count;
+  // All-time rankings bound a selection holding a small part of the nodes' events loosely: the
+  // walk would count most labels, each in every node, costlier than counting each node's own.
+  if (2 * selected < ranked_events) return counted_topk(r, c, k, covered);
   const std::vector<char>& allowed = r.allowed[c];
   std::vector<char> met(table_.categories[c].label_count, 0);
   std::vector<EventLabelCount> hits;
@@ -286,8 +312,13 @@ std::vector<EventLabelCount> NanocubeView::threshold_topk(
       const std::uint32_t label = ranked[depth].label;
       met[label] = 1;
       if (!allowed.empty() && !allowed[label]) continue;
+      if ((counted + 1) * covered.size() > entries) return counted_topk(r, c, k, covered);
       std::uint64_t n = 0;
-      for (const std::uint32_t node : covered) n += label_count(r, node, c, label);
+      for (std::size_t j = 0; j < covered.size(); ++j) {
+        const std::uint64_t in_node = label_count(r, covered[j], c, label);
+        left[j] -= std::min(left[j], in_node);
+        n += in_node;
+      }
       ++counted;
       if (n == 0) continue;
       hits.push_back({std::string(table_.label(c, label)), n});
@@ -295,8 +326,9 @@ std::vector<EventLabelCount> NanocubeView::threshold_topk(
       if (best.size() > k) best.pop();
     }
     std::uint64_t bound = 0;
-    for (const auto& ranked : rankings)
-      if (depth + 1 < ranked.size()) bound += ranked[depth + 1].count;
+    for (std::size_t j = 0; j < rankings.size(); ++j)
+      if (depth + 1 < rankings[j].size())
+        bound += std::min<std::uint64_t>(rankings[j][depth + 1].count, left[j]);
     if (bound == 0 || (best.size() == k && best.top() > bound)) break;
   }
   return top_labels(std::move(hits), k);

@@ -93,6 +93,11 @@ class NanocubeView final : public EventQueries {
       std::span<const std::uint32_t> covered,
       std::span<const std::span<const format::NanocubeRankEntry>> rankings,
       std::size_t& counted) const;
+  std::vector<EventLabelCount> counted_topk(const ResolvedSelection& r, std::size_t c,
+                                            std::size_t k,
+                                            std::span<const std::uint32_t> covered) const;
+  std::vector<EventLabelCount> labels_by_count(std::span<const std::uint64_t> counts, std::size_t c,
+                                               std::size_t k) const;
 
   EventTableView table_;
   EventGrid grid_;
