@@ -6,6 +6,7 @@ executable (tests/python/CMakeLists.txt); run by hand:
 """
 import os
 import pathlib
+import shutil
 import subprocess
 
 import numpy as np
@@ -81,11 +82,22 @@ def counties_blob(tmp):
     return path
 
 
+def unzstd(path, out):
+    """The shared data's .zst files, inflated with the zstd tool (Python has no zstandard)."""
+    if not out.exists():
+        if shutil.which("zstd") is None:
+            pytest.skip("the zstd tool is absent")
+        out.write_bytes(subprocess.run(["zstd", "-dc", str(path)], capture_output=True,
+                                       check=True).stdout)
+    return out
+
+
 @pytest.fixture(scope="session")
-def zipcodes():
-    """(lon, lat, county, state) of the 42,049 ZIP points, read with pandas."""
+def zipcodes(tmp):
+    """The 42,049 ZIP points (zip_code, latitude, longitude, city, state, county), by pandas."""
     import pandas as pd
-    return pd.read_csv(need_data("geo", "zipcodes.csv.zst"), dtype={"zip_code": str})
+    csv = unzstd(need_data("geo", "zipcodes.csv.zst"), tmp / "zipcodes.csv")
+    return pd.read_csv(csv, dtype={"zip_code": str})
 
 
 @pytest.fixture(scope="session")
@@ -94,3 +106,12 @@ def zip_blob(tmp):
     run_cli("build", need_data("geo", "zipcodes.csv.zst"), "-o", path, "--lon-column",
             "longitude", "--lat-column", "latitude", "--accel", "quadtree")
     return path
+
+
+@pytest.fixture(scope="session")
+def need_geopandas(counties_blob):
+    """geopandas (with rtree for sjoin) and the counties as plain GeoJSON beside the blob."""
+    geopandas = pytest.importorskip("geopandas")
+    pytest.importorskip("rtree", reason="geopandas.sjoin needs python3-rtree")
+    unzstd(need_data("geo", "us-counties-10m.geojson.zst"), counties_blob.parent / "counties.geojson")
+    return geopandas
