@@ -3,6 +3,7 @@
 #include <cmath>
 #include <string>
 
+#include "kiln/runtime/parallel.hpp"
 #include "kiln_python.hpp"
 
 namespace kiln::python {
@@ -96,8 +97,15 @@ template py::array_t<double, py::array::c_style | py::array::forcecast> vector_o
 template py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>
 vector_of<std::int64_t>(py::handle, const char*);
 
+std::string path_of(py::handle value, const char* arg) {
+  if (!py::isinstance<py::str>(value) && !py::hasattr(value, "__fspath__"))
+    throw py::type_error(std::string(arg) + ": expected a path (str or os.PathLike), got " +
+                         std::string(py::str(value.get_type().attr("__name__"))));
+  return py::str(py::module_::import("os").attr("fspath")(value));
+}
+
 unsigned thread_count(const py::object& threads) {
-  if (threads.is_none()) return 0;
+  if (threads.is_none()) return thread_count(py::int_(0));
   if (!py::isinstance<py::int_>(threads) || py::isinstance<py::bool_>(threads))
     throw py::type_error("threads: expected None or an int, got " +
                          std::string(py::str(threads.get_type().attr("__name__"))));
@@ -105,7 +113,10 @@ unsigned thread_count(const py::object& threads) {
   if (n < -1 || n > 4096)
     throw py::value_error("threads: expected None, -1 or 0 (every core), or 1..4096, got " +
                           std::to_string(n));
-  return n <= 0 ? 0u : unsigned(n);
+  // "Every core" resolved once: hardware_concurrency() reads /sys on every call, which cost
+  // a small batch ~70 us per parallel_for.
+  static const unsigned all = resolve_thread_count(0);
+  return n <= 0 ? all : unsigned(n);
 }
 
 void need_non_negative(double value, const char* arg) {

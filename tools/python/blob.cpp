@@ -183,7 +183,8 @@ void bind_blob(py::module_& m, py::class_<Structure>& structure) {
 Lifetime: close() (or leaving a `with` block) drops the Blob's own reference to the mapping.
 Structures and arrays taken from it hold theirs, so the file stays mapped, and they stay
 valid, until the last of them is garbage-collected; the Blob itself then refuses further use.)");
-  blob.def(py::init<const std::string&>(), py::arg("path"))
+  blob.def(py::init([](const py::object& path) { return PyBlob(path_of(path, "path")); }),
+               py::arg("path"))
       .def_property_readonly("path", &PyBlob::path)
       .def_property_readonly("closed", &PyBlob::closed)
       .def("close", &PyBlob::close, "Drops this object's reference to the mapping.")
@@ -229,7 +230,7 @@ valid, until the last of them is garbage-collected; the Blob itself then refuses
   bind_geometry(blob);
   bind_layers(blob);
   m.def(
-      "open", [](const std::string& path) { return PyBlob(path); }, py::arg("path"),
+      "open", [](const py::object& path) { return PyBlob(path_of(path, "path")); }, py::arg("path"),
       "Maps the blob at `path` and validates it (kiln.FormatError with the CLI's one-line "
       "reason when it is broken). Use it as a context manager or call close().");
 

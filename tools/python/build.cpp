@@ -56,12 +56,11 @@ std::map<std::string, std::string> structure_flags(const py::kwargs& kwargs) {
 std::vector<std::string> strings_of(const py::object& value, const char* arg) {
   if (value.is_none()) return {};
   if (py::isinstance<py::str>(value) || py::hasattr(value, "__fspath__"))
-    return {py::str(py::module_::import("os").attr("fspath")(value))};
+    return {path_of(value, arg)};
   if (!py::isinstance<py::sequence>(value) && !py::hasattr(value, "__iter__"))
     throw py::type_error(std::string(arg) + ": expected a str or a list of str");
   std::vector<std::string> out;
-  for (const auto item : value)
-    out.push_back(py::str(py::module_::import("os").attr("fspath")(item)));
+  for (const auto item : value) out.push_back(path_of(item, arg));
   return out;
 }
 

@@ -63,7 +63,10 @@ template <class T>
 py::array_t<T, py::array::c_style | py::array::forcecast> vector_of(py::handle value,
                                                                     const char* arg);
 
-/// A `threads=` argument: None or 0 = every core, else at least 1.
+/// A path argument: str or os.PathLike (TypeError naming `arg` otherwise).
+std::string path_of(py::handle value, const char* arg);
+
+/// A `threads=` argument (None, 0 or -1: every core) as a resolved thread count.
 unsigned thread_count(const py::object& threads);
 
 /// Raises ValueError naming `arg` unless `value` >= 0 and not NaN.

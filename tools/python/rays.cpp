@@ -33,7 +33,7 @@ struct VoxelHitRow {
 };
 static_assert(sizeof(VoxelHitRow) == 72 && offsetof(VoxelHitRow, normal) == 48);
 
-py::dtype hit_dtype(bool voxel) {
+py::dtype make_hit_dtype(bool voxel) {
   py::list fields;
   fields.append(py::make_tuple("t", "<f4"));
   fields.append(py::make_tuple("prim", "<i8"));
@@ -46,6 +46,14 @@ py::dtype hit_dtype(bool voxel) {
   }
   return py::dtype::from_args(
       py::module_::import("numpy").attr("dtype")(fields, py::arg("align") = true));
+}
+
+/// The result dtypes, made once (a small batch would otherwise spend more on them than on its
+/// rays). Leaked on purpose: a static py::object would be released after the interpreter.
+const py::dtype& hit_dtype(bool voxel) {
+  static const py::dtype* const dtypes[2] = {new py::dtype(make_hit_dtype(false)),
+                                             new py::dtype(make_hit_dtype(true))};
+  return *dtypes[voxel];
 }
 
 /// A batch of rays read from Python: origins and directions (n, 3) or one (3,) row broadcast,
