@@ -127,3 +127,15 @@ def test_nan_and_inf_rays_are_misses(mesh_blob, rays):
             hits = blob[name].intersect(org, dirs, tmin=np.array([0, 0, 0, np.nan, 0, 0, 0, 0]))
             assert np.all(hits["prim"][:4] == -1) and np.all(np.isinf(hits["t"][:4]))
             assert not blob[name].occluded(org, dirs)[:3].any()
+
+
+def test_depth_image_example(tmp):
+    """examples/python/depth_image.py runs and writes a PNG."""
+    import os
+    import subprocess
+    import sys
+    from conftest import ROOT
+    out = tmp / "depth.png"
+    subprocess.run([sys.executable, str(ROOT / "examples" / "python" / "depth_image.py"), "",
+                    str(out)], check=True, capture_output=True, env=dict(os.environ))
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
