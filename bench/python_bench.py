@@ -10,8 +10,8 @@
   its bounding box cutting the candidates, shapely.vectorized.contains), on the 42,049 ZIP
   points and on 1 M uniform random points over the counties' bounds.
 - Rays: the binding's cost per call for batches of 1, 1 k and 1 M rays: Structure.intersect
-  against the C++ path, `kiln trace`'s own timing of RayQueries::trace_records on the same
-  RAYS file (it excludes the file I/O) for 1 M rays, scaled per ray for smaller batches.
+  (numpy in, structured array out) against the C++ path, `kiln trace`'s own timing of
+  RayQueries::trace_records on the same rays (it excludes reading and writing its files).
 
 Peers alternate in one process, `--rounds` times each, and the medians are reported: the
 machine is shared with other jobs, so single timings are noisy.
@@ -165,26 +165,22 @@ def bench_rays(tmp, rounds, mesh):
     subprocess.run([CLI, "rays", str(blob_path), "--kind", "diffuse", "--count", "1000000",
                     "-o", str(rays_path)], check=True, capture_output=True)
     rays = np.fromfile(rays_path, np.float32).reshape(-1, 8)
-    org, dirs = rays[:, 0:3].copy(), rays[:, 4:7].copy()
-    print(f"\nRays: {mesh.name}, diffuse rays (kiln rays), closest hit on the BVH")
+    print(f"\nRays: {mesh.name}, diffuse rays (kiln rays), closest hit on the BVH, all cores")
+    print("  batch      Python intersect   C++ trace_records   overhead")
     with kiln.open(blob_path) as blob:
         bvh = blob["bvh"]
-        r = alternate(rounds, python=lambda: bvh.intersect(org, dirs),
-                      cli=lambda: cli_trace_seconds(blob_path, rays_path))
-        py_s, cpp_s = r["python"][0], statistics.median([r["cli"][1]])
-        cpp_times = [cli_trace_seconds(blob_path, rays_path) for _ in range(rounds)]
-        cpp_s = statistics.median(cpp_times)
-        per_ray = cpp_s / len(org)
-        print(f"  1 M rays: Python intersect {py_s * 1e3:.1f} ms, C++ trace_records "
-              f"{cpp_s * 1e3:.1f} ms: overhead {100 * (py_s / cpp_s - 1):+.1f} %")
-        for batch, calls in ((1000, 200), (1, 2000)):
-            o, d = org[:batch], dirs[:batch]
-            seconds = statistics.median(
-                timed(lambda: [bvh.intersect(o, d) for _ in range(calls)])[0] / calls
-                for _ in range(rounds))
-            print(f"  batch {batch:>5}: {seconds * 1e6:8.1f} us per call, C++ estimate "
-                  f"{per_ray * batch * 1e6:8.1f} us: overhead {1e6 * (seconds - per_ray * batch):.1f} us"
-                  " per call")
+        for batch, calls in ((1, 2000), (1000, 100), (1_000_000, 1)):
+            part = tmp / f"rays_{batch}.rays"
+            rays[:batch].tofile(part)
+            org, dirs = rays[:batch, 0:3].copy(), rays[:batch, 4:7].copy()
+            py_times, cpp_times = [], []
+            for _ in range(rounds):  # alternating: Python, then the CLI on the same rays
+                py_times.append(timed(lambda: [bvh.intersect(org, dirs)
+                                               for _ in range(calls)])[0] / calls)
+                cpp_times.append(cli_trace_seconds(blob_path, part))
+            py_s, cpp_s = statistics.median(py_times), statistics.median(cpp_times)
+            print(f"  {batch:>9,}  {py_s * 1e6:12.1f} us  {cpp_s * 1e6:14.1f} us  "
+                  f"{(py_s - cpp_s) * 1e6:+9.1f} us ({100 * (py_s / cpp_s - 1):+.1f} %)")
 
 
 def main():

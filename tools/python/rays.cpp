@@ -101,57 +101,67 @@ struct RayBatch {
   }
 };
 
-/// Traces every ray into its HITS record (the record of `kiln trace`), GIL released by the
-/// caller. A ray with a non-finite coordinate is not traced: its record stays a miss.
-std::vector<std::byte> trace(const RayQueries& q, const RayBatch& b, bool any_hit,
-                             unsigned threads) {
-  std::vector<Ray> rays(b.count);
-  std::vector<std::uint8_t> valid(b.count);
-  const float *o = b.org.data(), *d = b.dir.data(), *lo = b.tmin.data(), *hi = b.tmax.data();
-  parallel_for_batched(b.count, kBatch, threads, [&](std::size_t i) {
-    const auto ray = b.ray(i, o, d, lo, hi);
-    valid[i] = ray.has_value();
-    // A harmless empty interval stands in for an invalid ray; its answer is replaced below.
-    rays[i] = ray ? *ray : Ray{{0, 0, 0}, 0, {1, 0, 0}, 0};
-  });
+/// Traces the batch in tasks of kBatch rays, each task on one thread: its rays built, traced
+/// through trace_records (the path of `kiln trace`, so the records are the CLI's) and handed
+/// to `out(i, record)` while still in cache: one pass, no batch-sized temporaries. A ray with
+/// a non-finite coordinate is not traced: its record is a miss. GIL released by the caller.
+template <class Out>
+void trace(const RayQueries& q, const RayBatch& b, bool any_hit, unsigned threads, Out out) {
   const std::size_t size = q.record_size();
-  std::vector<std::byte> records(b.count * size);
-  q.trace_records(rays, records, any_hit, threads);
+  const float *o = b.org.data(), *d = b.dir.data(), *lo = b.tmin.data(), *hi = b.tmax.data();
   const float inf = std::numeric_limits<float>::infinity();
-  parallel_for_batched(b.count, kBatch, threads, [&](std::size_t i) {
-    if (valid[i]) return;
-    std::memset(records.data() + i * size, 0xFF, size);  // kNoHit ids
-    std::memcpy(records.data() + i * size, &inf, sizeof inf);
-    if (size == sizeof(VoxelHitRecord))  // zero normals, as a miss has
-      std::memset(records.data() + i * size + 16, 0, size - 16);
+  parallel_for((b.count + kBatch - 1) / kBatch, threads, [&](std::size_t task) {
+    const std::size_t first = task * kBatch, n = std::min(kBatch, b.count - first);
+    std::vector<Ray> rays(n);
+    std::vector<std::uint8_t> valid(n);
+    std::vector<std::byte> records(n * size);
+    for (std::size_t k = 0; k < n; ++k) {
+      const auto ray = b.ray(first + k, o, d, lo, hi);
+      valid[k] = ray.has_value();
+      // A harmless empty interval stands in for an invalid ray; its record is replaced below.
+      rays[k] = ray ? *ray : Ray{{0, 0, 0}, 0, {1, 0, 0}, 0};
+    }
+    q.trace_records(rays, records, any_hit, 1);
+    for (std::size_t k = 0; k < n; ++k) {
+      std::byte* record = records.data() + k * size;
+      if (!valid[k]) {
+        std::memset(record, 0, size);
+        std::memcpy(record, &inf, sizeof inf);
+        if (size == sizeof(VoxelHitRecord))
+          std::memset(record + 4, 0xFF, 12);  // no voxel
+        else
+          std::memset(record + 4, 0xFF, 4);  // no primitive
+      }
+      out(first + k, record);
+    }
   });
-  return records;
 }
 
 std::int64_t id_or_minus_one(std::uint32_t id) {
   return id == kNoHit ? -1 : std::int64_t(id);
 }
 
-void to_rows(const std::vector<std::byte>& records, HitRow* out, std::size_t n, unsigned threads) {
-  parallel_for_batched(n, kBatch, threads, [&](std::size_t i) {
-    Hit h;
-    std::memcpy(&h, records.data() + i * sizeof(Hit), sizeof h);
-    out[i] = {h.t, id_or_minus_one(h.prim), h.u, h.v};
-  });
+HitRow row_of(const Hit& h) {
+  return {h.t, id_or_minus_one(h.prim), h.u, h.v};
 }
 
-void to_rows(const std::vector<std::byte>& records, VoxelHitRow* out, std::size_t n,
-             unsigned threads) {
-  parallel_for_batched(n, kBatch, threads, [&](std::size_t i) {
-    VoxelHitRecord r;
-    std::memcpy(&r, records.data() + i * sizeof r, sizeof r);
-    VoxelHitRow& row = out[i];
-    const bool hit = !std::isinf(r.t);
-    row.hit = {r.t, hit ? 0 : -1, 0, 0};
-    row.voxel[0] = id_or_minus_one(r.x), row.voxel[1] = id_or_minus_one(r.y);
-    row.voxel[2] = id_or_minus_one(r.z);
-    std::memcpy(row.normal, r.normal, sizeof row.normal);
-    std::memcpy(row.face_normal, r.face_normal, sizeof row.face_normal);
+VoxelHitRow row_of(const VoxelHitRecord& r) {
+  VoxelHitRow row;
+  row.hit = {r.t, std::isinf(r.t) ? -1 : 0, 0, 0};
+  row.voxel[0] = id_or_minus_one(r.x), row.voxel[1] = id_or_minus_one(r.y);
+  row.voxel[2] = id_or_minus_one(r.z);
+  std::memcpy(row.normal, r.normal, sizeof row.normal);
+  std::memcpy(row.face_normal, r.face_normal, sizeof row.face_normal);
+  return row;
+}
+
+/// Records of type Record into rows of intersect's structured array.
+template <class Record, class Row>
+void trace_rows(const RayQueries& q, const RayBatch& b, unsigned threads, Row* rows) {
+  trace(q, b, false, threads, [&](std::size_t i, const std::byte* record) {
+    Record r;
+    std::memcpy(&r, record, sizeof r);
+    rows[i] = row_of(r);
   });
 }
 
@@ -165,11 +175,10 @@ py::array intersect(const Structure& s, py::handle origins, py::handle direction
   void* data = out.mutable_data();
   {
     py::gil_scoped_release release;
-    const auto records = trace(q, batch, false, threads);
     if (voxel)
-      to_rows(records, static_cast<VoxelHitRow*>(data), batch.count, threads);
+      trace_rows<VoxelHitRecord>(q, batch, threads, static_cast<VoxelHitRow*>(data));
     else
-      to_rows(records, static_cast<HitRow*>(data), batch.count, threads);
+      trace_rows<Hit>(q, batch, threads, static_cast<HitRow*>(data));
   }
   return out;
 }
@@ -183,11 +192,10 @@ py::array_t<bool> occluded(const Structure& s, py::handle origins, py::handle di
   bool* data = out.mutable_data();
   {
     py::gil_scoped_release release;
-    const auto records = trace(q, batch, true, threads);
-    const std::size_t size = q.record_size();
-    parallel_for_batched(batch.count, kBatch, threads, [&](std::size_t i) {
+    // Every record starts with t, +inf on a miss.
+    trace(q, batch, true, threads, [&](std::size_t i, const std::byte* record) {
       float t;
-      std::memcpy(&t, records.data() + i * size, sizeof t);
+      std::memcpy(&t, record, sizeof t);
       data[i] = !std::isinf(t);
     });
   }
