@@ -10,8 +10,10 @@
   its bounding box cutting the candidates, shapely.vectorized.contains), on the 42,049 ZIP
   points and on 1 M uniform random points over the counties' bounds.
 - Rays: the binding's cost per call for batches of 1, 1 k and 1 M rays: Structure.intersect
-  (numpy in, structured array out) against the C++ path, `kiln trace`'s own timing of
-  RayQueries::trace_records on the same rays (it excludes reading and writing its files).
+  (numpy in, structured array out) against the C++ path: `kiln trace`'s own wall-clock timing
+  of RayQueries::trace_records on the same rays (it excludes reading and writing its files),
+  and, on one thread, CPU seconds: the Python process's against the CLI's (less what the CLI
+  spends on a one-ray run: start, open, write), which the machine's load disturbs less.
 
 Peers alternate in one process, `--rounds` times each, and the medians are reported: the
 machine is shared with other jobs, so single timings are noisy.
@@ -159,28 +161,49 @@ def cli_trace_seconds(blob, rays_file):
     return int(count) / (float(rate) * 1e6)
 
 
+def cli_cpu_seconds(blob, rays_file):
+    """CPU seconds (user + system) of `kiln trace --threads 1` on a RAYS file."""
+    import resource
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([CLI, "trace", str(blob), "--rays", str(rays_file), "--out", os.devnull,
+                    "--accel", "bvh", "--threads", "1"], capture_output=True, check=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
 def bench_rays(tmp, rounds, mesh):
     blob_path, rays_path = tmp / "rays.kiln", tmp / "diffuse.rays"
     kiln.build(mesh, blob_path, accel="bvh")
     subprocess.run([CLI, "rays", str(blob_path), "--kind", "diffuse", "--count", "1000000",
                     "-o", str(rays_path)], check=True, capture_output=True)
     rays = np.fromfile(rays_path, np.float32).reshape(-1, 8)
-    print(f"\nRays: {mesh.name}, diffuse rays (kiln rays), closest hit on the BVH, all cores")
-    print("  batch      Python intersect   C++ trace_records   overhead")
+    print(f"\nRays: {mesh.name}, diffuse rays (kiln rays), closest hit on the BVH")
+    print("  batch      wall, all cores: Python   C++     |  CPU, 1 thread: Python   C++")
     with kiln.open(blob_path) as blob:
         bvh = blob["bvh"]
         for batch, calls in ((1, 2000), (1000, 100), (1_000_000, 1)):
             part = tmp / f"rays_{batch}.rays"
             rays[:batch].tofile(part)
             org, dirs = rays[:batch, 0:3].copy(), rays[:batch, 4:7].copy()
-            py_times, cpp_times = [], []
+            wall_py, wall_cpp, cpu_py, cpu_cpp = [], [], [], []
             for _ in range(rounds):  # alternating: Python, then the CLI on the same rays
-                py_times.append(timed(lambda: [bvh.intersect(org, dirs)
-                                               for _ in range(calls)])[0] / calls)
-                cpp_times.append(cli_trace_seconds(blob_path, part))
-            py_s, cpp_s = statistics.median(py_times), statistics.median(cpp_times)
-            print(f"  {batch:>9,}  {py_s * 1e6:12.1f} us  {cpp_s * 1e6:14.1f} us  "
-                  f"{(py_s - cpp_s) * 1e6:+9.1f} us ({100 * (py_s / cpp_s - 1):+.1f} %)")
+                wall_py.append(timed(lambda: [bvh.intersect(org, dirs)
+                                              for _ in range(calls)])[0] / calls)
+                wall_cpp.append(cli_trace_seconds(blob_path, part))
+                start = time.process_time()
+                for _ in range(calls):
+                    bvh.intersect(org, dirs, threads=1)
+                cpu_py.append((time.process_time() - start) / calls)
+                # The CLI's CPU on these rays less its CPU on one ray (start, open, write).
+                if batch > 1:
+                    cpu_cpp.append(cli_cpu_seconds(blob_path, part) -
+                                   cli_cpu_seconds(blob_path, tmp / "rays_1.rays"))
+            m = statistics.median
+            cpu = (f"{m(cpu_py) * 1e6:12.1f} us {m(cpu_cpp) * 1e6:10.1f} us "
+                   f"({100 * (m(cpu_py) / m(cpu_cpp) - 1):+.1f} %)" if cpu_cpp else
+                   f"{m(cpu_py) * 1e6:12.1f} us        n/a")
+            print(f"  {batch:>9,}  {m(wall_py) * 1e6:14.1f} us {m(wall_cpp) * 1e6:10.1f} us  |"
+                  f"  {cpu}")
 
 
 def main():

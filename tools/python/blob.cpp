@@ -184,7 +184,7 @@ Lifetime: close() (or leaving a `with` block) drops the Blob's own reference to 
 Structures and arrays taken from it hold theirs, so the file stays mapped, and they stay
 valid, until the last of them is garbage-collected; the Blob itself then refuses further use.)");
   blob.def(py::init([](const py::object& path) { return PyBlob(path_of(path, "path")); }),
-               py::arg("path"))
+           py::arg("path"))
       .def_property_readonly("path", &PyBlob::path)
       .def_property_readonly("closed", &PyBlob::closed)
       .def("close", &PyBlob::close, "Drops this object's reference to the mapping.")
@@ -206,9 +206,9 @@ valid, until the last of them is garbage-collected; the Blob itself then refuses
       .def(
           "verify",
           [](const PyBlob& b) {
-            const Blob& blob = b.blob();
+            const BlobRef blob = b.ref();  // held: another thread may close() meanwhile
             py::gil_scoped_release release;
-            blob.verify();
+            blob->blob.verify();
           },
           "The deep check of `kiln verify`; raises kiln.FormatError on the first problem.")
       .def("__getitem__", &open_named, py::arg("name"),
