@@ -190,13 +190,14 @@ void bind_build(py::module_& m) {
       py::arg("lat") = py::none(), py::arg("lon") = py::none(), py::arg("time") = py::none(),
       py::arg("category") = py::none(),
       R"(Runs `kiln build` in process: imports `inputs` (a path or a list), compiles the
-structures of `accel` ("bvh", "kdtree:leaf_size=8", ... or a list; "auto") and writes `out`
+structures of `accel` ("bvh", "points:leaf-size=4", ... or a list; "auto") and writes `out`
 atomically. Keywords are kiln build's flags with '_' for '-': compress, compression_level,
 threads, depfile, cache_dir, name_property, lon_column/lat_column (x_column/y_column),
 skip_invalid, lat/lon/time/category (event tables), and every structure kind's global flag
-(resolution=256, bvh_width=8, ...). progress(stage, done, total) is called as the build
-advances (on the calling thread). Returns a report dict. Bad options raise ValueError,
-unknown keywords TypeError, failed imports kiln.BuildError, with kiln build's message.)");
+(bvh_max_leaf=4, bvh_width=8, time_bin="1h", ...). progress(stage, done, total) is called as
+the build advances (on the calling thread; raising aborts the build). Returns a report dict.
+Bad options raise ValueError, unknown keywords TypeError, failed imports kiln.BuildError, with
+kiln build's message.)");
 }
 
 }  // namespace kiln::python
