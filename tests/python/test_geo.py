@@ -111,3 +111,18 @@ def test_nan_points_and_boxes(counties_blob, zip_blob):
     with kiln.open(zip_blob) as blob:
         box, point = blob["quadtree"].range([[-100, np.nan, -90, 40], [-100, 30, -90, 40]])
         assert len(box) > 0 and np.all(box == 1)
+
+
+def test_layer_views(counties_blob, zip_blob):
+    """The 2D inputs' arrays are read-only views, consistent with each other."""
+    with kiln.open(counties_blob) as blob:
+        v, rings = blob.layer_vertices, blob.ring_offsets
+        polygons, features = blob.polygon_offsets, blob.feature_offsets
+        assert v.dtype == np.float64 and v.shape[1] == 2 and not v.flags.writeable
+        assert rings[-1] == len(v) and polygons[-1] == len(rings) - 1
+        assert features[-1] == len(polygons) - 1 and len(features) - 1 == 3231
+        assert blob.table_points is None and len(blob.vertices) == 0
+    with kiln.open(zip_blob) as blob:
+        assert blob.table_points.shape == (42049, 2) and blob.layer_vertices is None
+        with pytest.raises(ValueError, match="read-only"):
+            blob.table_points[0, 0] = 1
