@@ -126,3 +126,23 @@ def test_layer_views(counties_blob, zip_blob):
         assert blob.table_points.shape == (42049, 2) and blob.layer_vertices is None
         with pytest.raises(ValueError, match="read-only"):
             blob.table_points[0, 0] = 1
+
+
+def test_point_table_knn_and_radius_equal_kiln_query(tmp, zip_blob):
+    rng = np.random.default_rng(8)
+    q = rng.uniform([-125, 25], [-70, 48], (500, 2))
+    q.astype("<f8").tofile(tmp / "knn2d.in")
+    with kiln.open(zip_blob) as blob:
+        d, i = blob["quadtree"].knn(q, k=3)
+        near = blob["quadtree"].radius(q, 0.2)
+    for op, extra in (("knn2d", ["--k", "3"]), ("radius2d", ["--radius", "0.2"])):
+        run_cli("query", zip_blob, "--op", op, "--in", tmp / "knn2d.in", "--out",
+                tmp / f"{op}.csv", *extra)
+    rows = np.loadtxt(tmp / "knn2d.csv", delimiter=",", skiprows=1).reshape(-1, 3)
+    np.testing.assert_array_equal(rows[:, 1].astype(np.int64).reshape(-1, 3), i)
+    np.testing.assert_allclose(rows[:, 2].reshape(-1, 3), d, rtol=1e-15)
+    rows = np.loadtxt(tmp / "radius2d.csv", delimiter=",", skiprows=1).reshape(-1, 3)
+    expected = [rows[rows[:, 0] == k, 1].astype(np.int64) for k in range(len(q))]
+    for ours, theirs in zip(near, expected):
+        np.testing.assert_array_equal(ours, theirs)
+    assert sum(map(len, near)) > 100
