@@ -88,6 +88,7 @@ bool one(httplib::Client& client, const Args& a, const std::string& kind, std::m
 void worker(const Args& a, std::size_t id, std::atomic<std::size_t>& next, Result& r) {
   httplib::Client client("127.0.0.1", a.port);
   client.set_keep_alive(true);
+  client.set_tcp_nodelay(true);
   client.set_read_timeout(10, 0);
   std::mt19937_64 rng(id * 7919 + 1);
   const std::vector<std::string> kinds = split(a.kinds);

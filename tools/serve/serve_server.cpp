@@ -4,6 +4,7 @@
 #include "serve_server.hpp"
 
 #include <httplib.h>
+#include <sys/socket.h>
 
 #include <algorithm>
 #include <stdexcept>
@@ -18,6 +19,7 @@ struct Server::Impl {
   ServerOptions options;
   std::vector<Asset> assets = load_assets();
   httplib::Server http;
+  int listen_socket = -1;  // seen when httplib creates it, to raise its backlog after bind
 
   Impl(const Catalog& c, ServerOptions o) : catalog(c), options(std::move(o)) {}
 
@@ -48,14 +50,24 @@ struct Server::Impl {
   }
 
   void settings() {
-    const unsigned threads =
-        options.threads ? options.threads : std::max(2u, std::thread::hardware_concurrency());
+    const unsigned threads = options.threads ? options.threads : kDefaultThreads;
     // The pool size compiled into Debian's .so is 8 whatever the macro says: set it here.
     http.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
     http.set_payload_max_length(options.limits.max_request_bytes);
     http.set_read_timeout(5, 0);
     http.set_write_timeout(5, 0);
-    http.set_keep_alive_max_count(1000);
+    // A worker serves one connection at a time (httplib's model): a connection gives its worker
+    // back after a few requests or a short idle wait, so 32 clients (or a browser's idle
+    // connections) on a few threads all get served.
+    http.set_keep_alive_max_count(8);
+    http.set_keep_alive_timeout(1);
+    // Headers and body leave in separate writes: without TCP_NODELAY, Nagle's algorithm and the
+    // client's delayed ACK hold the body back some 40 ms.
+    http.set_tcp_nodelay(true);
+    http.set_socket_options([this](socket_t sock) {
+      httplib::default_socket_options(sock);
+      listen_socket = sock;
+    });
     http.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
       if (!res.body.empty()) return;  // a route's own JSON error
       const std::string what = res.status == 404   ? "no such path: " + req.path
@@ -92,6 +104,9 @@ void Server::bind() {
                       : (impl_->http.bind_to_port(o.bind.c_str(), o.port) ? o.port : -1);
   if (port_ <= 0)
     throw std::runtime_error("cannot listen on " + o.bind + ":" + std::to_string(o.port));
+  // httplib listens with a backlog of 5: 32 clients connecting at once overflow it and wait a
+  // second for their SYN to be sent again. Listening again on Linux only raises the backlog.
+  if (impl_->listen_socket >= 0) ::listen(impl_->listen_socket, SOMAXCONN);
 }
 
 bool Server::run() {

@@ -10,10 +10,14 @@
 
 namespace kiln::serve {
 
+/// Request threads by default: a thread serves one connection at a time, and a browser opens
+/// several (tiles), so more threads than cores.
+inline constexpr unsigned kDefaultThreads = 16;
+
 struct ServerOptions {
   std::string bind = "127.0.0.1";
   int port = 8080;       ///< 0: any free port (see Server::port)
-  unsigned threads = 0;  ///< request threads; 0: the cores, at least 2
+  unsigned threads = 0;  ///< request threads; 0: kDefaultThreads
   Limits limits;
 };
 
