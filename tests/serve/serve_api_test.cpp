@@ -317,6 +317,25 @@ TEST(Serve, BlobsDescribeEveryStructure) {
   EXPECT_EQ(blobs[1]["structures"][0]["kind"], "polygon-index");
   EXPECT_TRUE(blobs[1]["structures"][0]["stats"].is_object());
   EXPECT_EQ(r->body.find(Blobs::get().events), std::string::npos);  // no server paths
+  // The stats are those of `kiln dump --json`.
+  for (std::size_t b = 0; b < 2; ++b) {
+    const auto dump = test::run_kiln("dump --json " +
+                                     test::quoted(b ? Blobs::get().squares : Blobs::get().events));
+    ASSERT_EQ(dump.exit_code, 0) << dump.err;
+    const json structure = json::parse(dump.out)["manifest"]["structures"][0];
+    EXPECT_EQ(blobs[b]["structures"][0]["stats"], structure[structure["kind"].get<std::string>()]);
+  }
+}
+
+TEST(Serve, ABatchStopsAtItsTimeLimit) {
+  serve::Limits limits;
+  limits.max_time = std::chrono::milliseconds(0);
+  const Running server({Blobs::get().events}, limits);
+  const auto [status, answer] = server.post(R"([{"op": "count"}, {"op": "count"}])");
+  EXPECT_EQ(status, 503);
+  EXPECT_NE(answer["error"].get<std::string>().find("ran past its 0 ms"), std::string::npos)
+      << answer;
+  EXPECT_EQ(server.post(R"({"op": "count"})").first, 200);  // one query is one step
 }
 
 // Every error: its status and a message naming what was wrong.
