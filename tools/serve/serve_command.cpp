@@ -76,7 +76,8 @@ Command add_serve_command(CLI::App& app) {
   command->add_option("--bind", args->options.bind, "Address to listen on (default loopback)");
   command->add_option("--port", args->options.port, "TCP port (0: any free port)")
       ->check(CLI::Range(0, 65535));
-  add_threads_option(command, args->options.threads, "Request threads, each serving one connection at a time (0 = 16)");
+  add_threads_option(command, args->options.threads,
+                     "Request threads, each serving one connection at a time (0 = 16)");
   return {command, [args] { return run_serve(*args); }};
 }
 
