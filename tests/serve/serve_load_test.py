@@ -12,7 +12,9 @@ import random
 import signal
 import subprocess
 import sys
+import socket
 import tempfile
+import threading
 import time
 
 
@@ -47,6 +49,44 @@ def load(tool, port, requests, connections=32):
     return json.loads(out.stdout)
 
 
+BIG_QUERY = json.dumps({"op": "series", "blob": "events", "bin": 3600,
+                        "time": [978307200, 983491200]}).encode()
+
+
+def raw_client(port, stop, tally):
+    """Raw HTTP/1.1 requests (a large series answer, Connection: close) until `stop`: each reply
+    either never started (refused, or closed before a byte) or arrived whole (Content-Length
+    bytes of body); a reply cut after its first byte counts as cut."""
+    while not stop.is_set():
+        try:
+            s = socket.create_connection(("127.0.0.1", port), timeout=10)
+        except OSError:
+            tally["refused"] += 1
+            continue
+        data = b""
+        try:
+            s.sendall(b"POST /api/query HTTP/1.1\r\nHost: x\r\nConnection: close\r\n"
+                      b"Content-Type: application/json\r\nContent-Length: %d\r\n\r\n"
+                      % len(BIG_QUERY) + BIG_QUERY)
+            while True:
+                chunk = s.recv(65536)
+                if not chunk:
+                    break
+                data += chunk
+        except OSError:
+            pass
+        finally:
+            s.close()
+        if not data:
+            tally["closed before a byte"] += 1
+            continue
+        head, _, body = data.partition(b"\r\n\r\n")
+        length = [int(l.split(b":")[1]) for l in head.split(b"\r\n")
+                  if l.lower().startswith(b"content-length:")]
+        whole = head.startswith(b"HTTP/1.1 200") and length and len(body) == length[0]
+        tally["whole" if whole else "cut"] += 1
+
+
 def main():
     kiln, tool = sys.argv[1], sys.argv[2]
     requests = int(os.environ.get("KILN_SERVE_LOAD_REQUESTS", "2000"))
@@ -68,9 +108,21 @@ def main():
                                        "kind", "--time", "978307200,983491200", "--requests",
                                        "200000", "--connections", "32"],
                                       stdout=subprocess.PIPE, text=True)
+            stop = threading.Event()
+            tallies = [{"refused": 0, "closed before a byte": 0, "whole": 0, "cut": 0}
+                       for _ in range(4)]
+            raw = [threading.Thread(target=raw_client, args=(port, stop, t)) for t in tallies]
+            for t in raw:
+                t.start()
             time.sleep(1.0)
             server.send_signal(signal.SIGTERM)
             code = server.wait(timeout=20)
+            stop.set()
+            for t in raw:
+                t.join()
+            tally = {k: sum(t[k] for t in tallies) for k in tallies[0]}
+            print("raw large replies around SIGTERM:", tally)
+            assert tally["cut"] == 0 and tally["whole"] > 0, tally
             out = json.loads(second.communicate(timeout=60)[0])
             print("under SIGTERM:", json.dumps(out))
             assert code == 0, "kiln serve exited %d after SIGTERM" % code
