@@ -362,6 +362,9 @@ TEST(Serve, ErrorsSayWhatWasWrong) {
       {R"({"op": "polygon", "blob": "squares", "points": [[1]]})", {400, "'points' needs"}},
       {R"([1, 2, 3, 4, 5])", {413, "5 queries in one request, more than 4"}},
       {R"({"op": "series", "blob": "events", "bin": "1h"})", {413, "more than 50"}},
+      {R"({"op": "series", "blob": "events", "bin": 3600, "time": [0, 4000000000]})",
+       {413, "the series would hold 1111112 bins, more than 50"}},
+      {R"({"op": "tiles", "blob": "events", "zoom": 12})", {413, "tiles, more than 50"}},
       {"[" + std::string(5000, ' ') + "]", {413, ""}},
       {R"([{"op": "count", "blob": "events"}, {"op": "count", "blob": "x"}])",
        {404, "query 1: no blob named 'x'"}}};

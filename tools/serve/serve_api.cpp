@@ -71,9 +71,11 @@ json answer_one(const Catalog& catalog, const json& q, const Limits& limits) {
                            : "blob '" + blob.name + "' holds no structure '" + structure + "'"};
   json a;
   try {
-    a = answer_json_query(*blob.blob, *view, op, q);
+    a = answer_json_query(*blob.blob, *view, op, q, limits.max_answer_items);
   } catch (const std::invalid_argument& e) {  // QueryError and the cube's bad values
     throw Refusal{400, e.what()};
+  } catch (const QueryTooLarge& e) {
+    throw Refusal{413, e.what()};
   }
   if (answer_items(a) > limits.max_answer_items)
     throw Refusal{413, "the answer holds " + std::to_string(answer_items(a)) +

@@ -68,7 +68,15 @@ void check_fields(const json& q) {
   }
 }
 
-json series_of(const EventQueries& cube, const EventSelection& s, const json& q) {
+json series_answer(const EventQueries& cube, const EventSelection& s, std::int64_t width) {
+  json series = json::array();
+  for (const auto& [t, n] : cube.series(s, width))
+    series.push_back(json::array({format_event_time(t), n}));
+  return series;
+}
+
+json series_of(const EventQueries& cube, const EventSelection& s, const json& q,
+               std::size_t max_bins) {
   const json& bin = q.value("bin", json("1d"));
   std::int64_t width = 0;
   if (bin.is_number_integer())
@@ -77,10 +85,16 @@ json series_of(const EventQueries& cube, const EventSelection& s, const json& q)
     width = parse_duration(bin.get<std::string>());
   else
     throw QueryError("'bin' holds " + bin.dump() + ", not a duration (\"1d\", \"6h\", seconds)");
-  json series = json::array();
-  for (const auto& [t, n] : cube.series(s, width))
-    series.push_back(json::array({format_event_time(t), n}));
-  return series;
+  if (max_bins > 0 && width > 0) {  // the bins the answer would list, before counting them
+    const EventSnap snap = cube.snap(s);
+    if (snap.t1 <= snap.t0) return series_answer(cube, s, width);
+    const std::uint64_t bins =
+        (std::uint64_t(snap.t1 - snap.t0) + std::uint64_t(width) - 1) / std::uint64_t(width);
+    if (bins > max_bins)
+      throw QueryTooLarge("the series would hold " + std::to_string(bins) + " bins, more than " +
+                          std::to_string(max_bins) + ": ask for a shorter interval or wider bins");
+  }
+  return series_answer(cube, s, width);
 }
 
 }  // namespace
@@ -108,13 +122,14 @@ EventSelection event_selection_of(const json& q) {
   return s;
 }
 
-json answer_event_json(const EventQueries& cube, std::string_view op, const json& q) {
+json answer_event_json(const EventQueries& cube, std::string_view op, const json& q,
+                       std::size_t max_series_bins) {
   const EventSelection s = event_selection_of(q);
   json a = json::object();
   if (op == "count") {
     a["count"] = cube.count(s);
   } else if (op == "series") {
-    a["series"] = series_of(cube, s, q);
+    a["series"] = series_of(cube, s, q, max_series_bins);
   } else if (op == "tiles") {
     if (!q.contains("zoom")) throw QueryError("'tiles' needs \"zoom\"");
     json tiles = json::array();

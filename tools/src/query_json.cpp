@@ -152,10 +152,10 @@ std::string_view op_ability(std::string_view op) {
 }
 
 json answer_json_query(const Blob& blob, const StructureView& view, std::string_view op,
-                       const json& query) {
+                       const json& query, std::size_t max_series_bins) {
   if (!view_answers(view, op))
     throw QueryError("the structure cannot " + std::string(op_ability(op)));
-  if (view.events()) return cli::answer_event_json(*view.events(), op, query);
+  if (view.events()) return cli::answer_event_json(*view.events(), op, query, max_series_bins);
   if (view.polygons() && (op == "polygon" || op == "polygons-in-box"))
     return answer_polygon(*view.polygons(), blob.polygon_layer(), op, query);
   return answer_points2(*view.points2(), blob.point_table(), op, query);
