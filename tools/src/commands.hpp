@@ -25,6 +25,7 @@ Command add_rays_command(CLI::App& app);
 Command add_query_command(CLI::App& app);
 Command add_render_command(CLI::App& app);
 Command add_advise_command(CLI::App& app);
+Command add_serve_command(CLI::App& app);  ///< only with cpp-httplib (tools/serve/)
 
 /// "--threads": worker threads, 0 = all cores; `help` says what they never change.
 inline CLI::Option* add_threads_option(CLI::App* command, unsigned& threads,

@@ -11,6 +11,7 @@
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/mapped_file.hpp"
 #include "kiln/runtime/parallel.hpp"
+#include "kiln/tools/query_json.hpp"
 #include "kiln/tools/structure_choice.hpp"
 #include "query_events.hpp"
 #include "query_points2d.hpp"
@@ -131,8 +132,10 @@ ChosenStructure choose_for(const Blob& blob, const QueryArgs& args) {
 }
 
 int run_query(const QueryArgs& args) {
-  if (is_event_op(args.op))  // issue 18: aggregate queries on event tables (query_events.cpp)
-    return run_event_query(args.blob, args.accel, args.op, args.in, args.out);
+  // Event ops always, 2D ops on a .jsonl file: JSON lines through answer_json_query, the code
+  // path `kiln serve` answers POST /api/query with (query_json.cpp).
+  if (is_event_op(args.op) || (is_json_op(args.op) && args.in.ends_with(".jsonl")))
+    return run_json_query(args.blob, args.accel, args.op, args.in, args.out);
   if (is_polygon_op(args.op)) {
     PolygonQueryArgs p = args.polygon;
     p.blob = args.blob, p.op = args.op, p.in = args.in, p.out = args.out, p.accel = args.accel;
@@ -188,7 +191,8 @@ Command add_query_command(CLI::App& app) {
                    "Queries: float32 x 3 per point, x 6 per box (min, max); polygon: CSV (.csv) "
                    "or float64 x 2 per point; polygons-in-box and range: CSV rows "
                    "min_x,min_y,max_x,max_y or float64 x 4 per box; knn2d, radius2d: CSV rows "
-                   "x,y or float64 x 2 (CSV headers optional)")
+                   "x,y or float64 x 2 (CSV headers optional); a .jsonl file: one JSON query per "
+                   "line for any 2D or event op (docs/SERVE.md), JSON answers out")
       ->required();
   command
       ->add_option(
@@ -209,7 +213,7 @@ Command add_query_command(CLI::App& app) {
   add_polygon_query_options(command, args->polygon);
   add_threads_option(command, args->threads);
   return {command, [args] {
-            if (is_points2d_op(args->op))
+            if (is_points2d_op(args->op) && !args->in.ends_with(".jsonl"))
               return run_points2d_query({args->blob, args->op, args->in, args->out, args->accel,
                                          args->k, args->radius, args->threads});
             return run_query(*args);

@@ -69,16 +69,6 @@ std::vector<double> read_queries(const std::string& path, std::size_t stride) {
   return values;
 }
 
-// Point index -> table row: the feature owning the point (the identity without feature_points).
-struct RowOf {
-  std::span<const std::uint64_t> feature_points;
-  std::uint64_t operator()(std::uint32_t point) const {
-    if (feature_points.empty()) return point;
-    const auto it = std::upper_bound(feature_points.begin(), feature_points.end(), point);
-    return std::uint64_t(it - feature_points.begin()) - 1;
-  }
-};
-
 void append_number(std::string& out, double v) {
   char text[32];
   out.append(text, std::to_chars(text, text + sizeof text, v).ptr);

@@ -2,6 +2,9 @@
 // table, answered by whichever structure has Point2Queries (query_points2d.cpp).
 #pragma once
 
+#include <algorithm>
+#include <cstdint>
+#include <span>
 #include <string>
 
 namespace kiln::cli {
@@ -11,6 +14,17 @@ struct Points2dQueryArgs {
   unsigned k = 1;
   double radius = 0;
   unsigned threads = 0;
+};
+
+/// Point index -> table row: the feature owning the point (the identity without
+/// feature_points).
+struct RowOf {
+  std::span<const std::uint64_t> feature_points;
+  std::uint64_t operator()(std::uint32_t point) const {
+    if (feature_points.empty()) return point;
+    const auto it = std::upper_bound(feature_points.begin(), feature_points.end(), point);
+    return std::uint64_t(it - feature_points.begin()) - 1;
+  }
 };
 
 /// Whether `op` is one of the 2D point-table operations.

@@ -12,6 +12,7 @@
 #include "kiln/runtime/atomic_file.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/tools/render.hpp"
+#include "kiln/tools/render_map.hpp"
 #include "kiln/tools/structure_choice.hpp"
 
 namespace kiln::cli {
@@ -77,8 +78,7 @@ render::Image draw(const std::vector<EventTileCount>& tiles, const TileRange& r,
   render::Image image(r.width() * scale, r.height() * scale, {24, 24, 32});
   for (const EventTileCount& t : tiles) {
     if (t.x < r.x0 || t.x > r.x1 || t.y < r.y0 || t.y > r.y1) continue;
-    const auto level = std::uint32_t(std::lround(std::log2(1.0 + double(t.count))));
-    const render::Rgb c = render::heat_colour(std::max(level, 1u), levels);
+    const render::Rgb c = render::event_colour(t.count, levels);
     for (std::uint32_t dy = 0; dy < scale; ++dy)
       for (std::uint32_t dx = 0; dx < scale; ++dx)
         image.at((t.x - r.x0) * scale + dx, (t.y - r.y0) * scale + dy) = c;
@@ -116,7 +116,7 @@ int run_event_render(const Blob& blob, const std::string& accel, const std::stri
     const auto tiles = cube.tiles(in_view, range.z);
     std::uint64_t top = 1, total = 0;
     for (const auto& t : tiles) top = std::max(top, t.count), total += t.count;
-    const auto levels = std::max(1u, std::uint32_t(std::lround(std::log2(1.0 + double(top)))));
+    const auto levels = render::event_levels(top);
     const std::uint32_t scale =
         std::max(1u, std::min(size->width / range.width(), size->height / range.height()));
     render::Image image = draw(tiles, range, scale, levels);

@@ -262,4 +262,45 @@ Image draw_map(const MapContent& content, MapMode mode, Size size, unsigned thre
   return image;
 }
 
+namespace {
+
+// Web-Mercator pixels of tile `t`: x east, y south, kTileSize per tile side.
+format::Double2 tile_pixel(const format::Double2& p, TileAddress t) {
+  constexpr double kPi = 3.14159265358979323846, kMaxLat = 85.0511287798066;
+  const double world = std::ldexp(double(kTileSize), int(t.z));
+  const double lat = std::clamp(p.y, -kMaxLat, kMaxLat) * kPi / 180.0;
+  return {(p.x + 180.0) / 360.0 * world - double(t.x) * kTileSize,
+          (1.0 - std::asinh(std::tan(lat)) / kPi) / 2.0 * world - double(t.y) * kTileSize};
+}
+
+// A feature's rings in the tile's pixels, or none when its box misses the tile (most features
+// of a zoomed-in tile: skipped after one pass over their vertices).
+std::vector<std::vector<format::Double2>> tile_rings(const PolygonLayerView& layer, TileAddress t,
+                                                     std::size_t f) {
+  std::vector<std::vector<format::Double2>> rings;
+  format::Box2d box;
+  for (auto p = layer.feature_polygons[f]; p < layer.feature_polygons[f + 1]; ++p)
+    for (auto r = layer.polygon_rings[p]; r < layer.polygon_rings[p + 1]; ++r) {
+      rings.emplace_back();
+      for (const auto& v : layer.ring(r)) box.grow(rings.back().emplace_back(tile_pixel(v, t)));
+    }
+  const double side = kTileSize;
+  if (box.max.x < -1 || box.max.y < -1 || box.min.x > side + 1 || box.min.y > side + 1) return {};
+  return rings;
+}
+
+}  // namespace
+
+Image draw_polygon_tile(const PolygonLayerView& layer, TileAddress tile) {
+  if (!tile.valid()) throw std::invalid_argument("no such tile");
+  Image image(kTileSize, kTileSize, kSea);
+  std::vector<std::vector<std::vector<format::Double2>>> rings(layer.feature_count());
+  for (std::size_t f = 0; f < layer.feature_count(); ++f) {
+    rings[f] = tile_rings(layer, tile, f);
+    fill_feature(image, rings[f], feature_colour(f));
+  }
+  for (const auto& feature : rings) draw_outlines(image, feature, kOutline);
+  return image;
+}
+
 }  // namespace kiln::render

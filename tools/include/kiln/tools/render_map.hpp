@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "kiln/runtime/capabilities.hpp"
 #include "kiln/runtime/geo_layer.hpp"
@@ -87,5 +88,39 @@ bool is_map_blob(const Blob& blob);
 int render_map_command(const Blob& blob, const std::string& out, const std::string& accel,
                        const std::string& mode_name, const std::string& size_text, unsigned threads,
                        bool json);
+
+// --- Web-Mercator tiles (`kiln serve`'s GET /tiles; render_map.cpp, render_events_tile.cpp) ---
+
+/// Side of a map tile in pixels.
+inline constexpr std::uint32_t kTileSize = 256;
+/// A tile z/x/y (y south); valid when z <= 30 and x, y < 2^z.
+struct TileAddress {
+  std::uint32_t z = 0, x = 0, y = 0;
+  bool valid() const { return z <= 30 && x < (1ull << z) && y < (1ull << z); }
+};
+
+/// The tile of a polygon layer: features filled and outlined as in `kiln render`'s plain map,
+/// in Web-Mercator pixels (latitudes clamped to +-85.0511), the sea colour elsewhere.
+Image draw_polygon_tile(const PolygonLayerView& layer, TileAddress tile);
+
+/// An image with transparency (RGBA8, row-major, top row first).
+struct ImageRgba {
+  std::uint32_t width = 0, height = 0;
+  std::vector<std::uint8_t> rgba;
+};
+/// PNG bytes of an RGBA image.
+std::vector<std::byte> encode_png_rgba(const ImageRgba& image);
+
+/// The heatmap scale of `kiln render` on events: log2(1 + top) rounded, at least 1.
+std::uint32_t event_levels(std::uint64_t top);
+/// The colour of a cell holding `count` events on that scale (viridis, as kiln render).
+Rgb event_colour(std::uint64_t count, std::uint32_t levels);
+
+/// The heatmap tile of the selected events: the cube's counts at zoom min(z + 6, finest) (one
+/// block of at least 4 x 4 pixels per cell; past the finest zoom the whole tile is its finest
+/// cell), coloured by event_colour on `levels`, transparent where there are none. `selection`'s box
+/// and tile are replaced by the tile's. Throws std::invalid_argument for an invalid address.
+ImageRgba draw_event_tile(const EventQueries& cube, EventSelection selection, TileAddress tile,
+                          std::uint32_t levels);
 
 }  // namespace kiln::render
