@@ -219,6 +219,12 @@ void expect_agrees(const PolygonLayer& layer, const PolygonIndexView& view,
                          << ")";
     ASSERT_EQ(view.locate(points[i]), want.empty() ? PolygonQueries::kNone : want[0]) << what << i;
   }
+  // The batch call (groups of points through each stage together) answers as locate does.
+  std::vector<std::uint32_t> many(points.size() + 1, 12345);
+  view.locate_many(points, std::span(many).first(points.size()));
+  for (std::size_t i = 0; i < points.size(); ++i)
+    ASSERT_EQ(many[i], view.locate(points[i])) << what << " batch point " << i;
+  EXPECT_EQ(many.back(), 12345u);  // nothing written past `out`
 }
 
 // Every vertex, every edge's midpoint and points a few ulps around vertices.
@@ -285,6 +291,32 @@ TEST(PolygonIndex, HandMadeShapesAgreeWithBruteForceOnBoundaries) {
   EXPECT_EQ(view.locate({9, 9}), 0u);  // the lowest feature index
   EXPECT_EQ(view.locate({-1, 5}), PolygonQueries::kNone);
   EXPECT_EQ(view.locate({std::nan(""), 5}), PolygonQueries::kNone);
+}
+
+// Points on the top-level table's split lines and one ulp either side, and at their crossings:
+// the lookup (and the cells it answers without a descent) agrees with brute force there, on a
+// tree deep enough for a table of several levels.
+TEST(PolygonIndex, PointsOnTheTopTableSplitLinesAgreeWithBruteForce) {
+  const PolygonLayer layer = shapes();
+  const FlatPolygonIndex index = build_polygon_index(view_of(layer), {1, 10, 1});
+  const PolygonIndexView view = open_view(layer, index);
+  const auto grid = make_polygon_index_top_grid(view.parts());
+  ASSERT_GE(grid->level, 3u);
+  std::vector<Double2> points;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> x(layer.bounds.min.x, layer.bounds.max.x),
+      y(layer.bounds.min.y, layer.bounds.max.y);
+  for (std::size_t i = 0; i < grid->xs.size(); ++i)
+    for (const double line :
+         {grid->xs[i], std::nextafter(grid->xs[i], -1e9), std::nextafter(grid->xs[i], 1e9)}) {
+      points.push_back({line, y(rng)});
+      points.push_back({line, grid->ys[i]});
+    }
+  for (std::size_t i = 0; i < grid->ys.size(); ++i)
+    for (const double line :
+         {grid->ys[i], std::nextafter(grid->ys[i], -1e9), std::nextafter(grid->ys[i], 1e9)})
+      points.push_back({x(rng), line});
+  expect_agrees(layer, view, points, "split lines");
 }
 
 // A partition of [0, n]^2 into jittered quads split along alternating diagonals into triangles
@@ -520,6 +552,9 @@ TEST(PolygonIndex, ForgedSectionsAreRefusedOrSafe) {
         view.locate_all(p, out);
         for (auto g : out) ASSERT_LT(g, layer.feature_count());
       }
+      std::vector<std::uint32_t> many(probes.size());
+      view.locate_many(probes, many);
+      for (std::size_t i = 0; i < probes.size(); ++i) ASSERT_EQ(many[i], view.locate(probes[i]));
       view.features_in_box(layer.bounds, out);
       for (auto g : out) ASSERT_LT(g, layer.feature_count());
       view.cells(cells);

@@ -3,6 +3,7 @@
 // skip the first k levels of the descent with one lookup.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "kiln/runtime/polygon_index.hpp"
 
@@ -69,14 +70,46 @@ void classify(const PolygonIndexParts& parts, PolygonIndexTopGrid& g) {
   }
 }
 
+// The leaf records: each leaf's entries with their edges' endpoints inline, leaves in node order.
+// Sizes are checked against 32 bits (records of a forged index with many edge references could
+// exceed them: the view then refuses it).
+bool make_records(const PolygonIndexParts& parts, PolygonIndexTopGrid& g) {
+  std::uint64_t units = 0;
+  for (const format::PolygonIndexNode& n : parts.nodes)
+    if (n.is_leaf())
+      for (const format::PolygonIndexEntry& e : parts.entries.subspan(n.first, n.count))
+        units += 1 + e.edges();
+  if (units > 0xFFFFFFFFu) return false;
+  g.units.reserve(units);
+  g.nodes.assign(parts.nodes.begin(), parts.nodes.end());
+  const auto v = parts.layer.vertices;
+  for (format::PolygonIndexNode& n : g.nodes) {
+    if (!n.is_leaf()) continue;
+    const auto entries = parts.entries.subspan(n.first, n.count);
+    n.first = std::uint32_t(g.units.size());
+    for (const format::PolygonIndexEntry& e : entries) {
+      const PolygonIndexTopGrid::Head head{
+          e.polygon < g.feature.size() ? g.feature[e.polygon] : PolygonQueries::kNone,
+          e.edge_count};
+      PolygonIndexTopGrid::Unit unit{};
+      std::memcpy(&unit, &head, sizeof head);
+      g.units.push_back(unit);
+      for (const format::PolygonIndexEdge& edge : parts.edges.subspan(e.first_edge, e.edges()))
+        g.units.push_back({{v[edge.a].x, v[edge.a].y, v[edge.b].x, v[edge.b].y}});
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
     const PolygonIndexParts& parts) {
   auto g = std::make_shared<PolygonIndexTopGrid>();
-  // 4^k cells for at most about 4 cells per node, and k <= 8 (256 KB of node indices): deeper
-  // tables cost more cache misses than the levels they skip.
-  while (g->level < 8 && (std::uint64_t(4) << (2 * g->level)) <= 4 * parts.nodes.size()) ++g->level;
+  // 4^k cells for at most about 16 cells per node, and k <= 9 (1 MB of codes): deeper tables
+  // cost more cache misses than the levels they skip (docs/BENCHMARKS.md).
+  while (g->level < 9 && (std::uint64_t(4) << (2 * g->level)) <= 16 * parts.nodes.size())
+    ++g->level;
   g->xs = split_lines(parts.bounds.min.x, parts.bounds.max.x, g->level);
   g->ys = split_lines(parts.bounds.min.y, parts.bounds.max.y, g->level);
   const std::size_t cells = std::size_t(1) << (2 * g->level);
@@ -94,6 +127,7 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
          q < std::min<std::uint64_t>(offsets[f + 1], g->feature.size()); ++q)
       g->feature[q] = std::uint32_t(f);
   classify(parts, *g);
+  if (!make_records(parts, *g)) return nullptr;
   return g;
 }
 

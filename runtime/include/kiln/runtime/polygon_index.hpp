@@ -44,7 +44,7 @@ struct PolygonIndexLevel {
 /// holds that answer instead, so most points far from any boundary end at the lookup.
 struct PolygonIndexTopGrid {
   /// `code` bit 31 set: the answer for every point of the cell (low 31 bits: the feature, or
-  /// kNoFeature); clear: the node index.
+  /// kNoFeature); clear: the node index (in `nodes` below).
   static constexpr std::uint32_t kAnswer = 0x80000000u, kNoFeature = 0x7FFFFFFFu;
   std::uint32_t level = 0;               ///< k
   format::Double2 scale;                 ///< 2^k / (bounds' side), the lookup's estimate
@@ -54,6 +54,21 @@ struct PolygonIndexTopGrid {
   std::vector<std::uint64_t> empty;      ///< per cell, one bit: no polygon holds a point of it
   std::vector<std::uint8_t> node_level;  ///< per cell: the named node's depth (<= k)
   std::vector<std::uint32_t> feature;    ///< per polygon: its feature (no search per answer)
+
+  /// One 32-byte unit of a leaf record: an entry's head (`head()`: its feature, and its edge
+  /// count with format::kPolygonCentreInside, or format::kPolygonWhollyInside), or one of its
+  /// edges' endpoints copied from the layer (a.x, a.y, b.x, b.y).
+  struct Unit {
+    double v[4];
+  };
+  struct Head {
+    std::uint32_t feature, edges;
+  };
+  /// The nodes again, each leaf's `first` naming its record in `units`: per entry, in order,
+  /// its head, then its edges. A point query reads one contiguous record instead of entries,
+  /// edge indices and scattered vertices (three dependent loads fewer).
+  std::vector<format::PolygonIndexNode> nodes;
+  std::vector<Unit> units;
 };
 
 /// The top-level table of a validated index (O(4^k + nodes above level k)).
@@ -100,6 +115,8 @@ class PolygonIndexView {
                       const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
   std::uint32_t locate_inline(const format::Double2& p) const;
+  std::uint32_t record_locate(const PolygonIndexTopGrid::Unit* unit, std::uint32_t entries,
+                              const format::Box2d& cell, const format::Double2& p) const;
   std::size_t top_cell(const format::Double2& p, std::uint32_t& ix, std::uint32_t& iy) const;
   format::Box2d top_box(std::size_t cell, std::uint32_t ix, std::uint32_t iy) const;
 
