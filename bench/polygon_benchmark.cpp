@@ -7,7 +7,7 @@
 // only (-DKILN_BENCH_GEO=ON): the runtime never sees GEOS or Boost.
 //
 //   kiln_bench_polygons [--geo-dir ../shared/data/geo] [--repeats 5] [--random 1000000]
-//                       [--max-edges 16] [--max-depth 16] [--only-kiln] [--skip-boost] [--sweep]
+//                       [--max-edges 8] [--max-depth 16] [--only-kiln] [--skip-boost] [--sweep]
 //                       [--layer counties|countries]
 #include <sys/resource.h>
 
@@ -315,7 +315,7 @@ struct Args {
   std::string dir = "../shared/data/geo/";
   int repeats = 5;
   std::size_t random = 1000000;
-  kiln::PolygonIndexBuildOptions options{16, 16, 2};
+  kiln::PolygonIndexBuildOptions options{8, 16, 2};
   bool only_kiln = false;
   bool sweep = false;
   bool skip_boost = false;

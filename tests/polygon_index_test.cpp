@@ -671,7 +671,7 @@ TEST(PolygonIndexBlob, DumpVerifyAndQueryFromTheCommandLine) {
   test::write_file(blob, test::blob_with(scene_of(layer), "polygon-index", 2));
   const auto dump = test::run_kiln("dump " + test::quoted(blob));
   ASSERT_EQ(dump.exit_code, 0) << dump.err;
-  EXPECT_NE(dump.out.find("max 16 edges per cell"), std::string::npos) << dump.out;
+  EXPECT_NE(dump.out.find("max 8 edges per cell"), std::string::npos) << dump.out;
   EXPECT_NE(dump.out.find("level 1:"), std::string::npos) << dump.out;
   const auto json = test::run_kiln("dump --json " + test::quoted(blob));
   ASSERT_EQ(json.exit_code, 0) << json.err;
