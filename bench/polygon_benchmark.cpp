@@ -98,6 +98,7 @@ struct Engine {
   std::function<std::size_t()> bytes;  // 0: not known
   // A batch call (Kiln's locate_many), timed apart from the per-point calls; empty: none.
   std::function<void(std::span<const Double2>, std::span<std::uint32_t>)> locate_many;
+  std::function<std::string()> info;  // a line about the last build; empty: none
 };
 
 // Answers every point on `threads` threads (batches of 4096, each thread its own slot).
@@ -133,11 +134,14 @@ std::vector<std::uint32_t> run_many(const Engine& e, const std::vector<Double2>&
 Engine kiln_engine(const PolygonLayer& layer, kiln::PolygonIndexBuildOptions options) {
   auto index = std::make_shared<kiln::FlatPolygonIndex>();
   auto view = std::make_shared<std::unique_ptr<kiln::PolygonIndexView>>();
+  auto open_ms = std::make_shared<double>();
   return {"kiln",
-          [&layer, index, view, options] {
+          [&layer, index, view, options, open_ms] {
             *index = kiln::build_polygon_index(kiln::view_of(layer), options);
+            const auto start = std::chrono::steady_clock::now();
             *view = std::make_unique<kiln::PolygonIndexView>(kiln::PolygonIndexParts{
                 kiln::view_of(layer), index->bounds, index->nodes, index->entries, index->edges});
+            *open_ms = 1e3 * seconds_since(start);
           },
           [view](const Double2& p, unsigned) { return (*view)->locate(p); },
           [index] {
@@ -145,6 +149,18 @@ Engine kiln_engine(const PolygonLayer& layer, kiln::PolygonIndexBuildOptions opt
           },
           [view](std::span<const Double2> p, std::span<std::uint32_t> out) {
             (*view)->locate_many(p, out);
+          },
+          [view, open_ms] {
+            // What the view derives at open (table, leaf records), rebuilt here to count it.
+            const auto g = kiln::make_polygon_index_top_grid((*view)->parts());
+            const std::size_t table = g->code.size() * 4 + g->node.size() * 4 +
+                                      g->node_level.size() + g->empty.size() * 8 +
+                                      (g->xs.size() + g->ys.size()) * 8 + g->feature.size() * 4;
+            const std::size_t records = g->nodes.size() * 8 + g->units.size() * 32;
+            return "open (validate + derive) " + std::to_string(*open_ms).substr(0, 6) +
+                   " ms; derived at open: top table level " + std::to_string(g->level) + ", " +
+                   std::to_string(table) + " bytes; leaf records " + std::to_string(records) +
+                   " bytes";
           }};
 }
 
@@ -230,6 +246,7 @@ Engine geos_engine(const PolygonLayer& layer, unsigned threads) {
             return found;
           },
           [] { return std::size_t(0); },
+          {},
           {}};
 }
 
@@ -280,6 +297,7 @@ Engine boost_engine(const PolygonLayer& layer) {
             return kNone;
           },
           [] { return std::size_t(0); },
+          {},
           {}};
 }
 
@@ -373,6 +391,9 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
               zips.size(), random.size());
   std::printf("%-6s %10s %12s %12s %12s %12s %12s\n", "engine", "build ms", "index bytes",
               "zip q/cpu-s 1T", "zip q/s 2T", "rand q/cpu-s 1T", "rand q/s 2T");
+  for (std::size_t e = 0; e < engines.size(); ++e)
+    if (engines[e].info)
+      std::printf("%-6s %s\n", engines[e].name.c_str(), engines[e].info().c_str());
   for (std::size_t e = 0; e < engines.size(); ++e)
     if (!times[e].zipb.empty())
       std::printf("%-6s batch calls (locate_many), 1T: zip %.3g q/cpu-s, rand %.3g q/cpu-s\n",
