@@ -566,6 +566,19 @@ TEST(PolygonIndex, ForgedSectionsAreRefusedOrSafe) {
   EXPECT_GT(opened, 0);
 }
 
+// Forged ranges that overlap (every leaf naming all entries, every entry all edges) would make the
+// leaf records derived at open far larger than the sections: the view refuses them.
+TEST(PolygonIndex, OverlappingRangesAreRefusedBeforeTheRecordsGrow) {
+  const PolygonLayer layer = shapes();
+  FlatPolygonIndex bad = build_polygon_index(view_of(layer), {2, 8, 1});
+  ASSERT_GT(bad.nodes.size(), 1u);
+  for (auto& entry : bad.entries)
+    if (!entry.wholly_inside())
+      entry = {entry.polygon, 0,
+               std::uint32_t(bad.edges.size()) | (entry.edge_count & format::kPolygonCentreInside)};
+  EXPECT_THROW(open_view(layer, bad), BlobError);
+}
+
 // ---- blobs: round trips, determinism, forged bytes, dump, verify, kiln query ----------------
 
 Scene scene_of(PolygonLayer layer) {

@@ -71,15 +71,19 @@ void classify(const PolygonIndexParts& parts, PolygonIndexTopGrid& g) {
 }
 
 // The leaf records: each leaf's entries with their edges' endpoints inline, leaves in node order.
-// Sizes are checked against 32 bits (records of a forged index with many edge references could
-// exceed them: the view then refuses it).
+// False when they would hold more units than the entry and edge sections have elements: the
+// builder never shares an entry between leaves nor an edge between entries, while forged ranges
+// that overlap could make a small blob ask for a huge copy (the view then refuses it).
 bool make_records(const PolygonIndexParts& parts, PolygonIndexTopGrid& g) {
+  const std::uint64_t most =
+      std::min<std::uint64_t>(parts.entries.size() + parts.edges.size(), 0xFFFFFFFFu);
   std::uint64_t units = 0;
-  for (const format::PolygonIndexNode& n : parts.nodes)
+  for (const format::PolygonIndexNode& n : parts.nodes) {
     if (n.is_leaf())
       for (const format::PolygonIndexEntry& e : parts.entries.subspan(n.first, n.count))
         units += 1 + e.edges();
-  if (units > 0xFFFFFFFFu) return false;
+    if (units > most) return false;  // per leaf: the count stays O(nodes + most)
+  }
   g.units.reserve(units);
   g.nodes.assign(parts.nodes.begin(), parts.nodes.end());
   const auto v = parts.layer.vertices;

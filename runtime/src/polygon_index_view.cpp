@@ -25,7 +25,8 @@ PolygonIndexView::PolygonIndexView(const PolygonIndexParts& parts, const std::st
   top_ = make_polygon_index_top_grid(parts_);
   if (!top_)
     throw BlobError("polygon index '" + name +
-                    "': lists more edge references than its leaf records can hold");
+                    "': leaves share entries or entries share edges (its leaf records would "
+                    "outgrow its sections)");
 }
 
 namespace {
