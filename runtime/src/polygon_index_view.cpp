@@ -236,13 +236,13 @@ std::uint32_t PolygonIndexView::locate(const Double2& p) const {
   return locate_inline(p);
 }
 
-// Groups of 16 points go through each stage together (table lookups, then the descent one
+// Groups of 32 points go through each stage together (table lookups, then the descent one
 // level at a time, then the records), each stage prefetching what the next one reads: the
 // group's cache misses overlap instead of forming one dependent chain per point. Answers are
 // locate's: the same steps on the same doubles.
 void PolygonIndexView::locate_many(std::span<const Double2> points,
                                    std::span<std::uint32_t> out) const {
-  constexpr std::size_t kGroup = 16;
+  constexpr std::size_t kGroup = 32;
   const std::size_t n = std::min(points.size(), out.size());
   const PolygonIndexTopGrid& g = *top_;
   std::uint32_t ix[kGroup], iy[kGroup], node[kGroup], active[kGroup];
