@@ -7,7 +7,8 @@
 // only (-DKILN_BENCH_GEO=ON): the runtime never sees GEOS or Boost.
 //
 //   kiln_bench_polygons [--geo-dir ../shared/data/geo] [--repeats 5] [--random 1000000]
-//                       [--max-edges 16] [--max-depth 16] [--only-kiln] [--skip-boost] [--sweep]
+//                       [--max-edges 8] [--max-depth 16] [--only-kiln] [--skip-boost] [--sweep]
+//                       [--layer counties|countries]
 #include <sys/resource.h>
 
 #include <geos_c.h>
@@ -22,6 +23,7 @@
 #include <functional>
 #include <random>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <tuple>
@@ -94,6 +96,9 @@ struct Engine {
   std::function<void()> build;
   std::function<std::uint32_t(const Double2&, unsigned thread)> locate;
   std::function<std::size_t()> bytes;  // 0: not known
+  // A batch call (Kiln's locate_many), timed apart from the per-point calls; empty: none.
+  std::function<void(std::span<const Double2>, std::span<std::uint32_t>)> locate_many;
+  std::function<std::string()> info;  // a line about the last build; empty: none
 };
 
 // Answers every point on `threads` threads (batches of 4096, each thread its own slot).
@@ -113,19 +118,49 @@ std::vector<std::uint32_t> run(const Engine& e, const std::vector<Double2>& poin
   return out;
 }
 
+// The same on one thread through the engine's batch call, batches of 4096 as above.
+std::vector<std::uint32_t> run_many(const Engine& e, const std::vector<Double2>& points) {
+  std::vector<std::uint32_t> out(points.size());
+  std::thread([&] {
+    for (std::size_t i = 0; i < points.size(); i += 4096) {
+      const std::size_t n = std::min<std::size_t>(4096, points.size() - i);
+      e.locate_many(std::span(points).subspan(i, n), std::span(out).subspan(i, n));
+    }
+  }).join();
+  return out;
+}
+
 // ---- Kiln ----
 Engine kiln_engine(const PolygonLayer& layer, kiln::PolygonIndexBuildOptions options) {
   auto index = std::make_shared<kiln::FlatPolygonIndex>();
   auto view = std::make_shared<std::unique_ptr<kiln::PolygonIndexView>>();
+  auto open_ms = std::make_shared<double>();
   return {"kiln",
-          [&layer, index, view, options] {
+          [&layer, index, view, options, open_ms] {
             *index = kiln::build_polygon_index(kiln::view_of(layer), options);
+            const auto start = std::chrono::steady_clock::now();
             *view = std::make_unique<kiln::PolygonIndexView>(kiln::PolygonIndexParts{
                 kiln::view_of(layer), index->bounds, index->nodes, index->entries, index->edges});
+            *open_ms = 1e3 * seconds_since(start);
           },
           [view](const Double2& p, unsigned) { return (*view)->locate(p); },
           [index] {
             return index->nodes.size() * 8 + index->entries.size() * 12 + index->edges.size() * 8;
+          },
+          [view](std::span<const Double2> p, std::span<std::uint32_t> out) {
+            (*view)->locate_many(p, out);
+          },
+          [view, open_ms] {
+            // What the view derives at open (table, leaf records), rebuilt here to count it.
+            const auto g = kiln::make_polygon_index_top_grid((*view)->parts());
+            const std::size_t table = g->code.size() * 4 + g->node.size() * 4 +
+                                      g->node_level.size() + g->empty.size() * 8 +
+                                      (g->xs.size() + g->ys.size()) * 8 + g->feature.size() * 4;
+            const std::size_t records = g->nodes.size() * 8 + g->units.size() * 32;
+            return "open (validate + derive) " + std::to_string(*open_ms).substr(0, 6) +
+                   " ms; derived at open: top table level " + std::to_string(g->level) + ", " +
+                   std::to_string(table) + " bytes; leaf records " + std::to_string(records) +
+                   " bytes";
           }};
 }
 
@@ -210,7 +245,9 @@ Engine geos_engine(const PolygonLayer& layer, unsigned threads) {
             GEOSGeom_destroy_r(h, p);
             return found;
           },
-          [] { return std::size_t(0); }};
+          [] { return std::size_t(0); },
+          {},
+          {}};
 }
 
 // ---- Boost.Geometry ----
@@ -259,7 +296,9 @@ Engine boost_engine(const PolygonLayer& layer) {
               if (bg::within(p, s->features[f])) return f;
             return kNone;
           },
-          [] { return std::size_t(0); }};
+          [] { return std::size_t(0); },
+          {},
+          {}};
 }
 
 // Deterministic cost of each max-edges setting (edges tested and cells visited per query, from
@@ -294,10 +333,11 @@ struct Args {
   std::string dir = "../shared/data/geo/";
   int repeats = 5;
   std::size_t random = 1000000;
-  kiln::PolygonIndexBuildOptions options{16, 16, 2};
+  kiln::PolygonIndexBuildOptions options{8, 16, 2};
   bool only_kiln = false;
   bool sweep = false;
   bool skip_boost = false;
+  std::string layer;  // "counties" or "countries": only that layer (empty: both)
 };
 
 void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zips) {
@@ -311,7 +351,7 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
   if (!a.only_kiln) engines.push_back(geos_engine(layer, 2));
   if (!a.only_kiln && !a.skip_boost) engines.push_back(boost_engine(layer));
   struct Times {
-    std::vector<double> build, zip1, zip2, rnd1, rnd2;
+    std::vector<double> build, zip1, zip2, rnd1, rnd2, zipb, rndb;
   };
   std::vector<Times> times(engines.size());
   std::vector<std::vector<std::uint32_t>> answers(engines.size());
@@ -324,15 +364,23 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
       // contains (the build time above leaves that out; Kiln and Boost have nothing lazy).
       run(engines[e], zips, 1);
       run(engines[e], random, 1);
-      for (auto [set, t1, t2] : {std::tuple{&zips, &times[e].zip1, &times[e].zip2},
-                                 std::tuple{static_cast<const std::vector<Double2>*>(&random),
-                                            &times[e].rnd1, &times[e].rnd2}}) {
+      for (auto [set, t1, t2, tb] :
+           {std::tuple{&zips, &times[e].zip1, &times[e].zip2, &times[e].zipb},
+            std::tuple{static_cast<const std::vector<Double2>*>(&random), &times[e].rnd1,
+                       &times[e].rnd2, &times[e].rndb}}) {
         // Small sets (the ZIP points: a few ms) run several passes per timing, so each timing
         // covers at least 500,000 queries and a scheduler hiccup weighs less.
         const std::size_t passes = std::max<std::size_t>(1, 500000 / set->size());
         const double cpu = cpu_seconds();
         for (std::size_t k = 0; k < passes; ++k) answers[e] = run(engines[e], *set, 1);
         t1->push_back(double(passes * set->size()) / (cpu_seconds() - cpu));
+        if (engines[e].locate_many) {
+          const double cpu_many = cpu_seconds();
+          std::vector<std::uint32_t> many;
+          for (std::size_t k = 0; k < passes; ++k) many = run_many(engines[e], *set);
+          tb->push_back(double(passes * set->size()) / (cpu_seconds() - cpu_many));
+          if (many != answers[e]) throw std::runtime_error("locate_many differs from locate");
+        }
         start = std::chrono::steady_clock::now();
         for (std::size_t k = 0; k < passes; ++k) run(engines[e], *set, 2);
         t2->push_back(double(passes * set->size()) / seconds_since(start));
@@ -343,6 +391,13 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
               zips.size(), random.size());
   std::printf("%-6s %10s %12s %12s %12s %12s %12s\n", "engine", "build ms", "index bytes",
               "zip q/cpu-s 1T", "zip q/s 2T", "rand q/cpu-s 1T", "rand q/s 2T");
+  for (std::size_t e = 0; e < engines.size(); ++e)
+    if (engines[e].info)
+      std::printf("%-6s %s\n", engines[e].name.c_str(), engines[e].info().c_str());
+  for (std::size_t e = 0; e < engines.size(); ++e)
+    if (!times[e].zipb.empty())
+      std::printf("%-6s batch calls (locate_many), 1T: zip %.3g q/cpu-s, rand %.3g q/cpu-s\n",
+                  engines[e].name.c_str(), median(times[e].zipb), median(times[e].rndb));
   for (std::size_t e = 0; e < engines.size(); ++e) {
     const std::size_t bytes = engines[e].bytes();
     std::printf("%-6s %10.1f %12s %12.3g %12.3g %12.3g %12.3g\n", engines[e].name.c_str(),
@@ -386,6 +441,8 @@ int main(int argc, char** argv) {
       a.sweep = true;
     else if (arg == "--skip-boost")
       a.skip_boost = true;
+    else if (arg == "--layer")
+      a.layer = value();
     else {
       std::fprintf(stderr, "kiln_bench_polygons: unknown argument '%s'\n", arg.c_str());
       return 2;
@@ -401,8 +458,8 @@ int main(int argc, char** argv) {
       sweep(a.dir, zips);
       return 0;
     }
-    bench_layer(a, "us-counties-10m.geojson.zst", zips);
-    bench_layer(a, "countries-land-10km.geojson.zst", zips);
+    if (a.layer != "countries") bench_layer(a, "us-counties-10m.geojson.zst", zips);
+    if (a.layer != "counties") bench_layer(a, "countries-land-10km.geojson.zst", zips);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "kiln_bench_polygons: %s\n", e.what());
     return 1;

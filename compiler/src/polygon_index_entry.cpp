@@ -15,7 +15,7 @@ namespace {
 
 std::vector<StructureOption> polygon_index_options() {
   return {
-      {"max-edges", "", "16", "Polygon index: a cell listing more edges splits", false,
+      {"max-edges", "", "8", "Polygon index: a cell listing more edges splits", false,
        parse_uint_in(1, 1u << 20)},
       {"max-depth", "", "16", "Polygon index: deepest cell (root = 0)", false,
        parse_uint_in(0, format::kPolygonIndexMaxDepth)},

@@ -3,6 +3,7 @@
 // skip the first k levels of the descent with one lookup.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "kiln/runtime/polygon_index.hpp"
 
@@ -48,15 +49,60 @@ void fill(const PolygonIndexParts& parts, PolygonIndexTopGrid& g, std::uint32_t 
     fill(parts, g, n.first + c, depth + 1, x0 + (c & 1u ? half : 0), y0 + (c & 2u ? half : 0));
 }
 
-// The largest j < 2^k with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
-// column the descent reaches (it sends v >= a split line to the upper side). `guess` is the
-// uniform estimate; the split lines are non-decreasing, so the walks end.
-std::uint32_t column(std::span<const double> lines, double v, double guess) {
-  const auto last = std::uint32_t(lines.size() - 2);
-  std::uint32_t j = guess > 0 ? std::min(last, std::uint32_t(std::min(guess, 4294967295.0))) : 0;
-  while (j > 0 && lines[j] > v) --j;
-  while (j < last && lines[j + 1] <= v) ++j;
-  return j;
+// Each cell's code: the answer where the leaf covering it answers alike for all its points (no
+// entry: none; a first entry wholly inside: that polygon's feature, the lowest containing any
+// point, as entries ascend by polygon), else the node. The view refuses 2^31 nodes or more.
+void classify(const PolygonIndexParts& parts, PolygonIndexTopGrid& g) {
+  g.code.resize(g.node.size());
+  g.empty.assign((g.node.size() + 63) / 64, 0);
+  for (std::size_t cell = 0; cell < g.node.size(); ++cell) {
+    const format::PolygonIndexNode& n = parts.nodes[g.node[cell]];
+    std::uint32_t code = g.node[cell];
+    if (n.is_leaf() && n.count == 0) {
+      code = PolygonIndexTopGrid::kAnswer | PolygonIndexTopGrid::kNoFeature;
+      g.empty[cell / 64] |= std::uint64_t(1) << (cell % 64);
+    } else if (n.is_leaf() && parts.entries[n.first].wholly_inside()) {
+      const std::uint32_t polygon = parts.entries[n.first].polygon;
+      const std::uint32_t f = polygon < g.feature.size() ? g.feature[polygon] : ~0u;
+      if (f < PolygonIndexTopGrid::kNoFeature) code = PolygonIndexTopGrid::kAnswer | f;
+    }
+    g.code[cell] = code;
+  }
+}
+
+// The leaf records: each leaf's entries with their edges' endpoints inline, leaves in node order.
+// False when they would hold more units than the entry and edge sections have elements: the
+// builder never shares an entry between leaves nor an edge between entries, while forged ranges
+// that overlap could make a small blob ask for a huge copy (the view then refuses it).
+bool make_records(const PolygonIndexParts& parts, PolygonIndexTopGrid& g) {
+  const std::uint64_t most =
+      std::min<std::uint64_t>(parts.entries.size() + parts.edges.size(), 0xFFFFFFFFu);
+  std::uint64_t units = 0;
+  for (const format::PolygonIndexNode& n : parts.nodes) {
+    if (n.is_leaf())
+      for (const format::PolygonIndexEntry& e : parts.entries.subspan(n.first, n.count))
+        units += 1 + e.edges();
+    if (units > most) return false;  // per leaf: the count stays O(nodes + most)
+  }
+  g.units.reserve(units);
+  g.nodes.assign(parts.nodes.begin(), parts.nodes.end());
+  const auto v = parts.layer.vertices;
+  for (format::PolygonIndexNode& n : g.nodes) {
+    if (!n.is_leaf()) continue;
+    const auto entries = parts.entries.subspan(n.first, n.count);
+    n.first = std::uint32_t(g.units.size());
+    for (const format::PolygonIndexEntry& e : entries) {
+      const PolygonIndexTopGrid::Head head{
+          e.polygon < g.feature.size() ? g.feature[e.polygon] : PolygonQueries::kNone,
+          e.edge_count};
+      PolygonIndexTopGrid::Unit unit{};
+      std::memcpy(&unit, &head, sizeof head);
+      g.units.push_back(unit);
+      for (const format::PolygonIndexEdge& edge : parts.edges.subspan(e.first_edge, e.edges()))
+        g.units.push_back({{v[edge.a].x, v[edge.a].y, v[edge.b].x, v[edge.b].y}});
+    }
+  }
+  return true;
 }
 
 }  // namespace
@@ -64,14 +110,18 @@ std::uint32_t column(std::span<const double> lines, double v, double guess) {
 std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
     const PolygonIndexParts& parts) {
   auto g = std::make_shared<PolygonIndexTopGrid>();
-  // 4^k cells for at most about 4 cells per node, and k <= 8 (256 KB of node indices): deeper
-  // tables cost more cache misses than the levels they skip.
-  while (g->level < 8 && (std::uint64_t(4) << (2 * g->level)) <= 4 * parts.nodes.size()) ++g->level;
+  // 4^k cells for at most about 16 cells per node, and k <= 9 (1 MB of codes): deeper tables
+  // cost more cache misses than the levels they skip (docs/BENCHMARKS.md).
+  while (g->level < 9 && (std::uint64_t(4) << (2 * g->level)) <= 16 * parts.nodes.size())
+    ++g->level;
   g->xs = split_lines(parts.bounds.min.x, parts.bounds.max.x, g->level);
   g->ys = split_lines(parts.bounds.min.y, parts.bounds.max.y, g->level);
   const std::size_t cells = std::size_t(1) << (2 * g->level);
   g->node.resize(cells);
   g->node_level.resize(cells);
+  const Box2d& b = parts.bounds;
+  g->scale = {double(1u << g->level) / (b.max.x - b.min.x),
+              double(1u << g->level) / (b.max.y - b.min.y)};
   fill(parts, *g, 0, 0, 0, 0);
   const auto offsets = parts.layer.feature_polygons;
   // Bounded by the table's size too: a view made from raw parts has no Blob::open checks.
@@ -80,21 +130,9 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
     for (std::uint64_t q = offsets[f];
          q < std::min<std::uint64_t>(offsets[f + 1], g->feature.size()); ++q)
       g->feature[q] = std::uint32_t(f);
+  classify(parts, *g);
+  if (!make_records(parts, *g)) return nullptr;
   return g;
-}
-
-// The node named by the table for p (inside the bounds), and its cell in `box`.
-const format::PolygonIndexNode* PolygonIndexView::top_cell(const Double2& p, Box2d& box) const {
-  const PolygonIndexTopGrid& g = *top_;
-  const double side = double(1u << g.level);
-  const Box2d& b = parts_.bounds;
-  const std::uint32_t ix = column(g.xs, p.x, (p.x - b.min.x) / (b.max.x - b.min.x) * side);
-  const std::uint32_t iy = column(g.ys, p.y, (p.y - b.min.y) / (b.max.y - b.min.y) * side);
-  const std::size_t cell = std::size_t(iy) << g.level | ix;
-  const std::uint32_t shift = g.level - g.node_level[cell];
-  const std::uint32_t x0 = ix >> shift << shift, y0 = iy >> shift << shift;
-  box = {{g.xs[x0], g.ys[y0]}, {g.xs[x0 + (1u << shift)], g.ys[y0 + (1u << shift)]}};
-  return &parts_.nodes[g.node[cell]];
 }
 
 }  // namespace kiln

@@ -57,6 +57,15 @@ inline int side_of_shifted_point(const format::Double2& a, const format::Double2
   return b.x > a.x ? 1 : b.x < a.x ? -1 : 0;
 }
 
+// shifted_segment_crosses_inline for an edge whose box meets the segment's closed box.
+inline bool shifted_segment_crosses_unboxed(const format::Double2& c, const format::Double2& p,
+                                            const format::Double2& a, const format::Double2& b) {
+  const int sa = side_of_shifted_line(c, p, a), sb = side_of_shifted_line(c, p, b);
+  if (sa == 0 || sa == sb) return false;
+  const int sc = side_of_shifted_point(a, b, c), sp = side_of_shifted_point(a, b, p);
+  return sc != 0 && sc != sp;
+}
+
 inline bool shifted_segment_crosses_inline(const format::Double2& c, const format::Double2& p,
                                            const format::Double2& a, const format::Double2& b) {
   // Boxes first: the shifted segment reaches past its box by infinitesimals only on the max
@@ -65,10 +74,7 @@ inline bool shifted_segment_crosses_inline(const format::Double2& c, const forma
   if ((std::max(a.x, b.x) < std::min(c.x, p.x)) | (std::min(a.x, b.x) > std::max(c.x, p.x)) |
       (std::max(a.y, b.y) < std::min(c.y, p.y)) | (std::min(a.y, b.y) > std::max(c.y, p.y)))
     return false;
-  const int sa = side_of_shifted_line(c, p, a), sb = side_of_shifted_line(c, p, b);
-  if (sa == 0 || sa == sb) return false;
-  const int sc = side_of_shifted_point(a, b, c), sp = side_of_shifted_point(a, b, p);
-  return sc != 0 && sc != sp;
+  return shifted_segment_crosses_unboxed(c, p, a, b);
 }
 
 }  // namespace kiln::detail

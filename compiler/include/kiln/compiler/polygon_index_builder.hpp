@@ -14,7 +14,7 @@
 namespace kiln {
 
 struct PolygonIndexBuildOptions {
-  std::uint32_t max_edges = 16;  ///< a cell listing more edges splits...
+  std::uint32_t max_edges = 8;   ///< a cell listing more edges splits...
   std::uint32_t max_depth = 16;  ///< ...until this depth (root = 0)
   unsigned threads = 0;          ///< 0 = every core; never changes the result
 };

@@ -40,12 +40,35 @@ struct PolygonIndexLevel {
 /// `xs` / `ys` hold the 2^k + 1 split coordinates of level k exactly as the descent computes
 /// them (each a midpoint of its two neighbours of the level above), so the lookup lands in the
 /// cell the descent would. A cell whose leaf lies above level k names that leaf and its level.
+/// A cell whose leaf answers every point of it alike (no entry, or a first entry wholly inside)
+/// holds that answer instead, so most points far from any boundary end at the lookup.
 struct PolygonIndexTopGrid {
+  /// `code` bit 31 set: the answer for every point of the cell (low 31 bits: the feature, or
+  /// kNoFeature); clear: the node index (in `nodes` below).
+  static constexpr std::uint32_t kAnswer = 0x80000000u, kNoFeature = 0x7FFFFFFFu;
   std::uint32_t level = 0;               ///< k
+  format::Double2 scale;                 ///< 2^k / (bounds' side), the lookup's estimate
   std::vector<double> xs, ys;            ///< split lines, 2^k + 1 each, non-decreasing
-  std::vector<std::uint32_t> node;       ///< per cell (row-major, y outer): node index
+  std::vector<std::uint32_t> code;       ///< per cell (row-major, y outer): answer or node
+  std::vector<std::uint32_t> node;       ///< per cell: the node (for walks over every entry)
+  std::vector<std::uint64_t> empty;      ///< per cell, one bit: no polygon holds a point of it
   std::vector<std::uint8_t> node_level;  ///< per cell: the named node's depth (<= k)
   std::vector<std::uint32_t> feature;    ///< per polygon: its feature (no search per answer)
+
+  /// One 32-byte unit of a leaf record: an entry's head (`head()`: its feature, and its edge
+  /// count with format::kPolygonCentreInside, or format::kPolygonWhollyInside), or one of its
+  /// edges' endpoints copied from the layer (a.x, a.y, b.x, b.y).
+  struct Unit {
+    double v[4];
+  };
+  struct Head {
+    std::uint32_t feature, edges;
+  };
+  /// The nodes again, each leaf's `first` naming its record in `units`: per entry, in order,
+  /// its head, then its edges. A point query reads one contiguous record instead of entries,
+  /// edge indices and scattered vertices (three dependent loads fewer).
+  std::vector<format::PolygonIndexNode> nodes;
+  std::vector<Unit> units;
 };
 
 /// The top-level table of a validated index (O(4^k + nodes above level k)).
@@ -67,6 +90,9 @@ class PolygonIndexView {
 
   /// The lowest feature index containing `p`, or PolygonQueries::kNone.
   std::uint32_t locate(const format::Double2& p) const;
+  /// locate for every point of `points` into `out` (as many): the same answers, in one call
+  /// (no call per point: for batches and for embedding loops).
+  void locate_many(std::span<const format::Double2> points, std::span<std::uint32_t> out) const;
   /// The same, counting nodes visited and edges tested into `cost`.
   std::uint32_t locate_counting(const format::Double2& p, Cost& cost) const;
   /// Every feature containing `p`, ascending, into `out` (cleared first).
@@ -88,7 +114,11 @@ class PolygonIndexView {
   bool entry_contains(const format::PolygonIndexEntry& e, const format::Box2d& cell,
                       const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
-  const format::PolygonIndexNode* top_cell(const format::Double2& p, format::Box2d& box) const;
+  std::uint32_t locate_inline(const format::Double2& p) const;
+  std::uint32_t record_locate(const PolygonIndexTopGrid::Unit* unit, std::uint32_t entries,
+                              const format::Box2d& cell, const format::Double2& p) const;
+  std::size_t top_cell(const format::Double2& p, std::uint32_t& ix, std::uint32_t& iy) const;
+  format::Box2d top_box(std::size_t cell, std::uint32_t ix, std::uint32_t iy) const;
 
   PolygonIndexParts parts_;
   std::shared_ptr<const PolygonIndexTopGrid> top_;  // shared: views copy cheaply
