@@ -3,10 +3,13 @@
 #include <vector>
 
 #include "bvh_splits.hpp"
+#include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
 
 namespace {
+
+constexpr std::size_t kParallelSort = 32768;  // sort the three axes apart above this
 
 float split_cost(const BvhBuildOptions& o, float node_area, const format::Box3f& l, std::size_t nl,
                  const format::Box3f& r, std::size_t nr) {
@@ -114,10 +117,14 @@ ObjectSplit find_sweep_split(std::vector<PrimRef>& refs, const format::Box3f& no
   if (node_area <= 0.0f || refs.size() < 2) return best;
   const std::size_t n = refs.size();
   std::vector<PrimRef> sorted[3];
+  // Near the root the three sorts run on their own threads (each into its own array).
+  const bool parallel = n >= kParallelSort && resolve_thread_count(options.threads) > 1;
+  parallel_for(3, parallel ? options.threads : 1u, [&](std::size_t axis) {
+    std::vector<SortKey> keys(n);
+    sort_by_centroid(refs, int(axis), keys, sorted[axis]);
+  });
   std::vector<format::Box3f> right_box(n);
-  std::vector<SortKey> keys(n);
   for (int axis = 0; axis < 3; ++axis) {
-    sort_by_centroid(refs, axis, keys, sorted[axis]);
     const auto& s = sorted[axis];
     format::Box3f acc;
     for (std::size_t i = n; i-- > 1;) {
