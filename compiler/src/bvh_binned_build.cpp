@@ -35,19 +35,30 @@ using bvh_simd::VBox;
 using format::Box3f;
 
 /// k bins on each axis, axis-major, with a bit per bin that says it is occupied. Sized per use
-/// (--bvh-bins may be up to 1024) and reused per thread. A reset clears only the bits: a bin's
-/// box and count are set by its first reference, and the SAH sweep visits the occupied bins
-/// alone (by the bits), so a node of a few references costs a few bins, not 3k.
+/// (--bvh-bins may be up to 1024) and reused per thread: between uses every bin is empty (an
+/// empty box, a zero count), and `clear` empties only the bins the last use occupied, so a node
+/// of a few references costs a few bins, not 3k, and no reference branches on whether its bin
+/// is new (growing an empty box gives the reference's box exactly). The SAH sweep visits the
+/// occupied bins alone, by the bits.
 struct Bins {
   std::uint32_t k = 0, words = 0;  // words: 64-bit mask words per axis
   std::vector<VBox> box;
   std::vector<std::uint32_t> count;
   std::vector<std::uint64_t> used;
   void reset(std::uint32_t bins) {
+    if (k == bins) return;  // already empty
     k = bins, words = (k + 63) / 64;
-    box.resize(3 * std::size_t(k));
-    count.resize(3 * std::size_t(k));
+    box.assign(3 * std::size_t(k), VBox{});
+    count.assign(3 * std::size_t(k), 0);
     used.assign(3 * std::size_t(words), 0);
+  }
+  void clear() {
+    for (int a = 0; a < 3; ++a)
+      for_each(a, [&](std::uint32_t b) {
+        box[std::size_t(a) * k + b] = VBox{};
+        count[std::size_t(a) * k + b] = 0;
+      });
+    std::fill(used.begin(), used.end(), 0);
   }
   bool occupied(int a, std::uint32_t b) const {
     return (used[std::size_t(a) * words + b / 64] >> (b % 64)) & 1u;
@@ -136,10 +147,8 @@ void bin_range(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
   }
 }
 
-// k <= 64: the three occupancy words stay in registers. `kFresh`: every bin was reset to an
-// empty box and a zero count (a large node fills most bins anyway), so no reference branches
-// on whether its bin is new; growing an empty box gives the reference's box exactly.
-template <bool kFresh>
+// k <= 64: the three occupancy words stay in registers; the bins start empty, so each
+// reference grows its three bins without a branch.
 void bin_range_64(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
   std::uint64_t used[3] = {bins.used[0], bins.used[1], bins.used[2]};
   const std::size_t k = map.k;
@@ -149,33 +158,24 @@ void bin_range_64(std::span<const BuildRef> refs, const BinMap& map, Bins& bins)
     const V4 lo = bvh_simd::lower(r), hi = bvh_simd::upper(r);
     for (int a = 0; a < 3; ++a) {
       const std::size_t i = std::size_t(a) * k + std::size_t(b[a]);
-      const std::uint64_t bit = std::uint64_t(1) << b[a];
-      if (kFresh || (used[a] & bit)) {
-        bins.box[i].grow(lo, hi);
-        bins.count[i] += 1;
-      } else {
-        bins.box[i] = {lo, hi};
-        bins.count[i] = 1;
-      }
-      used[a] |= bit;
+      bins.box[i].grow(lo, hi);
+      bins.count[i] += 1;
+      used[a] |= std::uint64_t(1) << b[a];
     }
   }
   for (int a = 0; a < 3; ++a) bins.used[std::size_t(a)] = used[a];
 }
 
-// Bins `refs` into freshly reset `bins`.
+// Bins `refs` into `bins` (empty, or sized now).
 void bin_into(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
   bins.reset(map.k);
   if (map.k > 64) return bin_range(refs, map, bins);
-  if (refs.size() < 2 * std::size_t(map.k)) return bin_range_64<false>(refs, map, bins);
-  std::fill(bins.box.begin(), bins.box.end(), VBox{});
-  std::fill(bins.count.begin(), bins.count.end(), 0u);
-  bin_range_64<true>(refs, map, bins);
+  bin_range_64(refs, map, bins);
 }
 
 // Bins in fixed chunks merged in chunk order: the same bins on any thread count (box growth is
 // min/max, exact in any order; counts are integers).
-const Bins& bin_all(std::span<const BuildRef> refs, const BinMap& map, unsigned threads) {
+Bins& bin_all(std::span<const BuildRef> refs, const BinMap& map, unsigned threads) {
   thread_local Bins bins;
   if (refs.size() < kParallelBinning) {
     bin_into(refs, map, bins);
@@ -300,7 +300,12 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
   const BinMap map(t.centroids, std::max<std::uint32_t>(o.bins, 2));
   const float area = t.box.half_area();
   const unsigned threads = t.depth < ctx.parallel_depth ? 0u : 1u;
-  const Split s = area > 0.0f ? best_split(bin_all(refs, map, threads), map, n, area, o) : Split{};
+  Split s;
+  if (area > 0.0f) {
+    Bins& bins = bin_all(refs, map, threads);
+    s = best_split(bins, map, n, area, o);
+    bins.clear();
+  }
   if (s.axis < 0) {  // all centroids coincide (or a flat box): halve the list when too long
     if (n <= o.max_leaf_size) return std::nullopt;
     const std::size_t mid = t.begin + n / 2;
