@@ -3,7 +3,7 @@
 // then on all threads; the report gives medians over rounds and the median of per-round ratios,
 // so that load from other processes on a shared machine hits both sides alike.
 //
-// Usage: kiln_bench_bvh_build [--rounds=N] [--only=binned|sbvh] MESH...
+// Usage: kiln_bench_bvh_build [--rounds=N] [--only=binned|sbvh] [--sbvh-alpha=X] MESH...
 //   MESH  a file import_scene reads, or [LABEL=]@DIR[/PATTERN] (bench_args.hpp)
 //
 // One thread is timed by the process's CPU time (CLOCK_PROCESS_CPUTIME_ID: Embree may build on a
@@ -108,6 +108,8 @@ Sample timed(unsigned threads, Build&& build) {
   return {s, peak};
 }
 
+float g_sbvh_alpha = kiln::BvhBuildOptions{}.sbvh_alpha;  // --sbvh-alpha=X
+
 struct KilnResult {
   kiln::BvhStatistics stats;
   double collapse_seconds = 0;
@@ -119,6 +121,7 @@ KilnResult kiln_build(const kiln::Scene& scene, kiln::BvhBuilder builder, unsign
   o.builder = builder;
   o.threads = threads;
   o.leaf_triangles = false;
+  o.sbvh_alpha = g_sbvh_alpha;
   KilnResult out;
   kiln::FlatBvh flat;
   sample = timed(threads, [&] {
@@ -268,6 +271,10 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (kiln::bench::parse_number_option(arg, "rounds", rounds)) continue;
+    if (arg.starts_with("--sbvh-alpha=")) {
+      g_sbvh_alpha = std::stof(arg.substr(13));
+      continue;
+    }
     if (arg.starts_with("--only=")) {
       g_only = arg.substr(7);
       continue;
