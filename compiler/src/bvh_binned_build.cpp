@@ -4,8 +4,10 @@
 // References are 32-byte records of two aligned vectors (bvh_build_simd.hpp): one SSE2
 // computation gives a reference's centroid and its bin on all three axes, and a bin's box grows
 // by two vector min/max, as in Embree's binning. The SAH evaluation visits only the occupied
-// bins. Every float operation is the one the scalar builder did, in the same order, so the trees
-// (and blobs) are the same bit for bit.
+// bins. Every float operation is the one the scalar builder did, so the trees (splits, boxes,
+// SAH costs) are the scalar builder's; only the order of references inside a leaf follows the
+// branchless partition (and with it which of -0 and +0 a bound keeps where both occur). Peak
+// memory: the references (32 B each) and the nodes.
 #include "bvh_binned_build.hpp"
 
 #include <algorithm>
