@@ -119,11 +119,12 @@ struct BinMap {
     last = bvh_simd::splat(float(k - 1));
   }
   // Bins on the three axes (lane 3 is 0) of a reference whose centroid is `c`.
-  void bins(V4 c, std::int32_t* out) const {
-    // vmax(x, 0) is x > 0 ? x : 0 (NaN to 0, as std::max(0.0f, x)); then clamp to k - 1.
-    const V4 f = bvh_simd::vmax((c - origin) * scale, bvh_simd::splat(0.0f));
-    bvh_simd::truncate(bvh_simd::vmin(f, last), out);
+  // The bins before truncation: (c - origin) x scale clamped to [0, k - 1]. vmax(x, 0) is
+  // x > 0 ? x : 0 (NaN to 0, as std::max(0.0f, x)).
+  V4 clamped(V4 c) const {
+    return bvh_simd::vmin(bvh_simd::vmax((c - origin) * scale, bvh_simd::splat(0.0f)), last);
   }
+  void bins(V4 c, std::int32_t* out) const { bvh_simd::truncate(clamped(c), out); }
 };
 
 struct Split {
@@ -254,13 +255,14 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
                            VBox& left_centroids, VBox& right_centroids) {
   const V4 inf = bvh_simd::splat(std::numeric_limits<float>::infinity());
   const V4 ninf = bvh_simd::splat(-std::numeric_limits<float>::infinity());
+  // trunc(x) <= bin exactly when x < bin + 1 (x in [0, k - 1], integers exact as floats): the
+  // side comes from one compare, without storing the bins.
+  const V4 limit = bvh_simd::splat(float(s.bin + 1));
   std::size_t l = 0;
   for (std::size_t i = 0; i < refs.size(); ++i) {
     const BuildRef r = refs[i];
-    alignas(16) std::int32_t b[4];
     const V4 c = bvh_simd::centroid(r);
-    map.bins(c, b);
-    const bool left = std::uint32_t(b[s.axis]) <= s.bin;
+    const bool left = (bvh_simd::less_mask(map.clamped(c), limit) >> s.axis) & 1;
     left_centroids.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
     right_centroids.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
     refs[i] = refs[l];

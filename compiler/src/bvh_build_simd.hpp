@@ -60,6 +60,10 @@ inline V4 select(bool take, V4 a, V4 b) {
 inline void truncate(V4 a, std::int32_t* out) {
   _mm_store_si128(reinterpret_cast<__m128i*>(out), _mm_cvttps_epi32(a.v));
 }
+// Bit i set where lane i of a < lane i of b.
+inline int less_mask(V4 a, V4 b) {
+  return _mm_movemask_ps(_mm_cmplt_ps(a.v, b.v));
+}
 #else
 struct V4 {
   float f[4];
