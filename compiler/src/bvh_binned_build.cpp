@@ -1,10 +1,18 @@
 // Binned SAH BVH (Wald 2007) built in place: one reference array, partitioned in place node by
 // node (no per-node copies), nodes emitted straight into the depth-first layout. Large nodes
 // near the root bin in parallel chunks (horizontal); below, subtrees run as tasks (vertical).
-// Peak memory is the references (28 B per triangle) plus the nodes; the old recursive builder
-// copied reference vectors per node and kept a pointer tree beside the flat one.
+// References are 32-byte records of two aligned vectors (bvh_build_simd.hpp): one SSE2
+// computation gives a reference's centroid and its bin on all three axes, and a bin's box grows
+// by two vector min/max, as in Embree's binning. The SAH evaluation visits only the occupied
+// bins. Every float operation is the one the scalar builder did, so the trees (splits, boxes,
+// SAH costs) are the scalar builder's; only the order of references inside a leaf follows the
+// branchless partition (and with it which of -0 and +0 a bound keeps where both occur). Peak
+// memory: the references (32 B each) and the nodes.
+#include "bvh_binned_build.hpp"
+
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <limits>
 #include <optional>
 #include <span>
@@ -23,33 +31,100 @@ constexpr std::size_t kParallelSubtree = 16384;     // fork subtrees at least th
 constexpr std::size_t kParallelBinning = 1u << 18;  // bin in chunks above this many references
 constexpr std::size_t kBinChunk = 1u << 16;
 
+using bvh_simd::BuildRef;
+using bvh_simd::V4;
+using bvh_simd::VBox;
 using format::Box3f;
 
-/// k bins on each axis, axis-major. Sized per use (--bvh-bins may be up to 1024) and reused
-/// per thread: initialising a large fixed array per node would cost more than binning.
+/// k bins on each axis, axis-major, with a bit per bin that says it is occupied. Sized per use
+/// (--bvh-bins may be up to 1024) and reused per thread: between uses every bin is empty (an
+/// empty box, a zero count), and `clear` empties only the bins the last use occupied, so a node
+/// of a few references costs a few bins, not 3k, and no reference branches on whether its bin
+/// is new (growing an empty box gives the reference's box exactly). The SAH sweep visits the
+/// occupied bins alone, by the bits.
 struct Bins {
-  std::uint32_t k = 0;
-  std::vector<Box3f> box;
+  std::uint32_t k = 0, words = 0;  // words: 64-bit mask words per axis
+  std::vector<VBox> box;
   std::vector<std::uint32_t> count;
+  std::vector<std::uint64_t> used;
   void reset(std::uint32_t bins) {
-    k = bins;
-    box.assign(3 * std::size_t(k), Box3f{});
+    if (k == bins) return;  // already empty
+    k = bins, words = (k + 63) / 64;
+    box.assign(3 * std::size_t(k), VBox{});
     count.assign(3 * std::size_t(k), 0);
+    used.assign(3 * std::size_t(words), 0);
   }
+  void clear() {
+    for (int a = 0; a < 3; ++a)
+      for_each(a, [&](std::uint32_t b) {
+        box[std::size_t(a) * k + b] = VBox{};
+        count[std::size_t(a) * k + b] = 0;
+      });
+    std::fill(used.begin(), used.end(), 0);
+  }
+  bool occupied(int a, std::uint32_t b) const {
+    return (used[std::size_t(a) * words + b / 64] >> (b % 64)) & 1u;
+  }
+  void add(int a, std::uint32_t b, V4 lo, V4 hi) {
+    std::uint64_t& word = used[std::size_t(a) * words + b / 64];
+    const std::uint64_t bit = std::uint64_t(1) << (b % 64);
+    const std::size_t i = std::size_t(a) * k + b;
+    if (word & bit) {
+      box[i].grow(lo, hi);
+      count[i] += 1;
+    } else {
+      word |= bit;
+      box[i] = {lo, hi};
+      count[i] = 1;
+    }
+  }
+  // Calls f(b) for each occupied bin of axis a, in increasing order.
+  template <class F>
+  void for_each(int a, F&& f) const {
+    for (std::uint32_t w = 0; w < words; ++w)
+      for (std::uint64_t bits = used[std::size_t(a) * words + w]; bits; bits &= bits - 1)
+        f(w * 64 + std::uint32_t(std::countr_zero(bits)));
+  }
+  // In chunk order: the same boxes as binning the chunks' references one after another.
   void merge(const Bins& o) {
-    for (std::size_t i = 0; i < box.size(); ++i) box[i].grow(o.box[i]), count[i] += o.count[i];
+    for (int a = 0; a < 3; ++a)
+      o.for_each(a, [&](std::uint32_t b) {
+        const std::size_t i = std::size_t(a) * k + b;
+        if (occupied(a, b)) {
+          box[i].grow(o.box[i]);
+          count[i] += o.count[i];
+        } else {
+          used[std::size_t(a) * words + b / 64] |= std::uint64_t(1) << (b % 64);
+          box[i] = o.box[i];
+          count[i] = o.count[i];
+        }
+      });
   }
 };
 
-/// The mapping from a centroid to its bin on one axis; the same arithmetic bins and partitions,
-/// so every reference lands on the side it was counted on.
+/// The mapping from a centroid to its bin on each axis, min(k - 1, trunc(max(0, (c - origin) x
+/// scale))) per lane; the same arithmetic bins and partitions, so every reference lands on the
+/// side it was counted on.
 struct BinMap {
-  float origin[3], scale[3];
+  V4 origin, scale, last;
+  float axis_scale[3];
   std::uint32_t k;
-  std::uint32_t bin(const PrimRef& r, int axis) const {
-    const float c = r.box.centroid(axis);
-    return std::min(k - 1, std::uint32_t(std::max(0.0f, (c - origin[axis]) * scale[axis])));
+  BinMap(const Box3f& centroids, std::uint32_t bins) : k(bins) {
+    for (int a = 0; a < 3; ++a) {
+      const float extent = format::at(centroids.max, a) - format::at(centroids.min, a);
+      axis_scale[a] = extent > 0.0f ? float(k) / extent : 0.0f;
+    }
+    origin = bvh_simd::set(centroids.min.x, centroids.min.y, centroids.min.z, 0.0f);
+    scale = bvh_simd::set(axis_scale[0], axis_scale[1], axis_scale[2], 0.0f);
+    last = bvh_simd::splat(float(k - 1));
   }
+  // Bins on the three axes (lane 3 is 0) of a reference whose centroid is `c`.
+  // The bins before truncation: (c - origin) x scale clamped to [0, k - 1]. vmax(x, 0) is
+  // x > 0 ? x : 0 (NaN to 0, as std::max(0.0f, x)).
+  V4 clamped(V4 c) const {
+    return bvh_simd::vmin(bvh_simd::vmax((c - origin) * scale, bvh_simd::splat(0.0f)), last);
+  }
+  void bins(V4 c, std::int32_t* out) const { bvh_simd::truncate(clamped(c), out); }
 };
 
 struct Split {
@@ -57,97 +132,144 @@ struct Split {
   int axis = -1;
   std::uint32_t bin = 0;
   std::size_t left_count = 0;
-  Box3f left_box, right_box;
+  VBox left_box, right_box;
 };
 
 struct Context {
-  std::span<PrimRef> refs;
+  std::span<BuildRef> refs;
   const BvhBuildOptions& o;
   unsigned parallel_depth;
 };
 
-void bin_range(std::span<const PrimRef> refs, const BinMap& map, Bins& bins) {
-  for (const PrimRef& r : refs)
+void bin_range(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
+  for (const BuildRef& r : refs) {
+    alignas(16) std::int32_t b[4];
+    map.bins(bvh_simd::centroid(r), b);
+    const V4 lo = bvh_simd::lower(r), hi = bvh_simd::upper(r);
+    for (int a = 0; a < 3; ++a) bins.add(a, std::uint32_t(b[a]), lo, hi);
+  }
+}
+
+// k <= 64: the three occupancy words stay in registers; the bins start empty, so each
+// reference grows its three bins without a branch.
+void bin_range_64(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
+  std::uint64_t used[3] = {bins.used[0], bins.used[1], bins.used[2]};
+  const std::size_t k = map.k;
+  for (const BuildRef& r : refs) {
+    alignas(16) std::int32_t b[4];
+    map.bins(bvh_simd::centroid(r), b);
+    const V4 lo = bvh_simd::lower(r), hi = bvh_simd::upper(r);
     for (int a = 0; a < 3; ++a) {
-      const std::uint32_t b = map.bin(r, a);
-      bins.box[a * map.k + b].grow(r.box);
-      bins.count[a * map.k + b] += 1;
+      const std::size_t i = std::size_t(a) * k + std::size_t(b[a]);
+      bins.box[i].grow(lo, hi);
+      bins.count[i] += 1;
+      used[a] |= std::uint64_t(1) << b[a];
     }
+  }
+  for (int a = 0; a < 3; ++a) bins.used[std::size_t(a)] = used[a];
+}
+
+// Bins `refs` into `bins` (empty, or sized now).
+void bin_into(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
+  bins.reset(map.k);
+  if (map.k > 64) return bin_range(refs, map, bins);
+  bin_range_64(refs, map, bins);
 }
 
 // Bins in fixed chunks merged in chunk order: the same bins on any thread count (box growth is
 // min/max, exact in any order; counts are integers).
-const Bins& bin_all(std::span<const PrimRef> refs, const BinMap& map, unsigned threads) {
+Bins& bin_all(std::span<const BuildRef> refs, const BinMap& map, unsigned threads) {
   thread_local Bins bins;
-  bins.reset(map.k);
   if (refs.size() < kParallelBinning) {
-    bin_range(refs, map, bins);
+    bin_into(refs, map, bins);
     return bins;
   }
+  bins.reset(map.k);
   const std::size_t chunks = (refs.size() + kBinChunk - 1) / kBinChunk;
   std::vector<Bins> partial(chunks);
   parallel_for(chunks, threads, [&](std::size_t c) {
     const std::size_t begin = c * kBinChunk;
-    partial[c].reset(map.k);
-    bin_range(refs.subspan(begin, std::min(kBinChunk, refs.size() - begin)), map, partial[c]);
+    bin_into(refs.subspan(begin, std::min(kBinChunk, refs.size() - begin)), map, partial[c]);
   });
   for (const Bins& p : partial) bins.merge(p);
   return bins;
 }
 
+// The SAH sweep over one axis's occupied bins: a split after an empty bin is the previous one at
+// the same cost, which the strict comparison would not take, so only occupied bins are
+// candidates, and small nodes (most of them) cost their occupied bins, not k.
+void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const BvhBuildOptions& o,
+                Split& best) {
+  thread_local std::vector<std::uint32_t> used;
+  thread_local std::vector<VBox> right_box;
+  thread_local std::vector<float> right_area;
+  const std::size_t base = std::size_t(a) * bins.k;
+  used.clear();
+  bins.for_each(a, [&](std::uint32_t b) { used.push_back(b); });
+  const std::size_t m = used.size();
+  if (m < 2) return;
+  right_box.resize(m);
+  right_area.resize(m);
+  VBox acc;
+  for (std::size_t j = m; j-- > 1;) {
+    acc.grow(bins.box[base + used[j]]);
+    right_box[j] = acc;
+    right_area[j] = bvh_simd::half_area(acc);
+  }
+  VBox left;
+  std::size_t left_count = 0;
+  for (std::size_t j = 0; j + 1 < m; ++j) {
+    left.grow(bins.box[base + used[j]]);
+    left_count += bins.count[base + used[j]];
+    const float cost = o.traversal_cost + o.intersection_cost *
+                                              (bvh_simd::half_area(left) * float(left_count) +
+                                               right_area[j + 1] * float(n - left_count)) /
+                                              node_area;
+    if (cost < best.cost) best = {cost, a, used[j], left_count, left, right_box[j + 1]};
+  }
+}
+
 Split best_split(const Bins& bins, const BinMap& map, std::size_t n, float node_area,
                  const BvhBuildOptions& o) {
   Split best;
-  thread_local std::vector<Box3f> right_box;
-  right_box.resize(map.k);
-  for (int a = 0; a < 3; ++a) {
-    if (!(map.scale[a] > 0.0f)) continue;
-    Box3f acc;
-    for (std::uint32_t b = map.k; b-- > 1;) acc.grow(bins.box[a * map.k + b]), right_box[b] = acc;
-    Box3f left;
-    std::size_t left_count = 0;
-    for (std::uint32_t b = 0; b + 1 < map.k; ++b) {
-      // After an empty bin the split is the previous one at the same cost, which the strict
-      // comparison below would not take: skip it (small nodes leave most bins empty).
-      if (bins.count[a * map.k + b] == 0) continue;
-      left.grow(bins.box[a * map.k + b]);
-      left_count += bins.count[a * map.k + b];
-      if (left_count == n) break;
-      const float cost =
-          o.traversal_cost + o.intersection_cost *
-                                 (left.half_area() * float(left_count) +
-                                  right_box[b + 1].half_area() * float(n - left_count)) /
-                                 node_area;
-      if (cost < best.cost) best = {cost, a, b, left_count, left, right_box[b + 1]};
-    }
-  }
+  for (int a = 0; a < 3; ++a)
+    if (map.axis_scale[a] > 0.0f) sweep_axis(bins, a, n, node_area, o, best);
   return best;
 }
 
-format::Float3 centroid(const PrimRef& r) {
-  return {r.box.centroid(0), r.box.centroid(1), r.box.centroid(2)};
-}
-
-Box3f centroid_bounds(std::span<const PrimRef> refs) {
-  Box3f c;
-  for (const PrimRef& r : refs) c.grow(centroid(r));
+VBox centroid_bounds(std::span<const BuildRef> refs) {
+  VBox c;
+  for (const BuildRef& r : refs) {
+    const V4 p = bvh_simd::centroid(r);
+    c.grow(p, p);
+  }
   return c;
 }
 
-// Hoare partition by the split's bin: deterministic, in place, no buffer. Each reference is
-// looked at once where it settles, which also gives each side's centroid bounds (the children's
-// bin maps) without another pass. Returns the middle.
-std::size_t partition_refs(std::span<PrimRef> refs, const BinMap& map, const Split& s,
-                           Box3f& left_centroids, Box3f& right_centroids) {
-  std::size_t i = 0, j = refs.size();
-  while (true) {
-    while (i < j && map.bin(refs[i], s.axis) <= s.bin) left_centroids.grow(centroid(refs[i++]));
-    while (i < j && map.bin(refs[j - 1], s.axis) > s.bin) right_centroids.grow(centroid(refs[--j]));
-    if (i >= j) return i;
-    std::swap(refs[i], refs[j - 1]);
-    left_centroids.grow(centroid(refs[i++]));
-    right_centroids.grow(centroid(refs[--j]));
+// Partition by the split's bin, in place and without a branch on the side (a mispredicted
+// branch per reference cost more than the moves): every reference is swapped with the first one
+// not known to go left, and that boundary advances when it went left (the cyclic Lomuto scheme
+// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. Each side's centroid bounds
+// (the children's bin maps) grow in the same pass. Returns the middle.
+std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Split& s,
+                           VBox& left_centroids, VBox& right_centroids) {
+  const V4 inf = bvh_simd::splat(std::numeric_limits<float>::infinity());
+  const V4 ninf = bvh_simd::splat(-std::numeric_limits<float>::infinity());
+  // trunc(x) <= bin exactly when x < bin + 1 (x in [0, k - 1], integers exact as floats): the
+  // side comes from one compare, without storing the bins.
+  const V4 limit = bvh_simd::splat(float(s.bin + 1));
+  std::size_t l = 0;
+  for (std::size_t i = 0; i < refs.size(); ++i) {
+    const BuildRef r = refs[i];
+    const V4 c = bvh_simd::centroid(r);
+    const bool left = (bvh_simd::less_mask(map.clamped(c), limit) >> s.axis) & 1;
+    left_centroids.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
+    right_centroids.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
+    refs[i] = refs[l];
+    refs[l] = r;
+    l += left;
   }
+  return l;
 }
 
 format::BvhNode leaf_node(const Box3f& box, std::size_t begin, std::size_t count) {
@@ -178,35 +300,36 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return std::nullopt;
   }
-  const std::span<PrimRef> refs = ctx.refs.subspan(t.begin, n);
-  const Box3f& c = t.centroids;
-  BinMap map{};
-  map.k = std::max<std::uint32_t>(o.bins, 2);
-  for (int a = 0; a < 3; ++a) {
-    const float extent = format::at(c.max, a) - format::at(c.min, a);
-    map.origin[a] = format::at(c.min, a);
-    map.scale[a] = extent > 0.0f ? float(map.k) / extent : 0.0f;
-  }
+  const std::span<BuildRef> refs = ctx.refs.subspan(t.begin, n);
+  const BinMap map(t.centroids, std::max<std::uint32_t>(o.bins, 2));
   const float area = t.box.half_area();
   const unsigned threads = t.depth < ctx.parallel_depth ? 0u : 1u;
-  const Split s = area > 0.0f ? best_split(bin_all(refs, map, threads), map, n, area, o) : Split{};
+  Split s;
+  if (area > 0.0f) {
+    Bins& bins = bin_all(refs, map, threads);
+    s = best_split(bins, map, n, area, o);
+    bins.clear();
+  }
   if (s.axis < 0) {  // all centroids coincide (or a flat box): halve the list when too long
     if (n <= o.max_leaf_size) return std::nullopt;
     const std::size_t mid = t.begin + n / 2;
-    Box3f l, r, lc, rc;
+    VBox l, r;
     for (std::size_t i = t.begin; i < mid; ++i)
-      l.grow(ctx.refs[i].box), lc.grow(centroid(ctx.refs[i]));
+      l.grow(bvh_simd::lower(ctx.refs[i]), bvh_simd::upper(ctx.refs[i]));
     for (std::size_t i = mid; i < t.end; ++i)
-      r.grow(ctx.refs[i].box), rc.grow(centroid(ctx.refs[i]));
+      r.grow(bvh_simd::lower(ctx.refs[i]), bvh_simd::upper(ctx.refs[i]));
+    const Box3f lc = centroid_bounds(ctx.refs.subspan(t.begin, mid - t.begin)).box();
+    const Box3f rc = centroid_bounds(ctx.refs.subspan(mid, t.end - mid)).box();
     axis = 0;
-    return std::pair{Task{t.begin, mid, l, lc, t.depth + 1}, Task{mid, t.end, r, rc, t.depth + 1}};
+    return std::pair{Task{t.begin, mid, l.box(), lc, t.depth + 1},
+                     Task{mid, t.end, r.box(), rc, t.depth + 1}};
   }
   if (s.cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) return std::nullopt;
-  Box3f lc, rc;
+  VBox lc, rc;
   const std::size_t mid = t.begin + partition_refs(refs, map, s, lc, rc);
   axis = s.axis;
-  return std::pair{Task{t.begin, mid, s.left_box, lc, t.depth + 1},
-                   Task{mid, t.end, s.right_box, rc, t.depth + 1}};
+  return std::pair{Task{t.begin, mid, s.left_box.box(), lc.box(), t.depth + 1},
+                   Task{mid, t.end, s.right_box.box(), rc.box(), t.depth + 1}};
 }
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes) {
@@ -225,13 +348,35 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
 
 }  // namespace
 
-std::vector<format::BvhNode> build_binned_nodes(std::vector<PrimRef>& refs,
+std::vector<BuildRef> triangle_build_refs(const Scene& scene, unsigned threads) {
+  std::vector<BuildRef> refs(scene.triangles.size());
+  parallel_for_batched(refs.size(), 65536, threads, [&](std::size_t i) {
+    Box3f box;
+    for (const auto v : scene.triangles[i].v) box.grow(scene.positions[v]);
+    refs[i] = BuildRef::make(box, std::uint32_t(i));
+  });
+  return refs;
+}
+
+std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
                                                 const BvhBuildOptions& options) {
-  Box3f root;
-  for (const PrimRef& r : refs) root.grow(r.box);
+  VBox root;
+  for (const BuildRef& r : refs) root.grow(bvh_simd::lower(r), bvh_simd::upper(r));
   const Context ctx{refs, options, fork_depth(options.threads)};
   std::vector<format::BvhNode> nodes;
-  emit(ctx, {0, refs.size(), root, centroid_bounds(refs), 0}, nodes);
+  // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
+  nodes.reserve(refs.size() + refs.size() / 4 + 1);
+  emit(ctx, {0, refs.size(), root.box(), centroid_bounds(refs).box(), 0}, nodes);
+  return nodes;
+}
+
+std::vector<format::BvhNode> build_binned_nodes(std::vector<PrimRef>& refs,
+                                                const BvhBuildOptions& options) {
+  std::vector<BuildRef> build(refs.size());
+  for (std::size_t i = 0; i < refs.size(); ++i)
+    build[i] = BuildRef::make(refs[i].box, refs[i].prim);
+  std::vector<format::BvhNode> nodes = build_binned_nodes(std::span<BuildRef>(build), options);
+  for (std::size_t i = 0; i < refs.size(); ++i) refs[i] = {build[i].box(), build[i].prim()};
   return nodes;
 }
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "bvh_binned_build.hpp"
 #include "bvh_evh_presplit.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
@@ -92,19 +93,35 @@ void dedupe_leaf_references(std::vector<format::BvhNode>& nodes,
   prim_ids.resize(write);
 }
 
+// The binned builder on its own 32-byte references, made straight from the triangles (or from
+// the presplit's pieces, whose PrimRef array goes before the build).
+std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
+                                    FlatBvh& out) {
+  std::vector<bvh_simd::BuildRef> refs;
+  if (options.presplit == BvhPresplit::kNone) {
+    refs = triangle_build_refs(scene, options.threads);
+  } else {
+    const std::vector<PrimRef> pieces = build_refs(scene, options);
+    refs.resize(pieces.size());
+    for (std::size_t i = 0; i < pieces.size(); ++i)
+      refs[i] = bvh_simd::BuildRef::make(pieces[i].box, pieces[i].prim);
+  }
+  out.nodes = build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options);
+  out.prim_ids.resize(refs.size());
+  for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim();
+  return refs.size();
+}
+
 // The sweep or binned builder's nodes and primitive ids in leaf order; returns the number of
 // build references.
 std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options, FlatBvh& out) {
-  std::vector<PrimRef> refs = build_refs(scene, options);
   if (options.builder == BvhBuilder::kSweep) {
+    std::vector<PrimRef> refs = build_refs(scene, options);
     out.nodes = build_sweep_nodes(refs, out.prim_ids, options);  // reference indices
     for (std::uint32_t& id : out.prim_ids) id = refs[id].prim;
-  } else {
-    out.nodes = build_binned_nodes(refs, options);
-    out.prim_ids.resize(refs.size());
-    for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim;
+    return refs.size();  // the references (28 B each) go before the triangles are copied
   }
-  return refs.size();  // the references (28 B each) go before the triangles are copied
+  return build_binned_flat_nodes(scene, options, out);
 }
 
 }  // namespace

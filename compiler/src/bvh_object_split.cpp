@@ -1,16 +1,47 @@
 #include <algorithm>
+#include <bit>
 #include <vector>
 
 #include "bvh_splits.hpp"
+#include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
 
 namespace {
 
+constexpr std::size_t kParallelSort = 32768;  // sort the three axes apart above this
+
 float split_cost(const BvhBuildOptions& o, float node_area, const format::Box3f& l, std::size_t nl,
                  const format::Box3f& r, std::size_t nr) {
   return o.traversal_cost +
          o.intersection_cost * (l.half_area() * float(nl) + r.half_area() * float(nr)) / node_area;
+}
+
+// A reference's place in the order (centroid, primitive id, position): the centroid's bits made
+// to sort as unsigned integers, -0 as +0 (the comparison took them as equal). Sorting these
+// keys orders the references exactly as the stable sort on (centroid, primitive id) did, at a
+// fraction of the cost (no 28-byte moves, no merge buffer).
+struct SortKey {
+  std::uint64_t key;
+  std::uint32_t index;
+  bool operator<(const SortKey& o) const {
+    return key < o.key || (key == o.key && index < o.index);
+  }
+};
+
+std::uint64_t centroid_key(const PrimRef& r, int axis) {
+  const std::uint32_t bits = std::bit_cast<std::uint32_t>(r.box.centroid(axis) + 0.0f);
+  const std::uint32_t ordered = (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;
+  return (std::uint64_t(ordered) << 32) | r.prim;
+}
+
+void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<SortKey>& keys,
+                      std::vector<PrimRef>& out) {
+  for (std::size_t i = 0; i < refs.size(); ++i)
+    keys[i] = {centroid_key(refs[i], axis), std::uint32_t(i)};
+  std::sort(keys.begin(), keys.end());
+  out.resize(refs.size());
+  for (std::size_t i = 0; i < refs.size(); ++i) out[i] = refs[keys[i].index];
 }
 
 }  // namespace
@@ -86,14 +117,14 @@ ObjectSplit find_sweep_split(std::vector<PrimRef>& refs, const format::Box3f& no
   if (node_area <= 0.0f || refs.size() < 2) return best;
   const std::size_t n = refs.size();
   std::vector<PrimRef> sorted[3];
+  // Near the root the three sorts run on their own threads (each into its own array).
+  const bool parallel = n >= kParallelSort && resolve_thread_count(options.threads) > 1;
+  parallel_for(3, parallel ? options.threads : 1u, [&](std::size_t axis) {
+    std::vector<SortKey> keys(n);
+    sort_by_centroid(refs, int(axis), keys, sorted[axis]);
+  });
   std::vector<format::Box3f> right_box(n);
   for (int axis = 0; axis < 3; ++axis) {
-    sorted[axis] = refs;
-    std::stable_sort(sorted[axis].begin(), sorted[axis].end(),
-                     [axis](const PrimRef& a, const PrimRef& b) {
-                       const float ca = a.box.centroid(axis), cb = b.box.centroid(axis);
-                       return ca < cb || (ca == cb && a.prim < b.prim);
-                     });
     const auto& s = sorted[axis];
     format::Box3f acc;
     for (std::size_t i = n; i-- > 1;) {

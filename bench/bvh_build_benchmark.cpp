@@ -1,0 +1,308 @@
+// Build time of Kiln's BVH builders against Embree 3's, alternating in one process (issue 16,
+// builders part). Each round builds every contestant once, in a fixed order, on one thread and
+// then on all threads; the report gives medians over rounds and the median of per-round ratios,
+// so that load from other processes on a shared machine hits both sides alike.
+//
+// Usage: kiln_bench_bvh_build [--rounds=N] [--only=binned|sbvh] [--sbvh-alpha=X] MESH...
+//   MESH  a file import_scene reads, or [LABEL=]@DIR[/PATTERN] (bench_args.hpp)
+//
+// One thread is timed by the process's CPU time (CLOCK_PROCESS_CPUTIME_ID: Embree may build on a
+// TBB worker rather than the calling thread; time slices lost to other processes do not count),
+// all threads by wall time. Kiln: build_bvh (binary tree, no leaf triangle copy, as the wide
+// layout uses it) and, apart, its collapse to 8 wide. Embree: rtcCommitScene on a fresh scene.
+// Peak memory: the largest net heap growth during the build (Kiln: operator new, counted here;
+// Embree: its memory monitor), per input triangle.
+#include <malloc.h>
+#include <time.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <new>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench_args.hpp"
+#include "kiln/compiler/build.hpp"
+#include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/bvh_collapse.hpp"
+
+#ifdef KILN_BENCH_EMBREE
+#include <embree3/rtcore.h>
+#endif
+
+// ---------------------------------------------------------------------------------------------
+// Heap accounting for Kiln's builds: every operator new of this process, net and peak.
+
+namespace {
+std::atomic<std::int64_t> g_heap_now{0}, g_heap_peak{0};
+
+void note_alloc(std::int64_t bytes) {
+  const std::int64_t now = g_heap_now.fetch_add(bytes) + bytes;
+  std::int64_t peak = g_heap_peak.load();
+  while (now > peak && !g_heap_peak.compare_exchange_weak(peak, now)) {
+  }
+}
+}  // namespace
+
+// GCC 12 takes malloc/free inside a replaced operator new/delete for a mismatch.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+
+void* operator new(std::size_t size) {
+  void* p = std::malloc(size ? size : 1);
+  if (!p) throw std::bad_alloc();
+  note_alloc(std::int64_t(malloc_usable_size(p)));
+  return p;
+}
+void* operator new[](std::size_t size) {
+  return operator new(size);
+}
+void operator delete(void* p) noexcept {
+  if (!p) return;
+  g_heap_now -= std::int64_t(malloc_usable_size(p));
+  std::free(p);
+}
+void operator delete[](void* p) noexcept {
+  operator delete(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  operator delete(p);
+}
+void operator delete[](void* p, std::size_t) noexcept {
+  operator delete(p);
+}
+
+namespace {
+
+double cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+double wall_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Sample {
+  double seconds = 0, peak_bytes = 0;
+};
+
+// One timed build; `threads` 1 -> process CPU time, otherwise wall time.
+template <class Build>
+Sample timed(unsigned threads, Build&& build) {
+  const double c0 = cpu_seconds(), w0 = wall_seconds();
+  const double peak = build();
+  const double s = threads == 1 ? cpu_seconds() - c0 : wall_seconds() - w0;
+  return {s, peak};
+}
+
+float g_sbvh_alpha = kiln::BvhBuildOptions{}.sbvh_alpha;  // --sbvh-alpha=X
+
+struct KilnResult {
+  kiln::BvhStatistics stats;
+  double collapse_seconds = 0;
+};
+
+KilnResult kiln_build(const kiln::Scene& scene, kiln::BvhBuilder builder, unsigned threads,
+                      Sample& sample) {
+  kiln::BvhBuildOptions o;
+  o.builder = builder;
+  o.threads = threads;
+  o.leaf_triangles = false;
+  o.sbvh_alpha = g_sbvh_alpha;
+  KilnResult out;
+  kiln::FlatBvh flat;
+  sample = timed(threads, [&] {
+    const std::int64_t base = g_heap_now.load();
+    g_heap_peak = base;
+    flat = kiln::build_bvh(scene, o);
+    return double(g_heap_peak.load() - base);
+  });
+  out.stats = flat.stats;
+  const double c0 = threads == 1 ? cpu_seconds() : wall_seconds();
+  const kiln::FlatWideBvh wide = kiln::collapse_bvh(flat, 8, scene.triangles.size(), false, &scene);
+  out.collapse_seconds = (threads == 1 ? cpu_seconds() : wall_seconds()) - c0;
+  (void)wide;
+  return out;
+}
+
+#ifdef KILN_BENCH_EMBREE
+std::atomic<std::int64_t> g_embree_now{0}, g_embree_peak{0};
+
+bool track_embree(void*, ssize_t bytes, bool) {
+  const std::int64_t now = g_embree_now.fetch_add(bytes) + bytes;
+  std::int64_t peak = g_embree_peak.load();
+  while (now > peak && !g_embree_peak.compare_exchange_weak(peak, now)) {
+  }
+  return true;
+}
+
+// A fresh scene over copies of the mesh (untimed), committed (timed).
+Sample embree_build(RTCDevice device, const kiln::Scene& scene, RTCBuildQuality quality,
+                    unsigned threads, double& kept_bytes) {
+  RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* v = static_cast<kiln::format::Float3*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                              sizeof(kiln::format::Float3), scene.positions.size()));
+  std::copy(scene.positions.begin(), scene.positions.end(), v);
+  auto* t = static_cast<kiln::format::Triangle*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                              sizeof(kiln::format::Triangle), scene.triangles.size()));
+  std::copy(scene.triangles.begin(), scene.triangles.end(), t);
+  rtcSetGeometryBuildQuality(g, quality);
+  rtcCommitGeometry(g);
+  RTCScene s = rtcNewScene(device);
+  rtcSetSceneBuildQuality(s, quality);
+  rtcAttachGeometry(s, g);
+  rtcReleaseGeometry(g);
+  const std::int64_t base = g_embree_now.load();
+  const Sample sample = timed(threads, [&] {
+    g_embree_peak = base;
+    rtcCommitScene(s);
+    return double(g_embree_peak.load() - base);
+  });
+  kept_bytes = double(g_embree_now.load() - base);
+  rtcReleaseScene(s);
+  return sample;
+}
+
+RTCDevice embree_device(unsigned threads) {
+  const std::string config = threads == 1 ? "threads=1" : "";
+  RTCDevice d = rtcNewDevice(config.c_str());
+  if (!d) {
+    std::fprintf(stderr, "rtcNewDevice failed\n");
+    std::exit(1);
+  }
+  rtcSetDeviceMemoryMonitorFunction(d, track_embree, nullptr);
+  return d;
+}
+#endif
+
+struct Row {
+  std::vector<double> seconds, peak, ratio;
+  double kept = 0;
+  KilnResult kiln;
+};
+
+struct Mesh {
+  std::string label;
+  kiln::Scene scene;
+  std::map<std::string, Row> rows[2];  // [0: one thread, 1: all threads]
+};
+
+std::string g_only;  // --only=binned|sbvh: one builder and its Embree counterpart
+
+void run_rounds(Mesh& m, int rounds, unsigned threads, int t) {
+#ifdef KILN_BENCH_EMBREE
+  // Devices apart per thread count: TBB's global limit is the smallest of the live devices'.
+  RTCDevice device = embree_device(threads);
+#endif
+  auto& rows = m.rows[t];
+  for (int r = 0; r < rounds; ++r) {
+    for (const auto& [name, builder] : {std::pair{"binned", kiln::BvhBuilder::kBinned},
+                                        std::pair{"sbvh", kiln::BvhBuilder::kSpatial}}) {
+      if (!g_only.empty() && g_only != name) continue;
+      Sample s;
+      rows[name].kiln = kiln_build(m.scene, builder, threads, s);
+      rows[name].seconds.push_back(s.seconds);
+      rows[name].peak.push_back(s.peak_bytes);
+#ifdef KILN_BENCH_EMBREE
+      const bool high = builder == kiln::BvhBuilder::kSpatial;
+      const char* ename = high ? "embree-high" : "embree-medium";
+      Row& e = rows[ename];
+      const Sample es =
+          embree_build(device, m.scene, high ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM,
+                       threads, e.kept);
+      e.seconds.push_back(es.seconds);
+      e.peak.push_back(es.peak_bytes);
+      rows[name].ratio.push_back(s.seconds / es.seconds);
+#endif
+    }
+  }
+#ifdef KILN_BENCH_EMBREE
+  rtcReleaseDevice(device);
+#endif
+}
+
+void report(const Mesh& m, unsigned hw) {
+  const double tris = double(m.scene.triangles.size());
+  std::printf("\n### %s (%zu triangles)\n\n", m.label.c_str(), m.scene.triangles.size());
+  std::printf(
+      "| builder | 1T s | %uT s | Mtris/s 1T | Mtris/s %uT | ÷ Embree 1T | ÷ Embree %uT | SAH | "
+      "nodes | peak B/tri | collapse w8 1T s |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+      "---:|\n",
+      hw, hw, hw);
+  for (const auto& [name, row1] : m.rows[0]) {
+    const Row& row2 = m.rows[1].at(name);
+    const double s1 = median(row1.seconds), s2 = median(row2.seconds);
+    const bool kiln = !row1.ratio.empty() || name == "binned" || name == "sbvh";
+    std::printf("| %s | %.4f | %.4f | %.2f | %.2f | ", name.c_str(), s1, s2, tris / s1 * 1e-6,
+                tris / s2 * 1e-6);
+    if (!row1.ratio.empty())
+      std::printf("%.2f× | %.2f× | ", median(row1.ratio), median(row2.ratio));
+    else
+      std::printf("– | – | ");
+    if (kiln)
+      std::printf("%.3f | %llu | %.1f | %.4f |\n", row1.kiln.stats.sah_cost,
+                  (unsigned long long)row1.kiln.stats.node_count, median(row1.peak) / tris,
+                  row1.kiln.collapse_seconds);
+    else
+      std::printf("– | – | %.1f (kept %.1f) | – |\n", median(row1.peak) / tris, row1.kept / tris);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int rounds = 5;
+  std::vector<Mesh> meshes;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (kiln::bench::parse_number_option(arg, "rounds", rounds)) continue;
+    if (arg.starts_with("--sbvh-alpha=")) {
+      g_sbvh_alpha = std::stof(arg.substr(13));
+      continue;
+    }
+    if (arg.starts_with("--only=")) {
+      g_only = arg.substr(7);
+      continue;
+    }
+    const auto spec = kiln::bench::parse_mesh_spec(arg);
+    if (!spec) return 1;
+    Mesh m;
+    m.label = spec->label;
+    try {
+      m.scene = kiln::import_scene(spec->files, 0);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "%s\n", e.what());
+      return 1;
+    }
+    meshes.push_back(std::move(m));
+  }
+  if (meshes.empty() || rounds < 1) {
+    std::fprintf(stderr, "usage: kiln_bench_bvh_build [--rounds=N] MESH...\n");
+    return 1;
+  }
+  const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
+  std::printf("## kiln_bench_bvh_build: %d rounds, medians; 1T = process CPU time, %uT = wall\n",
+              rounds, hw);
+  for (Mesh& m : meshes) {
+    run_rounds(m, rounds, 1, 0);
+    run_rounds(m, rounds, hw, 1);
+    report(m, hw);
+    std::fflush(stdout);
+  }
+  return 0;
+}

@@ -1,0 +1,165 @@
+// Four-float vectors for the BVH builders: SSE2 (the x86-64 baseline, no dispatch needed) or a
+// portable fallback with the same results. min/max keep the operand order of Box3f::grow
+// (`vmin(x, acc)` is `x < acc ? x : acc`, as std::min(acc, x)), so a box grown here is the same,
+// bit for bit and signed zeros included, as one grown with Box3f in the same order.
+#pragma once
+
+#include <bit>
+#include <cstdint>
+#include <limits>
+
+#include "kiln/formats/vector.hpp"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace kiln::bvh_simd {
+
+#if defined(__SSE2__)
+struct V4 {
+  __m128 v;
+};
+inline V4 load(const float* p) {
+  return {_mm_load_ps(p)};
+}
+inline void store(float* p, V4 a) {
+  _mm_store_ps(p, a.v);
+}
+inline V4 splat(float x) {
+  return {_mm_set1_ps(x)};
+}
+inline V4 set(float x, float y, float z, float w) {
+  return {_mm_setr_ps(x, y, z, w)};
+}
+inline V4 operator+(V4 a, V4 b) {
+  return {_mm_add_ps(a.v, b.v)};
+}
+inline V4 operator-(V4 a, V4 b) {
+  return {_mm_sub_ps(a.v, b.v)};
+}
+inline V4 operator*(V4 a, V4 b) {
+  return {_mm_mul_ps(a.v, b.v)};
+}
+inline V4 vmin(V4 x, V4 acc) {
+  return {_mm_min_ps(x.v, acc.v)};
+}  // x < acc ? x : acc
+inline V4 vmax(V4 x, V4 acc) {
+  return {_mm_max_ps(x.v, acc.v)};
+}  // x > acc ? x : acc
+// Lanes 0-2 of `a`, lane 3 zero.
+inline V4 xyz(V4 a) {
+  return {_mm_and_ps(a.v, _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0)))};
+}
+// `take` ? a : b, lane-wise by a whole-vector condition, without a branch.
+inline V4 select(bool take, V4 a, V4 b) {
+  const __m128 m = _mm_castsi128_ps(_mm_set1_epi32(-std::int32_t(take)));
+  return {_mm_or_ps(_mm_and_ps(m, a.v), _mm_andnot_ps(m, b.v))};
+}
+// Truncating conversion of lanes already clamped to [0, 2^31).
+inline void truncate(V4 a, std::int32_t* out) {
+  _mm_store_si128(reinterpret_cast<__m128i*>(out), _mm_cvttps_epi32(a.v));
+}
+// Bit i set where lane i of a < lane i of b.
+inline int less_mask(V4 a, V4 b) {
+  return _mm_movemask_ps(_mm_cmplt_ps(a.v, b.v));
+}
+#else
+struct V4 {
+  float f[4];
+};
+inline V4 load(const float* p) {
+  return {{p[0], p[1], p[2], p[3]}};
+}
+inline void store(float* p, V4 a) {
+  for (int i = 0; i < 4; ++i) p[i] = a.f[i];
+}
+inline V4 splat(float x) {
+  return {{x, x, x, x}};
+}
+inline V4 set(float x, float y, float z, float w) {
+  return {{x, y, z, w}};
+}
+#define KILN_V4_OP(op)                                                                 \
+  inline V4 operator op(V4 a, V4 b) {                                                  \
+    return {{a.f[0] op b.f[0], a.f[1] op b.f[1], a.f[2] op b.f[2], a.f[3] op b.f[3]}}; \
+  }
+KILN_V4_OP(+)
+KILN_V4_OP(-)
+KILN_V4_OP(*)
+#undef KILN_V4_OP
+inline V4 vmin(V4 x, V4 acc) {
+  V4 r;
+  for (int i = 0; i < 4; ++i) r.f[i] = x.f[i] < acc.f[i] ? x.f[i] : acc.f[i];
+  return r;
+}
+inline V4 vmax(V4 x, V4 acc) {
+  V4 r;
+  for (int i = 0; i < 4; ++i) r.f[i] = x.f[i] > acc.f[i] ? x.f[i] : acc.f[i];
+  return r;
+}
+inline void truncate(V4 a, std::int32_t* out) {
+  for (int i = 0; i < 4; ++i) out[i] = std::int32_t(a.f[i]);
+}
+inline V4 xyz(V4 a) {
+  return {{a.f[0], a.f[1], a.f[2], 0.0f}};
+}
+#endif
+
+/// A build reference in 32 bytes, two aligned vectors: the box's corners, the primitive id in
+/// the lower corner's fourth lane (never used as a float: the upper corner's fourth lane is 0
+/// and the centroid takes only the first three lanes into account).
+struct alignas(16) BuildRef {
+  float lo[4], hi[4];
+  std::uint32_t prim() const { return std::bit_cast<std::uint32_t>(lo[3]); }
+  format::Box3f box() const { return {{lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}}; }
+  static BuildRef make(const format::Box3f& b, std::uint32_t prim) {
+    return {{b.min.x, b.min.y, b.min.z, std::bit_cast<float>(prim)},
+            {b.max.x, b.max.y, b.max.z, 0.0f}};
+  }
+};
+static_assert(sizeof(BuildRef) == 32);
+
+/// A box as two vectors (fourth lanes ignored); empty as Box3f's default.
+struct VBox {
+  V4 lo = splat(std::numeric_limits<float>::infinity());
+  V4 hi = splat(-std::numeric_limits<float>::infinity());
+  void grow(V4 l, V4 h) { lo = vmin(l, lo), hi = vmax(h, hi); }
+  void grow(const VBox& b) { grow(b.lo, b.hi); }
+  format::Box3f box() const {
+    alignas(16) float l[4], h[4];
+    store(l, lo), store(h, hi);
+    return {{l[0], l[1], l[2]}, {h[0], h[1], h[2]}};
+  }
+};
+
+/// Half the surface area of `b`, exactly Box3f::half_area (0 when empty; the same products,
+/// summed in the same order). The fourth lanes must be finite (the builders keep them 0).
+inline float half_area(const VBox& b) {
+#if defined(__SSE2__)
+  if (_mm_movemask_ps(_mm_cmplt_ps(b.hi.v, b.lo.v)) & 7) return 0.0f;
+  const __m128 d = _mm_sub_ps(b.hi.v, b.lo.v);
+  const __m128 p = _mm_mul_ps(d, _mm_shuffle_ps(d, d, _MM_SHUFFLE(3, 0, 2, 1)));  // xy yz zx
+  alignas(16) float q[4];
+  _mm_store_ps(q, p);
+  return q[0] + q[1] + q[2];
+#else
+  return b.box().half_area();
+#endif
+}
+
+/// The lower corner of a reference with the id's lane cleared.
+inline V4 lower(const BuildRef& r) {
+  return xyz(load(r.lo));
+}
+inline V4 upper(const BuildRef& r) {
+  return load(r.hi);
+}
+
+/// The centroid, 0.5 * (lo + hi): lanes 0-2 exactly Box3f::centroid; lane 3 zero (the id bits
+/// are masked off first: as a float they are a denormal, slow in arithmetic).
+inline V4 centroid(const BuildRef& r) {
+  return (xyz(load(r.lo)) + load(r.hi)) * splat(0.5f);
+}
+
+}  // namespace kiln::bvh_simd
