@@ -50,6 +50,7 @@ void PolygonIndexView::validate(const std::string& name) const {
   std::vector<bool> reached(p.nodes.size());
   std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{0, 0}};  // node, depth
   reached[0] = true;
+  std::uint64_t leaf_entries = 0;
   while (!stack.empty()) {
     const auto [index, depth] = stack.back();
     stack.pop_back();
@@ -68,6 +69,9 @@ void PolygonIndexView::validate(const std::string& name) const {
     }
     if (std::uint64_t(n.first) + n.count > p.entries.size())
       fail(name, "leaf " + std::to_string(index) + " has entries out of range");
+    // Leaves own disjoint entry ranges, so the walk below reads each entry at most once.
+    if ((leaf_entries += n.count) > p.entries.size())
+      fail(name, "leaves share entries");
     for (std::uint32_t i = n.first + 1; i < n.first + n.count; ++i)
       if (p.entries[i].polygon <= p.entries[i - 1].polygon)
         fail(name, "entry " + std::to_string(i) + " names a polygon out of order");
