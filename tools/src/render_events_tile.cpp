@@ -1,31 +1,15 @@
 // Heatmap tiles of event counts for `kiln serve`: the colours of `kiln render`'s event heatmap
 // (render_events.cpp), one block per cube cell, on a transparent background so the polygon base
-// layer shows through; PNG with alpha by stb_image_write (compiled here, static).
+// layer shows through (encoded as PNG with alpha by render_png.cpp).
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
 #include "kiln/tools/render_map.hpp"
 
-#define STB_IMAGE_WRITE_IMPLEMENTATION
-#define STB_IMAGE_WRITE_STATIC
-#define STBI_WRITE_NO_STDIO  // memory only
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wunused-function"
-#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
-#pragma GCC diagnostic ignored "-Wsign-compare"
-#include <stb/stb_image_write.h>
-#pragma GCC diagnostic pop
-
 namespace kiln::render {
 
 namespace {
-
-void append(void* context, void* data, int size) {
-  auto* out = static_cast<std::vector<std::byte>*>(context);
-  const auto* bytes = static_cast<const std::byte*>(data);
-  out->insert(out->end(), bytes, bytes + size);
-}
 
 void fill_block(ImageRgba& image, std::uint32_t x0, std::uint32_t y0, std::uint32_t side, Rgb c) {
   for (std::uint32_t y = y0; y < std::min(image.height, y0 + side); ++y)
@@ -36,14 +20,6 @@ void fill_block(ImageRgba& image, std::uint32_t x0, std::uint32_t y0, std::uint3
 }
 
 }  // namespace
-
-std::vector<std::byte> encode_png_rgba(const ImageRgba& image) {
-  std::vector<std::byte> out;
-  if (!stbi_write_png_to_func(append, &out, int(image.width), int(image.height), 4,
-                              image.rgba.data(), int(image.width * 4)))
-    throw std::runtime_error("PNG encoding failed");
-  return out;
-}
 
 std::uint32_t event_levels(std::uint64_t top) {
   return std::max(1u, std::uint32_t(std::lround(std::log2(1.0 + double(top)))));

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "kiln/tools/render.hpp"
+#include "kiln/tools/render_map.hpp"
 
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #define STB_IMAGE_WRITE_STATIC
@@ -109,6 +110,17 @@ std::vector<std::byte> encode_png(const Image& image) {
   std::vector<std::byte> png;
   if (stbi_write_png_to_func(append, &png, int(image.width), int(image.height), 3,
                              image.pixels.data(), int(image.width * 3)) == 0)
+    throw std::runtime_error("PNG encoding failed (out of memory?)");
+  return png;
+}
+
+std::vector<std::byte> encode_png_rgba(const ImageRgba& image) {
+  if (image.width == 0 || image.height == 0 || image.width > std::uint32_t(INT32_MAX / 4) ||
+      image.rgba.size() != std::size_t(image.width) * image.height * 4)
+    throw std::runtime_error("cannot encode an empty, malformed or over-wide image");
+  std::vector<std::byte> png;
+  if (stbi_write_png_to_func(append, &png, int(image.width), int(image.height), 4,
+                             image.rgba.data(), int(image.width * 4)) == 0)
     throw std::runtime_error("PNG encoding failed (out of memory?)");
   return png;
 }
