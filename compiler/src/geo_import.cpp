@@ -1,6 +1,7 @@
 // Which inputs are 2D, and reading one from its path (a trailing .zst inflated first).
 #include <algorithm>
 #include <cctype>
+#include <stdexcept>
 #include <string>
 
 #include "kiln/compiler/geo_import.hpp"
@@ -22,6 +23,22 @@ std::string_view without_zst(std::string_view name) {
 
 bool is_csv_input_name(std::string_view name) {
   return ends_with_nocase(without_zst(name), ".csv");
+}
+
+void resolve_point_columns(GeoImportOptions& options, const std::string& lon_column,
+                           const std::string& lat_column, std::span<const std::string> inputs) {
+  const auto fold = [](std::string& xy, const std::string& lonlat, const char* flags) {
+    if (lonlat.empty()) return;
+    if (!xy.empty() && xy != lonlat) throw std::invalid_argument(std::string(flags) + " differ");
+    xy = lonlat;
+  };
+  fold(options.x_column, lon_column, "--lon-column and --x-column");
+  fold(options.y_column, lat_column, "--lat-column and --y-column");
+  const bool csv = std::any_of(inputs.begin(), inputs.end(),
+                               [](const std::string& input) { return is_csv_input_name(input); });
+  if (!csv && (!options.x_column.empty() || !options.y_column.empty()))
+    throw std::invalid_argument(
+        "--lon-column/--lat-column (--x-column/--y-column) apply to a CSV input only");
 }
 
 bool is_geo_input_name(std::string_view name) {

@@ -83,18 +83,7 @@ void read_layer_options(BuildOptions& options, const py::dict& o) {
   options.geo.x_column = text("x_column");
   options.geo.y_column = text("y_column");
   options.geo.skip_invalid = o.contains("skip_invalid") && py::bool_(o["skip_invalid"]);
-  const auto column = [](std::string& xy, const std::string& lonlat, const char* flags) {
-    if (lonlat.empty()) return;
-    if (!xy.empty() && xy != lonlat) throw std::invalid_argument(std::string(flags) + " differ");
-    xy = lonlat;
-  };
-  column(options.geo.x_column, text("lon_column"), "--lon-column and --x-column");
-  column(options.geo.y_column, text("lat_column"), "--lat-column and --y-column");
-  bool csv = false;
-  for (const auto& input : options.inputs) csv = csv || is_csv_input_name(input);
-  if (!csv && (!options.geo.x_column.empty() || !options.geo.y_column.empty()))
-    throw std::invalid_argument(
-        "--lon-column/--lat-column (--x-column/--y-column) apply to a CSV input only");
+  resolve_point_columns(options.geo, text("lon_column"), text("lat_column"), options.inputs);
   options.events.lat = text("lat"), options.events.lon = text("lon");
   options.events.time = text("time");
   for (const auto& c : strings_of(o.contains("category") ? o["category"] : py::none(), "category"))

@@ -18,6 +18,7 @@
 #include "kiln/compiler/advise.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/build_job.hpp"
+#include "kiln/compiler/geo_import.hpp"
 #include "kiln/compiler/structure_builder.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/parallel.hpp"
@@ -159,19 +160,7 @@ BuildOptions build_options(const BuildArgs& args) {
     options.events.categories.push_back(parse_event_category(category));
   options.geo = args.geo;
   options.events.skip_invalid = args.geo.skip_invalid;  // one --skip-invalid for both readers
-  // --lon-column/--lat-column are --x-column/--y-column for geographic data.
-  const auto column = [](std::string& xy, const std::string& lonlat, const char* flags) {
-    if (lonlat.empty()) return;
-    if (!xy.empty() && xy != lonlat) throw std::invalid_argument(std::string(flags) + " differ");
-    xy = lonlat;
-  };
-  column(options.geo.x_column, args.lon_column, "--lon-column and --x-column");
-  column(options.geo.y_column, args.lat_column, "--lat-column and --y-column");
-  const bool csv = std::any_of(args.inputs.begin(), args.inputs.end(),
-                               [](const std::string& input) { return is_csv_input_name(input); });
-  if (!csv && (!options.geo.x_column.empty() || !options.geo.y_column.empty()))
-    throw std::invalid_argument(
-        "--lon-column/--lat-column (--x-column/--y-column) apply to a CSV input only");
+  resolve_point_columns(options.geo, args.lon_column, args.lat_column, args.inputs);
   return options;
 }
 

@@ -49,6 +49,12 @@ inline constexpr std::size_t kGeoJsonMaxDepth = 64;
 bool is_geo_input_name(std::string_view name);
 bool is_csv_input_name(std::string_view name);
 
+/// Folds `--lon-column/--lat-column` (geographic names) into `options.x_column/y_column` and
+/// checks them against the inputs: throws std::invalid_argument when a pair differs or when
+/// columns are named but no input is CSV. kiln build and the Python module's build share it.
+void resolve_point_columns(GeoImportOptions& options, const std::string& lon_column,
+                           const std::string& lat_column, std::span<const std::string> inputs);
+
 /// A GeoJSON FeatureCollection, Feature or bare geometry: Polygon / MultiPolygon (with holes)
 /// make a polygon layer, Point / MultiPoint a point table; a file mixing both is refused.
 /// Throws ImportError.
