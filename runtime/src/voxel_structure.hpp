@@ -48,6 +48,16 @@ class VoxelStructure final : public StructureView, public RayQueries, public Occ
     });
   }
   Hit closest(const Ray& ray) const override { return view_.intersect(ray); }
+  bool closest_voxel(const Ray& ray, VoxelHit& out) const override {
+    out = view_.intersect(ray);
+    return true;
+  }
+  bool has_colors() const override {
+    if constexpr (requires(const V& v) { v.has_colors(); })
+      return view_.has_colors();
+    else
+      return false;
+  }
   SurfaceHit intersect_counting(const Ray& ray, Cost& cost) const override {
     const VoxelHit h = view_.intersect_counting(ray, cost);
     SurfaceHit surface{h};

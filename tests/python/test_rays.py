@@ -19,7 +19,7 @@ def cli_trace(tmp, blob, accel, org, dirs, any_hit=False, tmin=0.0, tmax=np.inf)
     records.tofile(rays)
     run_cli("trace", blob, "--rays", rays, "--out", hits, "--accel", accel,
             *(["--any-hit"] if any_hit else []))
-    return np.fromfile(hits, dtype=VOXEL_HIT if accel == "dag" else HIT)
+    return np.fromfile(hits, dtype=VOXEL_HIT if accel in ("dag", "esvo") else HIT)
 
 
 @pytest.mark.parametrize("accel", ["bvh", "kdtree"])
@@ -139,3 +139,33 @@ def test_depth_image_example(tmp):
     subprocess.run([sys.executable, str(ROOT / "examples" / "python" / "depth_image.py"), "",
                     str(out)], check=True, capture_output=True, env=dict(os.environ))
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_esvo_hits_carry_the_stored_colour(tmp):
+    """An ESVO of a one-colour mesh stores that colour on every voxel: the hits' `color` field
+    is the input's RGBA, misses are zero, and the rest of the record equals `kiln trace`."""
+    ply = tmp / "orange_tetra.ply"
+    corners = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+    faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+    ply.write_text("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n"
+                   "property float y\nproperty float z\nproperty uchar red\n"
+                   "property uchar green\nproperty uchar blue\nproperty uchar alpha\n"
+                   "element face 4\nproperty list uchar int vertex_indices\nend_header\n" +
+                   "".join(f"{x} {y} {z} 200 100 50 255\n" for x, y, z in corners) +
+                   "".join(f"3 {a} {b} {c}\n" for a, b, c in faces))
+    blob_path = tmp / "orange.kiln"
+    run_cli("build", ply, "-o", blob_path, "--accel", "esvo:resolution=32")
+    rng = np.random.default_rng(3)
+    n = 500
+    org = np.tile(np.float32([2.0, 2.0, 2.0]), (n, 1))
+    dirs = (rng.uniform(0.0, 0.6, (n, 3)) - org).astype(np.float32)
+    with kiln.open(blob_path) as blob:
+        hits = blob["esvo"].intersect(org, dirs)
+    assert "color" in hits.dtype.names and hits["color"].dtype == np.uint8
+    hit = ~np.isinf(hits["t"])
+    assert 50 < hit.sum() < n
+    np.testing.assert_array_equal(hits["color"][hit], np.tile([200, 100, 50, 255], (hit.sum(), 1)))
+    assert not hits["color"][~hit].any()
+    cli = cli_trace(tmp, blob_path, "esvo", org, dirs)
+    np.testing.assert_array_equal(hits["t"], cli["t"])
+    np.testing.assert_array_equal(hits["normal"], cli["normal"])

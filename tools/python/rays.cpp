@@ -33,7 +33,16 @@ struct VoxelHitRow {
 };
 static_assert(sizeof(VoxelHitRow) == 72 && offsetof(VoxelHitRow, normal) == 48);
 
-py::dtype make_hit_dtype(bool voxel) {
+/// A voxel structure that stores colours adds the hit voxel's RGBA8 colour.
+struct VoxelColorRow {
+  VoxelHitRow voxel;
+  std::uint8_t color[4];
+};
+static_assert(sizeof(VoxelColorRow) == 80 && offsetof(VoxelColorRow, color) == 72);
+
+/// kind 0: triangles; 1: voxels; 2: voxels with colours.
+py::dtype make_hit_dtype(int kind) {
+  const bool voxel = kind > 0;
   py::list fields;
   fields.append(py::make_tuple("t", "<f4"));
   fields.append(py::make_tuple("prim", "<i8"));
@@ -44,16 +53,18 @@ py::dtype make_hit_dtype(bool voxel) {
     fields.append(py::make_tuple("normal", "<f4", py::make_tuple(3)));
     fields.append(py::make_tuple("face_normal", "<f4", py::make_tuple(3)));
   }
+  if (kind == 2) fields.append(py::make_tuple("color", "u1", py::make_tuple(4)));
   return py::dtype::from_args(
       py::module_::import("numpy").attr("dtype")(fields, py::arg("align") = true));
 }
 
 /// The result dtypes, made once (a small batch would otherwise spend more on them than on its
 /// rays). Leaked on purpose: a static py::object would be released after the interpreter.
-const py::dtype& hit_dtype(bool voxel) {
-  static const py::dtype* const dtypes[2] = {new py::dtype(make_hit_dtype(false)),
-                                             new py::dtype(make_hit_dtype(true))};
-  return *dtypes[voxel];
+const py::dtype& hit_dtype(int kind) {
+  static const py::dtype* const dtypes[3] = {new py::dtype(make_hit_dtype(0)),
+                                             new py::dtype(make_hit_dtype(1)),
+                                             new py::dtype(make_hit_dtype(2))};
+  return *dtypes[kind];
 }
 
 /// A batch of rays read from Python: origins and directions (n, 3) or one (3,) row broadcast,
@@ -165,17 +176,35 @@ void trace_rows(const RayQueries& q, const RayBatch& b, unsigned threads, Row* r
   });
 }
 
+/// Rows with colours: each valid ray cast by closest_voxel (the same cast trace_records runs,
+/// plus the colour lookup); an invalid ray is a miss.
+void color_rows(const RayQueries& q, const RayBatch& b, unsigned threads, VoxelColorRow* rows) {
+  const float *o = b.org.data(), *d = b.dir.data(), *lo = b.tmin.data(), *hi = b.tmax.data();
+  parallel_for((b.count + kBatch - 1) / kBatch, threads, [&](std::size_t task) {
+    for (std::size_t i = task * kBatch; i < std::min(b.count, (task + 1) * kBatch); ++i) {
+      VoxelHit h;  // a miss
+      if (const auto ray = b.ray(i, o, d, lo, hi)) q.closest_voxel(*ray, h);
+      rows[i].voxel = row_of(to_record(h));
+      std::memcpy(rows[i].color, &h.color, sizeof rows[i].color);  // r in the low byte
+    }
+  });
+}
+
 py::array intersect(const Structure& s, py::handle origins, py::handle directions, py::handle tmin,
                     py::handle tmax, const py::object& threads_arg) {
   const RayQueries& q = s.need(&StructureView::rays, "intersect");
   const unsigned threads = thread_count(threads_arg);
   const RayBatch batch(origins, directions, tmin, tmax);
   const bool voxel = q.record_size() == sizeof(VoxelHitRecord);
-  py::array out(hit_dtype(voxel), std::vector<py::ssize_t>{py::ssize_t(batch.count)});
+  const bool colors = voxel && q.has_colors();
+  py::array out(hit_dtype(int(voxel) + int(colors)),
+                std::vector<py::ssize_t>{py::ssize_t(batch.count)});
   void* data = out.mutable_data();
   {
     py::gil_scoped_release release;
-    if (voxel)
+    if (colors)
+      color_rows(q, batch, threads, static_cast<VoxelColorRow*>(data));
+    else if (voxel)
       trace_rows<VoxelHitRecord>(q, batch, threads, static_cast<VoxelHitRow*>(data));
     else
       trace_rows<Hit>(q, batch, threads, static_cast<HitRow*>(data));
@@ -211,7 +240,8 @@ void bind_rays(py::class_<Structure>& structure) {
            py::arg("tmin") = 0.0f, py::arg("tmax") = inf, py::arg("threads") = py::none(),
            R"(Closest hit of each ray: a structured array with t (float32, inf on a miss), prim
 (int64, -1 on a miss), u, v (float32 barycentrics); voxel structures add voxel (int64 x 3),
-normal and face_normal (float32 x 3). origins and directions are (n, 3) (or one (3,) row for
+normal and face_normal (float32 x 3), and color (uint8 x 4, RGBA) when the structure stores
+colours. origins and directions are (n, 3) (or one (3,) row for
 all), converted to float32; tmin and tmax are numbers or (n,). A ray with a NaN or infinite
 coordinate, or a NaN bound, is a miss. Releases the GIL; threads=None uses every core.)")
       .def("occluded", &occluded, py::arg("origins"), py::arg("directions"), py::arg("tmin") = 0.0f,

@@ -43,6 +43,14 @@ class RayQueries {
   virtual Hit closest(const Ray& ray) const = 0;
   /// The closest hit of one ray as a surface, counting the work into `cost`.
   virtual SurfaceHit intersect_counting(const Ray& ray, Cost& cost) const = 0;
+  /// Voxel structures: the closest hit with its voxel, normals and stored colour (the hit
+  /// trace_records writes, plus the colour); false, nothing written, for triangle structures.
+  virtual bool closest_voxel(const Ray& ray, VoxelHit& out) const {
+    (void)ray, (void)out;
+    return false;
+  }
+  /// Whether voxel hits carry a stored colour (an ESVO built from coloured input).
+  virtual bool has_colors() const { return false; }
 };
 
 /// Proximity on a triangle surface: closest point, inside/outside (by ray parity; meaningful

@@ -63,6 +63,8 @@ class EsvoView {
 
   const VoxelGridFrame& frame() const { return frame_; }
   std::uint32_t levels() const { return levels_; }
+  /// Whether hits carry a stored colour (the input had vertex or material colours).
+  bool has_colors() const { return !colors_.empty(); }
   std::span<const std::uint32_t> words() const { return words_; }
   /// What the validation walk found: reachable descriptors, their children (voxels), leaves
   /// among them, and contours.
