@@ -18,7 +18,8 @@
 //           camera, for the meshes named after it (--camera=none: frame the bounds again)
 //   --only=NAME,...  (--rounds) only the contestants of these names (e.g. "sbvh w8 avx2,embree
 //           high"); --one-thread: (--rounds) skip the all-threads passes
-//   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF] or LABEL:greedy (--rounds, repeatable) one more
+//   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF[:LARGEST_FIRST]] or LABEL:greedy
+//           (--rounds, repeatable) one more
 //           contestant "sbvh w8 LABEL" (default kernel): the SBVH collapsed with these costs
 //
 // Every benchmark times itself with std::chrono (manual time) and keeps its fastest iteration,
@@ -1051,12 +1052,15 @@ std::optional<std::pair<std::string, kiln::WideCollapseOptions>> parse_collapse(
   const std::string rest = text.substr(colon + 1);
   if (rest == "greedy") {
     o.greedy = true;
+    o.largest_first = false;  // the collapse as it was
   } else {
     unsigned max_refs = 0;
-    if (std::sscanf(rest.c_str(), "%lf:%lf:%u:%lf", &o.node_cost, &o.packet_cost, &max_refs,
-                    &o.leaf_cost) < 3)
+    int largest_first = 1;
+    if (std::sscanf(rest.c_str(), "%lf:%lf:%u:%lf:%d", &o.node_cost, &o.packet_cost, &max_refs,
+                    &o.leaf_cost, &largest_first) < 3)
       return std::nullopt;
     o.max_leaf_refs = max_refs;
+    o.largest_first = largest_first != 0;
   }
   return std::pair{text.substr(0, colon), o};
 }
@@ -1095,9 +1099,10 @@ int main(int argc, char** argv) {
       const std::optional<std::pair<std::string, kiln::WideCollapseOptions>> c =
           parse_collapse(arg.substr(11));
       if (!c) {
-        std::fprintf(stderr,
-                     "bad collapse in '%s' (LABEL:NODE:PACKET:MAXREFS[:LEAF] or LABEL:greedy)\n",
-                     arg.c_str());
+        std::fprintf(
+            stderr,
+            "bad collapse in '%s' (LABEL:NODE:PACKET:MAXREFS[:LEAF[:0|1]] or LABEL:greedy)\n",
+            arg.c_str());
         return 2;
       }
       g_settings.collapses.push_back(*c);

@@ -94,6 +94,25 @@ TEST(WideBvh, EveryKernelIsWatertightThroughVerticesAndEdges) {
   });
 }
 
+// Every node's used slots by non-increasing surface area (WideCollapseOptions::largest_first).
+template <int W>
+void expect_largest_first(const FlatWideBvh& w) {
+  for (std::size_t i = 0; i < w.stats.node_count; ++i) {
+    format::BvhWideNode<W> n;
+    std::memcpy(&n, w.nodes.data() + i * sizeof n, sizeof n);
+    double previous = INFINITY;
+    for (int k = 0; k < W; ++k) {
+      if (n.child[k] == format::kBvhLeafFlag && n.packets[k] == 0) continue;  // empty slot
+      const float dx = n.bounds[0][1][k] - n.bounds[0][0][k];
+      const float dy = n.bounds[1][1][k] - n.bounds[1][0][k];
+      const float dz = n.bounds[2][1][k] - n.bounds[2][0][k];
+      const double area = dx * dy + dy * dz + dz * dx;  // as the collapse computes it
+      EXPECT_LE(area, previous) << "node " << i << " slot " << k;
+      previous = area;
+    }
+  }
+}
+
 TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
   const Scene scene = test::icosphere(3);
   for (const BvhBuilder builder : kBuilders) {
@@ -104,6 +123,7 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
       for (const bool greedy : {false, true}) {
         WideCollapseOptions c;
         c.greedy = greedy;
+        c.largest_first = !greedy;
         const FlatWideBvh wide =
             collapse_bvh(binary, width, scene.triangles.size(), false, nullptr, c);
         ASSERT_EQ(wide.prim_ids.size(), wide.packets.size() * format::kBvhPacketSize);
@@ -115,6 +135,9 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
         EXPECT_EQ(a, b);
         EXPECT_GT(wide.stats.packet_fill, 0.5);
         EXPECT_LE(wide.stats.max_depth, binary.stats.max_depth);
+        EXPECT_NO_THROW(view_of(wide, BvhKernel::kScalar));  // the view's structural walk
+        if (c.largest_first && width == 8) expect_largest_first<8>(wide);
+        if (c.largest_first && width == 4) expect_largest_first<4>(wide);
       }
   }
   EXPECT_THROW(collapse_bvh(build_bvh(scene, {}), 3, scene.triangles.size()),

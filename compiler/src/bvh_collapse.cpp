@@ -257,7 +257,11 @@ struct Collapser {
         node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
-    const auto kids = gather(i);
+    auto kids = gather(i);
+    if (options.largest_first)  // stable: equal areas keep the tree's order (deterministic)
+      std::stable_sort(kids.begin(), kids.end(), [&](std::uint32_t a, std::uint32_t b) {
+        return half_area(bin.nodes[a]) > half_area(bin.nodes[b]);
+      });
     for (std::size_t k = 0; k < kids.size(); ++k) {
       const auto& b = bin.nodes[kids[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];

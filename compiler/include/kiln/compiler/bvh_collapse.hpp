@@ -39,6 +39,11 @@ struct WideCollapseOptions {
   double leaf_cost = 0.0;    ///< SAH cost of entering a leaf, beyond its packets
   /// A binary subtree of at most this many references may become one leaf.
   std::uint32_t max_leaf_refs = 16;
+  /// A wide node's slots by decreasing surface area, as Embree orders its children "for faster
+  /// shadow rays": the any-hit traversal enters the lowest slot first, and the largest child is
+  /// the likeliest to hold an occluder (closest-hit rays sort by distance anyway). false: the
+  /// binary tree's order.
+  bool largest_first = true;
 };
 
 /// Collapses `binary` into `width` (4 or 8) children per node. Default: the dynamic programme of
