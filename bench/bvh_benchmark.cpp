@@ -16,6 +16,11 @@
 //           median Mrays/s and the median of the per-round Kiln ÷ Embree ratios
 //   --camera  primary rays (and the hits diffuse and shadow rays start from) from this pinhole
 //           camera, for the meshes named after it (--camera=none: frame the bounds again)
+//   --only=NAME,...  (--rounds) only the contestants of these names (e.g. "sbvh w8 avx2,embree
+//           high"); --one-thread: (--rounds) skip the all-threads passes
+//   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF[:LARGEST_FIRST]] or LABEL:greedy
+//           (--rounds, repeatable) one more
+//           contestant "sbvh w8 LABEL" (default kernel): the SBVH collapsed with these costs
 //
 // Every benchmark times itself with std::chrono (manual time) and keeps its fastest iteration,
 // which feeds the counters and the Markdown tables printed at the end: on a small, shared machine
@@ -281,8 +286,11 @@ struct MeshCase {
 struct Settings {
   std::size_t rays = 200000;
   std::uint64_t seed = 1;
-  int iterations = 0;  // 0: by mesh size
-  int rounds = 0;      // > 0: the alternating comparison instead of the benchmarks
+  int iterations = 0;             // 0: by mesh size
+  int rounds = 0;                 // > 0: the alternating comparison instead of the benchmarks
+  std::vector<std::string> only;  // --rounds: contestants kept (empty: all)
+  bool one_thread = false;        // --rounds: no all-threads passes
+  std::vector<std::pair<std::string, kiln::WideCollapseOptions>> collapses;
 };
 
 Settings g_settings;
@@ -813,17 +821,49 @@ Contestant kiln_contestant(std::string name, View view, double bytes_per_triangl
           }};
 }
 
+// Whether --only keeps some contestant whose name starts with `prefix`.
+bool wanted(const std::string& prefix) {
+  if (g_settings.only.empty()) return true;
+  return std::any_of(g_settings.only.begin(), g_settings.only.end(),
+                     [&](const std::string& n) { return n.starts_with(prefix); });
+}
+
+// The --collapse variants of the SBVH's 8-wide layout, default kernel.
+void add_collapse_variants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Contestant>& out) {
+  const std::size_t triangles = mesh.scene.triangles.size();
+  for (const auto& [label, options] : g_settings.collapses) {
+    const std::string key = "sbvh w8 " + label;
+    const std::string name = key + " " + kiln::bvh_kernel_name(kiln::bvh_auto_kernel());
+    if (!wanted(name)) continue;
+    const kiln::FlatBvh& flat = bvh_for(mesh, kiln::BvhBuilder::kSpatial);
+    const auto& w =
+        layouts.wide.emplace(key, kiln::collapse_bvh(flat, 8, triangles, false, nullptr, options))
+            .first->second;
+    auto& nodes = layouts.nodes.emplace(key, kiln::AlignedBuffer(w.nodes.size(), 64)).first->second;
+    std::memcpy(nodes.data(), w.nodes.data(), w.nodes.size());
+    std::printf("- %s: %llu nodes, %llu packets, fill %.3f, %.1f B/tri\n", key.c_str(),
+                (unsigned long long)w.stats.node_count, (unsigned long long)w.stats.packet_count,
+                w.stats.packet_fill, w.stats.bytes_per_triangle);
+    out.push_back(kiln_contestant(
+        name, kiln::BvhWideView(8, false, nodes.bytes(), w.packets, w.prim_ids, key),
+        w.stats.bytes_per_triangle));
+  }
+}
+
 void add_kiln_contestants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Contestant>& out) {
   const std::size_t triangles = mesh.scene.triangles.size();
   for (const auto builder : {kiln::BvhBuilder::kSpatial, kiln::BvhBuilder::kBinned}) {
-    const kiln::FlatBvh& flat = bvh_for(mesh, builder);
     const std::string b = builder == kiln::BvhBuilder::kSpatial ? "sbvh" : "bvh";
-    out.push_back(kiln_contestant(b + " w2",
-                                  kiln::BvhView(flat.nodes, flat.triangles, flat.prim_ids),
-                                  flat.stats.bytes_per_triangle));
+    if (!wanted(b + " ")) continue;
+    const kiln::FlatBvh& flat = bvh_for(mesh, builder);
+    if (wanted(b + " w2"))
+      out.push_back(kiln_contestant(b + " w2",
+                                    kiln::BvhView(flat.nodes, flat.triangles, flat.prim_ids),
+                                    flat.stats.bytes_per_triangle));
     for (const auto& [width, quantized] :
          {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
       const std::string key = b + " w" + std::to_string(width) + (quantized ? "q" : "");
+      if (!wanted(key + " ")) continue;
       const auto& w =
           layouts.wide.emplace(key, kiln::collapse_bvh(flat, width, triangles, quantized))
               .first->second;
@@ -836,6 +876,7 @@ void add_kiln_contestants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Cont
         // Every kernel on the SBVH's 8-wide layout; the others with the default kernel.
         const bool all_kernels = builder == kiln::BvhBuilder::kSpatial && width == 8 && !quantized;
         if (!all_kernels && kernel != kiln::bvh_auto_kernel()) continue;
+        if (!wanted(key + " " + kiln::bvh_kernel_name(kernel))) continue;
         out.push_back(kiln_contestant(key + " " + kiln::bvh_kernel_name(kernel),
                                       kiln::BvhWideView(width, w.quantized, nodes.bytes(),
                                                         w.packets, w.prim_ids, key, kernel),
@@ -856,6 +897,7 @@ void add_embree_contestants(MeshCase& mesh, std::vector<std::shared_ptr<EmbreeSc
   for (const Kind k : {Kind{"embree medium", RTC_BUILD_QUALITY_MEDIUM, RTC_SCENE_FLAG_NONE},
                        Kind{"embree high", RTC_BUILD_QUALITY_HIGH, RTC_SCENE_FLAG_NONE},
                        Kind{"embree high robust", RTC_BUILD_QUALITY_HIGH, RTC_SCENE_FLAG_ROBUST}}) {
+    if (!wanted(k.name)) continue;
     auto scene = std::make_shared<EmbreeScene>(make_embree_scene(mesh.scene, k.quality, k.flags));
     const std::int64_t before = g_embree_bytes;
     rtcCommitScene(scene->get());
@@ -962,7 +1004,10 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
       "%uT |\n",
       hardware_threads(), hardware_threads(), hardware_threads());
   std::printf("|---|---|---:|---:|---:|---:|---:|---:|\n");
-  for (const char* kiln_name : {"sbvh w8", "sbvh w8q", "bvh w8", "bvh w8q", "sbvh w4", "sbvh w2"})
+  std::vector<std::string> kiln_names = {"sbvh w8", "sbvh w8q", "bvh w8",
+                                         "bvh w8q", "sbvh w4",  "sbvh w2"};
+  for (const auto& variant : g_settings.collapses) kiln_names.push_back("sbvh w8 " + variant.first);
+  for (const std::string& kiln_name : kiln_names)
     for (const char* embree_name : {"embree medium", "embree high", "embree high robust"}) {
       std::string name = kiln_name;
       if (name.back() != '2') name += " " + auto_kernel;
@@ -980,6 +1025,7 @@ void run_alternating(MeshCase& mesh) {
   std::vector<Contestant> contestants;
   KilnLayouts layouts;
   add_kiln_contestants(mesh, layouts, contestants);
+  add_collapse_variants(mesh, layouts, contestants);
 #ifdef KILN_BENCH_EMBREE
   std::vector<std::shared_ptr<EmbreeScene>> scenes;
   add_embree_contestants(mesh, scenes, contestants);
@@ -990,9 +1036,33 @@ void run_alternating(MeshCase& mesh) {
     const auto& rays = rays_for(mesh, kRayKinds[k]);
     count = rays.size();
     for (int t : {0, 1})
-      times[k][t] = run_rounds(contestants, rays, is_any_hit(kRayKinds[k]), t == 1);
+      times[k][t] = t == 1 && g_settings.one_thread
+                        ? Times(contestants.size(), std::vector<double>(1, kNaN))
+                        : run_rounds(contestants, rays, is_any_hit(kRayKinds[k]), t == 1);
   }
   print_alternating(mesh, contestants, times, count);
+}
+
+// LABEL:NODE:PACKET:MAXREFS or LABEL:greedy.
+std::optional<std::pair<std::string, kiln::WideCollapseOptions>> parse_collapse(
+    const std::string& text) {
+  const std::size_t colon = text.find(':');
+  if (colon == 0 || colon == std::string::npos) return std::nullopt;
+  kiln::WideCollapseOptions o;
+  const std::string rest = text.substr(colon + 1);
+  if (rest == "greedy") {
+    o.greedy = true;
+    o.largest_first = false;  // the collapse as it was
+  } else {
+    unsigned max_refs = 0;
+    int largest_first = 1;
+    if (std::sscanf(rest.c_str(), "%lf:%lf:%u:%lf:%d", &o.node_cost, &o.packet_cost, &max_refs,
+                    &o.leaf_cost, &largest_first) < 3)
+      return std::nullopt;
+    o.max_leaf_refs = max_refs;
+    o.largest_first = largest_first != 0;
+  }
+  return std::pair{text.substr(0, colon), o};
 }
 
 }  // namespace
@@ -1012,6 +1082,31 @@ int main(int argc, char** argv) {
     } catch (const std::exception&) {
       std::fprintf(stderr, "bad number in '%s'\n", arg.c_str());
       return 2;
+    }
+    if (arg.starts_with("--only=")) {
+      for (std::size_t at = 7; at <= arg.size();) {
+        const std::size_t end = std::min(arg.find(',', at), arg.size());
+        g_settings.only.push_back(arg.substr(at, end - at));
+        at = end + 1;
+      }
+      continue;
+    }
+    if (arg == "--one-thread") {
+      g_settings.one_thread = true;
+      continue;
+    }
+    if (arg.starts_with("--collapse=")) {
+      const std::optional<std::pair<std::string, kiln::WideCollapseOptions>> c =
+          parse_collapse(arg.substr(11));
+      if (!c) {
+        std::fprintf(
+            stderr,
+            "bad collapse in '%s' (LABEL:NODE:PACKET:MAXREFS[:LEAF[:0|1]] or LABEL:greedy)\n",
+            arg.c_str());
+        return 2;
+      }
+      g_settings.collapses.push_back(*c);
+      continue;
     }
     if (arg.starts_with("--camera=")) {
       camera = parse_camera(arg.substr(9));

@@ -7,7 +7,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <map>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "kiln/compiler/bvh_builder.hpp"
@@ -92,27 +94,96 @@ TEST(WideBvh, EveryKernelIsWatertightThroughVerticesAndEdges) {
   });
 }
 
+// Every node's used slots by non-increasing surface area (WideCollapseOptions::largest_first).
+template <int W>
+void expect_largest_first(const FlatWideBvh& w) {
+  for (std::size_t i = 0; i < w.stats.node_count; ++i) {
+    format::BvhWideNode<W> n;
+    std::memcpy(&n, w.nodes.data() + i * sizeof n, sizeof n);
+    double previous = INFINITY;
+    for (int k = 0; k < W; ++k) {
+      if (n.child[k] == format::kBvhLeafFlag && n.packets[k] == 0) continue;  // empty slot
+      const float dx = n.bounds[0][1][k] - n.bounds[0][0][k];
+      const float dy = n.bounds[1][1][k] - n.bounds[1][0][k];
+      const float dz = n.bounds[2][1][k] - n.bounds[2][0][k];
+      const double area = dx * dy + dy * dz + dz * dx;  // as the collapse computes it
+      EXPECT_LE(area, previous) << "node " << i << " slot " << k;
+      previous = area;
+    }
+  }
+}
+
 TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
   const Scene scene = test::icosphere(3);
   for (const BvhBuilder builder : kBuilders) {
     BvhBuildOptions o;
     o.builder = builder;
     const FlatBvh binary = build_bvh(scene, o);
-    for (const std::uint32_t width : {4u, 8u}) {
-      const FlatWideBvh wide = collapse_bvh(binary, width, scene.triangles.size());
-      ASSERT_EQ(wide.prim_ids.size(), wide.packets.size() * format::kBvhPacketSize);
-      std::vector<std::uint32_t> a = binary.prim_ids, b = wide.prim_ids;
-      std::sort(a.begin(), a.end());
-      std::sort(b.begin(), b.end());
-      b.erase(std::unique(b.begin(), b.end()), b.end());
-      a.erase(std::unique(a.begin(), a.end()), a.end());
-      EXPECT_EQ(a, b);
-      EXPECT_GT(wide.stats.packet_fill, 0.5);
-      EXPECT_LE(wide.stats.max_depth, binary.stats.max_depth);
-    }
+    for (const std::uint32_t width : {4u, 8u})
+      for (const bool greedy : {false, true}) {
+        WideCollapseOptions c;
+        c.greedy = greedy;
+        c.largest_first = !greedy;
+        const FlatWideBvh wide =
+            collapse_bvh(binary, width, scene.triangles.size(), false, nullptr, c);
+        ASSERT_EQ(wide.prim_ids.size(), wide.packets.size() * format::kBvhPacketSize);
+        std::vector<std::uint32_t> a = binary.prim_ids, b = wide.prim_ids;
+        std::sort(a.begin(), a.end());
+        std::sort(b.begin(), b.end());
+        b.erase(std::unique(b.begin(), b.end()), b.end());
+        a.erase(std::unique(a.begin(), a.end()), a.end());
+        EXPECT_EQ(a, b);
+        EXPECT_GT(wide.stats.packet_fill, 0.5);
+        EXPECT_LE(wide.stats.max_depth, binary.stats.max_depth);
+        EXPECT_NO_THROW(view_of(wide, BvhKernel::kScalar));  // the view's structural walk
+        if (c.largest_first && width == 8) expect_largest_first<8>(wide);
+        if (c.largest_first && width == 4) expect_largest_first<4>(wide);
+      }
   }
   EXPECT_THROW(collapse_bvh(build_bvh(scene, {}), 3, scene.triangles.size()),
                std::invalid_argument);
+}
+
+// The wide tree's SAH cost under the collapse's own model, summed over the stored nodes: every
+// interior child costs its area x node_cost, every leaf its area x packet_cost x its packets.
+template <int W>
+double wide_sah(const FlatWideBvh& w, const WideCollapseOptions& c) {
+  double cost = 0;
+  for (std::size_t i = 0; i < w.stats.node_count; ++i) {
+    format::BvhWideNode<W> n;
+    std::memcpy(&n, w.nodes.data() + i * sizeof n, sizeof n);
+    for (int k = 0; k < W; ++k) {
+      if (n.child[k] == format::kBvhLeafFlag && n.packets[k] == 0) continue;  // empty slot
+      float lo[3], hi[3];
+      format::bvh_child_box(n, k, lo, hi);
+      const double dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+      const double area = dx * dy + dy * dz + dz * dx;
+      cost += (n.child[k] & format::kBvhLeafFlag) ? area * c.packet_cost * n.packets[k]
+                                                  : area * c.node_cost;
+    }
+  }
+  return cost;
+}
+
+// The dynamic programme is optimal over the cuts of the binary tree, and the greedy expansion's
+// tree is one of them: its cost can only be lower or equal, on every mesh and cost setting.
+TEST(WideBvh, SahCollapseCostsNoMoreThanTheGreedyCollapse) {
+  std::map<std::string, Scene> scenes = test::worst_cases();
+  scenes.emplace("icosphere", test::icosphere(4));
+  for (const auto& [name, scene] : scenes) {
+    SCOPED_TRACE(name);
+    const FlatBvh binary = build_bvh(scene, {});  // binned: no duplicate references
+    for (const double packet_cost : {0.5, 1.0, 2.0}) {
+      WideCollapseOptions dp, greedy;
+      dp.packet_cost = greedy.packet_cost = packet_cost;
+      greedy.greedy = true;
+      const FlatWideBvh a = collapse_bvh(binary, 8, scene.triangles.size(), false, nullptr, dp);
+      const FlatWideBvh b = collapse_bvh(binary, 8, scene.triangles.size(), false, nullptr, greedy);
+      const double ca = wide_sah<8>(a, dp), cb = wide_sah<8>(b, dp);
+      EXPECT_LE(ca, cb * (1 + 1e-9)) << "packet cost " << packet_cost;
+      EXPECT_LE(a.packets.size(), b.packets.size() + b.packets.size() / 2);
+    }
+  }
 }
 
 // Every quantised child box contains the float box it encodes.

@@ -1,10 +1,12 @@
-// Greedy SAH-driven collapse of the binary BVH into 4- or 8-wide nodes with packet leaves.
+// SAH-driven collapse of the binary BVH into 4- or 8-wide nodes with packet leaves: the dynamic
+// programme of Ylitie, Karras, Laine (2017) with leaves priced per packet, or a greedy expansion.
 #include "kiln/compiler/bvh_collapse.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -71,17 +73,85 @@ std::vector<std::byte> quantize_all(const std::vector<std::byte>& nodes) {
   return out;
 }
 
+// The SAH dynamic programme over the binary tree (Ylitie et al. 2017). cost(i, k): the least
+// SAH cost of binary subtree i spread over at most k child slots of a wide node; with one slot,
+// i is a leaf (area x packets x packet_cost) or a wide node (area x node_cost plus its subtree
+// spread over W slots). Binary leaves stay leaves.
+template <int W>
+struct CollapseProgramme {
+  std::vector<double> cost;         // [node * W + k - 1]
+  std::vector<std::uint8_t> pick;   // k = 1: 1 = leaf; k > 1: 0 = as k - 1, else slots to the left
+  std::vector<std::uint8_t> split;  // a wide node's slots to the left child (of W)
+
+  CollapseProgramme(const FlatBvh& bin, const std::vector<std::uint32_t>& refs,
+                    const WideCollapseOptions& o)
+      : cost(bin.nodes.size() * W), pick(bin.nodes.size() * W), split(bin.nodes.size()) {
+    // Pre-order: children follow their parent, so a reverse sweep sees them first.
+    for (std::size_t i = bin.nodes.size(); i-- > 0;) {
+      const auto& n = bin.nodes[i];
+      const double area = half_area(n);
+      const double packets =
+          double((refs[i] + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
+      const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
+      double* c = &cost[i * W];
+      std::uint8_t* p = &pick[i * W];
+      if (n.count > 0) {
+        std::fill(c, c + W, leaf);
+        std::fill(p, p + W, std::uint8_t(0));
+        p[0] = 1;
+        continue;
+      }
+      const std::size_t l = i + 1, r = n.offset;
+      double spread[W + 1];  // spread[k]: both children over k slots, k >= 2
+      for (int k = 2; k <= W; ++k) {
+        spread[k] = std::numeric_limits<double>::infinity();
+        for (int left = 1; left < k; ++left) {
+          const double s = cost[l * W + left - 1] + cost[r * W + k - left - 1];
+          if (s < spread[k]) spread[k] = s, p[k - 1] = std::uint8_t(left);
+        }
+      }
+      split[i] = p[W - 1];
+      const double inner = area * o.node_cost + spread[W];
+      const bool as_leaf = refs[i] <= o.max_leaf_refs && leaf <= inner;
+      c[0] = as_leaf ? leaf : inner;
+      p[0] = as_leaf ? 1 : 0;
+      for (int k = 2; k <= W; ++k) {
+        if (c[k - 2] <= spread[k])
+          c[k - 1] = c[k - 2], p[k - 1] = 0;
+        else
+          c[k - 1] = spread[k];
+      }
+    }
+  }
+
+  bool is_leaf(std::uint32_t i) const { return pick[std::size_t(i) * W] == 1; }
+
+  // The slots subtree i takes when given at most k.
+  void collect(const FlatBvh& bin, std::uint32_t i, int k, std::vector<std::uint32_t>& out) const {
+    while (k > 1 && pick[std::size_t(i) * W + k - 1] == 0) --k;
+    if (k == 1 || bin.nodes[i].count > 0) {
+      out.push_back(i);
+      return;
+    }
+    const int left = pick[std::size_t(i) * W + k - 1];
+    collect(bin, i + 1, left, out);
+    collect(bin, bin.nodes[i].offset, k - left, out);
+  }
+};
+
 template <int W>
 struct Collapser {
   const FlatBvh& bin;
   const Scene* scene;  // corners from here when bin.triangles is empty
   FlatWideBvh& out;
-  std::vector<std::uint32_t> refs;       // references under each binary node
-  std::uint64_t lanes_used = 0;          // packet lanes holding a distinct reference
-  std::vector<std::uint32_t> leaf_refs;  // scratch: the leaf being packed
+  const WideCollapseOptions& options;
+  std::vector<std::uint32_t> refs;                // references under each binary node
+  std::uint64_t lanes_used = 0;                   // packet lanes holding a distinct reference
+  std::vector<std::uint32_t> leaf_refs;           // scratch: the leaf being packed
+  std::optional<CollapseProgramme<W>> programme;  // unless greedy
 
-  Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o)
-      : bin(b), scene(s), out(o), refs(b.nodes.size()) {
+  Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
+      : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
     // Pre-order: children follow their parent, so a reverse sweep sees them first.
@@ -89,9 +159,11 @@ struct Collapser {
       const auto& n = bin.nodes[i];
       refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
     }
+    if (!options.greedy) programme.emplace(bin, refs, options);
   }
 
   bool is_leaf(std::uint32_t i) const {
+    if (programme) return programme->is_leaf(i);
     return bin.nodes[i].count > 0 || refs[i] <= format::kBvhPacketSize;
   }
 
@@ -148,10 +220,17 @@ struct Collapser {
     return {format::kBvhLeafFlag | start, std::uint8_t(packets)};
   }
 
-  // The binary nodes that become node `i`'s children: open the largest child until W.
+  // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
+  // the largest child until W.
   std::vector<std::uint32_t> gather(std::uint32_t i) const {
     std::vector<std::uint32_t> kids;
-    if (is_leaf(i)) return {i};
+    if (bin.nodes[i].count > 0 || (!programme && is_leaf(i))) return {i};
+    if (programme) {
+      const int left = programme->split[i];
+      programme->collect(bin, i + 1, left, kids);
+      programme->collect(bin, bin.nodes[i].offset, W - left, kids);
+      return kids;
+    }
     kids = {i + 1, bin.nodes[i].offset};
     while (kids.size() < std::size_t(W)) {
       int best = -1;
@@ -178,7 +257,11 @@ struct Collapser {
         node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
-    const auto kids = gather(i);
+    auto kids = gather(i);
+    if (options.largest_first)  // stable: equal areas keep the tree's order (deterministic)
+      std::stable_sort(kids.begin(), kids.end(), [&](std::uint32_t a, std::uint32_t b) {
+        return half_area(bin.nodes[a]) > half_area(bin.nodes[b]);
+      });
     for (std::size_t k = 0; k < kids.size(); ++k) {
       const auto& b = bin.nodes[kids[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
@@ -197,17 +280,17 @@ struct Collapser {
 }  // namespace
 
 FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
-                         bool quantized, const Scene* scene) {
+                         bool quantized, const Scene* scene, const WideCollapseOptions& options) {
   FlatWideBvh out;
   out.width = width;
   out.quantized = quantized;
   std::uint64_t lanes_used = 0;
   if (width == 4) {
-    Collapser<4> collapser(binary, scene, out);
+    Collapser<4> collapser(binary, scene, out, options);
     collapser.emit(0, 1);
     lanes_used = collapser.lanes_used;
   } else if (width == 8) {
-    Collapser<8> collapser(binary, scene, out);
+    Collapser<8> collapser(binary, scene, out, options);
     collapser.emit(0, 1);
     lanes_used = collapser.lanes_used;
   } else {

@@ -195,6 +195,24 @@ KILN_SIMD void prefetch_children(const Node& n, unsigned mask, const Node* nodes
   }
 }
 
+// Tests a leaf's packets; on a closer hit (kAny: any hit) updates `hit` and `best_ref` and
+// returns true.
+template <bool kAny, bool kCount>
+KILN_SIMD bool test_leaf(const format::BvhTrianglePacket* packets, std::uint32_t first,
+                         std::uint32_t count, const WatertightRay& tri_ray, float tmin, Hit& hit,
+                         std::uint32_t& best_ref, Cost* cost) {
+  bool found = false;
+  for (std::uint32_t p = first; p < first + count; ++p) {
+    if constexpr (kCount) cost->tests += format::kBvhPacketSize;
+    const int lane = test_packet<kAny>(packets[p], tri_ray, tmin, hit.t, hit.t, hit.u, hit.v);
+    if (lane < 0) continue;
+    best_ref = p * format::kBvhPacketSize + std::uint32_t(lane);
+    found = true;
+    if constexpr (kAny) return true;
+  }
+  return found;
+}
+
 /// The one traversal: kAny stops at the first hit and leaves children unordered.
 template <class Node, int W, bool kAny, bool kCount>
 KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost) {
@@ -220,19 +238,11 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
       prefetch_children(n, mask, nodes, packets);
       e = next_child<W, !kAny>(n, mask, dist, stack, top);
     }
-    {
-      const std::uint32_t first = e.word & ~format::kBvhLeafFlag;
-      for (std::uint32_t p = first; p < first + e.packets; ++p) {
-        if constexpr (kCount) cost->tests += format::kBvhPacketSize;
-        const int lane =
-            test_packet<kAny>(packets[p], tri_ray, ray.tmin, hit.t, hit.t, hit.u, hit.v);
-        if (lane < 0) continue;
-        best_ref = p * format::kBvhPacketSize + std::uint32_t(lane);
-        if constexpr (kAny) {
-          hit.prim = view.prim_ids()[best_ref];
-          return hit;
-        }
-      }
+    if (test_leaf<kAny, kCount>(packets, e.word & ~format::kBvhLeafFlag, e.packets, tri_ray,
+                                ray.tmin, hit, best_ref, cost) &&
+        kAny) {
+      hit.prim = view.prim_ids()[best_ref];
+      return hit;
     }
   pop:  // the next subtree that can still hold a closer hit
     do {

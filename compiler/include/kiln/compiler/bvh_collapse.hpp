@@ -30,17 +30,37 @@ struct FlatWideBvh {
   WideBvhStatistics stats;
 };
 
-/// Collapses `binary` into `width` (4 or 8) children per node. Each wide node starts from one
-/// binary node and repeatedly opens the child of largest surface area until it has `width`
-/// children (greedy SAH-driven expansion); a binary subtree of at most four references becomes
-/// one leaf packet, a triangle in two of its binary leaves stored once (SBVH, presplit).
-/// Deterministic and serial. `triangle_count` is the scene's (for bytes per
-/// triangle). `quantized`: child boxes as bytes relative to the node (BvhQuantizedNode), each
-/// containing the float box. Corners come from `binary.triangles`, or, when it is empty (built
-/// with BvhBuildOptions::leaf_triangles off), from `scene` through the primitive ids. Throws
-/// std::invalid_argument for another width, a leaf over 1020 references, (quantized)
-/// coordinates beyond 1e38, or no source of corners.
+/// How the binary tree is cut into wide nodes and leaves.
+struct WideCollapseOptions {
+  /// false: the SAH dynamic programme below; true: the greedy expansion (for comparison).
+  bool greedy = false;
+  double node_cost = 1.0;    ///< SAH cost of visiting one wide node (all its child boxes)
+  double packet_cost = 0.5;  ///< SAH cost of testing one packet of four triangles
+  double leaf_cost = 0.0;    ///< SAH cost of entering a leaf, beyond its packets
+  /// A binary subtree of at most this many references may become one leaf.
+  std::uint32_t max_leaf_refs = 16;
+  /// A wide node's slots by decreasing surface area, as Embree orders its children "for faster
+  /// shadow rays": the any-hit traversal enters the lowest slot first, and the largest child is
+  /// the likeliest to hold an occluder (closest-hit rays sort by distance anyway). false: the
+  /// binary tree's order.
+  bool largest_first = true;
+};
+
+/// Collapses `binary` into `width` (4 or 8) children per node. Default: the dynamic programme of
+/// Ylitie, Karras and Laine (2017) over the binary tree, which picks for every subtree the
+/// cheapest way to spread it over at most `width` child slots, each slot a wide node (area x
+/// node_cost plus its own children) or a leaf priced by its packets (area x (leaf_cost +
+/// packet_cost x ceil(refs / 4))), so leaves fill their packets where the SAH allows.
+/// `options.greedy`: each wide node opens the child of largest surface area until it has `width`
+/// children, and a binary subtree of at most four references becomes one leaf packet. Either way a
+/// triangle in two binary leaves of one wide leaf is stored once (SBVH, presplit). Deterministic
+/// and serial. `triangle_count` is the scene's (for bytes per triangle). `quantized`: child boxes
+/// as bytes relative to the node (BvhQuantizedNode), each containing the float box. Corners come
+/// from `binary.triangles`, or, when it is empty (built with BvhBuildOptions::leaf_triangles off),
+/// from `scene` through the primitive ids. Throws std::invalid_argument for another width, a leaf
+/// over 1020 references, (quantized) coordinates beyond 1e38, or no source of corners.
 FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
-                         bool quantized = false, const Scene* scene = nullptr);
+                         bool quantized = false, const Scene* scene = nullptr,
+                         const WideCollapseOptions& options = {});
 
 }  // namespace kiln
