@@ -464,6 +464,10 @@ TEST(GeoImport, KilnBuildWritesTheLayer) {
                        "and ends at (0, 1)\n");
   r = build("--name-property label --skip-invalid");
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "kiln build: warning: --skip-invalid dropped 1 feature; the first: " +
+                       dir.file("m.geojson") +
+                       ": feature 1 (id b): polygon 0, ring 0 is not closed: it starts at (0, 0) "
+                       "and ends at (0, 1)\n");
   const Blob b = Blob::open_file(blob);
   b.verify();
   const PolygonLayerView layer = b.polygon_layer();

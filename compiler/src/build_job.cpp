@@ -27,6 +27,22 @@ void write_depfile_text(const BuildJob& job, const std::string& text) {
     write_file_atomically(job.depfile, std::as_bytes(std::span<const char>(text)));
 }
 
+// What --skip-invalid dropped: counted in the blob, said once on the terminal with the first
+// reason, so a silently smaller layer is never a surprise.
+void warn_skipped(const Scene& scene, std::vector<std::string>& warnings) {
+  const auto warn = [&](std::uint64_t n, const char* what, const std::string& first) {
+    if (n != 0)
+      warnings.push_back("--skip-invalid dropped " + std::to_string(n) + " " + what +
+                         (n == 1 ? "" : "s") + "; the first: " + first);
+  };
+  if (scene.polygons)
+    warn(scene.polygons->features_skipped, "feature", scene.polygons->first_skipped);
+  if (scene.points2)  // a GeoJSON point table's rows are features
+    warn(scene.points2->rows_skipped, scene.points2->x_column.empty() ? "feature" : "row",
+         scene.points2->first_skipped);
+  if (scene.events) warn(scene.events->rows_skipped, "row", scene.events->first_skipped);
+}
+
 // Imports, compiles and writes the blob straight from its sections (never concatenated in
 // memory); returns what the import read.
 FileAccesses build_and_write(const BuildJob& job, const BuildProgress& progress,
@@ -34,6 +50,7 @@ FileAccesses build_and_write(const BuildJob& job, const BuildProgress& progress,
   Scene scene = import_scene(job.options.inputs, job.options.threads, progress, job.options.limits,
                              job.options.geo, job.options.events);
   report.read_files = scene.accessed.read;
+  warn_skipped(scene, report.warnings);
   const std::string depfile = depfile_text(job, report.read_files);
   if (progress) progress("compile", 0, 1);
   const CompiledBlob blob = compile_blob_pieces(scene, job.options, &report.accels);

@@ -100,7 +100,7 @@ PointTable2 import_csv_points(const std::string& path, std::string_view text,
       format::Double2 point;
       if (const auto error = read_row(fields, column, names, point)) {
         if (!options.skip_invalid) throw ImportError(csv.where(*error));
-        ++table.rows_skipped;
+        if (table.rows_skipped++ == 0) table.first_skipped = csv.where(*error);
       } else {
         table.points.push_back(point);
         table.bounds.grow(point);

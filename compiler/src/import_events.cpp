@@ -326,7 +326,7 @@ EventTable read_event_csv(const std::string& path, std::string_view text,
       const std::string problem = parse_row(fields, index, columns, labels, row);
       if (!problem.empty()) {
         if (!columns.skip_invalid) throw ImportError(csv.where(problem));
-        ++table.rows_skipped;
+        if (table.rows_skipped++ == 0) table.first_skipped = csv.where(problem);
         continue;
       }
       table.points.push_back(row.point);

@@ -177,6 +177,7 @@ class LayerBuilder {
   PointTable2 table_;
   StringColumn ids_, names_;
   std::uint64_t null_geometries_ = 0, degenerate_ = 0, feature_degenerate_ = 0, skipped_ = 0;
+  std::string first_skipped_;
 };
 
 void LayerBuilder::check_kind(Kind kind, const std::string& type, std::size_t index,
@@ -286,7 +287,7 @@ void LayerBuilder::add_feature(const FeatureState& f, std::size_t index, bool in
   } catch (const FeatureError& e) {
     if (!options_.skip_invalid) throw ImportError(where(index, f.id) + e.what);
     rollback();
-    ++skipped_;
+    if (skipped_++ == 0) first_skipped_ = where(index, f.id) + e.what;
   }
   ids_.push(f.id);
   names_.push(f.name);
@@ -304,12 +305,14 @@ GeoInput LayerBuilder::finish() {
     layer_.ids = std::move(ids_), layer_.names = std::move(names_);
     layer_.name_property = options_.name_property;
     layer_.features_skipped = skipped_;
+    layer_.first_skipped = first_skipped_;
     for (const format::Double2& v : layer_.vertices) layer_.bounds.grow(v);
     out.polygons = std::move(layer_);
   } else {
     table_.ids = std::move(ids_), table_.names = std::move(names_);
     table_.name_property = options_.name_property;
     table_.rows_skipped = skipped_;
+    table_.first_skipped = first_skipped_;
     for (const format::Double2& p : table_.points) table_.bounds.grow(p);
     // Point i is feature i when every feature holds exactly one point: no offsets needed.
     bool one_each = table_.feature_points.size() == table_.points.size() + 1;

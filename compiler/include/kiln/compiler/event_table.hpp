@@ -59,6 +59,7 @@ struct EventTable {
   std::vector<std::uint32_t> codes;  ///< category-major: codes[c * rows + r]
   std::string lon_column, lat_column, time_column;
   std::uint64_t rows_skipped = 0;
+  std::string first_skipped;  ///< why the first row --skip-invalid dropped was refused
   /// Every category's labels in one string table (index_event_labels fills them).
   std::vector<std::uint64_t> label_offsets;
   std::string label_bytes;

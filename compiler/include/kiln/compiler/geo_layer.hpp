@@ -41,6 +41,7 @@ struct PolygonLayer {
   StringColumn names;  ///< each feature's `name_property` as text ("" when absent)
   std::string name_property = "name";
   std::uint64_t features_skipped = 0;  ///< by --skip-invalid (empty ranges)
+  std::string first_skipped;           ///< why the first feature it dropped was refused
   format::Box2d bounds;                ///< over every vertex (empty when none)
 
   std::size_t feature_count() const { return feature_polygons.size() - 1; }
@@ -60,6 +61,7 @@ struct PointTable2 {
   std::string x_column, y_column;             ///< a CSV table's coordinate columns ("" for GeoJSON)
   std::string name_property;                  ///< a GeoJSON table's name property ("" for CSV)
   std::uint64_t rows_skipped = 0;             ///< by --skip-invalid
+  std::string first_skipped;                  ///< why the first row it dropped was refused
   format::Box2d bounds;                       ///< over every point (empty when none)
 
   std::size_t feature_count() const {
