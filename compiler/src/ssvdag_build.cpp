@@ -177,26 +177,30 @@ Level merge_level(const Level& below, std::span<const std::uint8_t> below_symmet
 
 namespace {
 
-// Per level below the root, each node's rank once ordered by how many pointers reach it (most
-// first, ties by id): the paper's ordering, which makes most offsets small enough for narrow
-// pointers.
-std::vector<std::vector<std::uint32_t>> ranks_by_references(
-    const std::vector<UniqueLevel>& levels) {
-  std::vector<std::vector<std::uint32_t>> ranks(levels.size());
-  ranks[0] = {0};
+// How many pointers reach each node of each level (the root: none).
+std::vector<std::vector<std::uint64_t>> reference_counts(const std::vector<UniqueLevel>& levels) {
+  std::vector<std::vector<std::uint64_t>> counts(levels.size());
+  counts[0] = {0};
   for (std::size_t l = 1; l < levels.size(); ++l) {
-    std::vector<std::uint64_t> count(levels[l].symmetries.size());
+    counts[l].resize(levels[l].symmetries.size());
     for (const Signature& s : levels[l - 1].nodes)
       for (int o = 0; o < 8; ++o)
-        if (s.v[1 + o] != kAbsent) ++count[s.v[1 + o] >> 3];
-    std::vector<std::uint32_t> order(count.size());
-    std::iota(order.begin(), order.end(), 0u);
-    std::stable_sort(order.begin(), order.end(),
-                     [&](std::uint32_t a, std::uint32_t b) { return count[a] > count[b]; });
-    ranks[l].resize(order.size());
-    for (std::uint32_t r = 0; r < order.size(); ++r) ranks[l][order[r]] = r;
+        if (s.v[1 + o] != kAbsent) ++counts[l][s.v[1 + o] >> 3];
   }
-  return ranks;
+  return counts;
+}
+
+// A level's nodes in layout order: most pointers per word first, ties by id. Narrow pointers
+// reach the first 2^13 words of a level; the paper orders by reference count, and dividing by the
+// node's size packs more of the pointers into that window where sizes differ.
+std::vector<std::uint32_t> layout_order(std::span<const std::uint64_t> count,
+                                        std::span<const std::uint64_t> size) {
+  std::vector<std::uint32_t> order(count.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return count[a] * size[b] > count[b] * size[a];
+  });
+  return order;
 }
 
 bool narrow(std::uint64_t offset) {
@@ -227,28 +231,30 @@ void emit_node(const Signature& s, std::span<const std::uint64_t> offsets,
   words[header] = std::uint16_t(s.v[0] | wide << 8);
 }
 
-// Layout: offsets bottom up (a node's size depends on its children's offsets), words top down.
+// Layout: orders and offsets bottom up (a node's size depends on its children's offsets), then
+// the words top down.
 void lay_out(const std::vector<UniqueLevel>& levels, FlatSsvdag& out) {
   const std::size_t leaf_level = levels.size() - 1;
-  const auto ranks = ranks_by_references(levels);
+  const auto counts = reference_counts(levels);
   std::vector<std::vector<std::uint64_t>> offsets(levels.size());
   std::vector<std::vector<std::uint32_t>> sequence(levels.size());
-  for (std::size_t l = 0; l < levels.size(); ++l) {
-    sequence[l].resize(ranks[l].size());
-    for (std::uint32_t id = 0; id < ranks[l].size(); ++id) sequence[l][ranks[l][id]] = id;
+  sequence[leaf_level] =
+      layout_order(counts[leaf_level], std::vector<std::uint64_t>(counts[leaf_level].size(), 1));
+  offsets[leaf_level].resize(sequence[leaf_level].size());
+  for (std::uint32_t rank = 0; rank < sequence[leaf_level].size(); ++rank) {
+    offsets[leaf_level][sequence[leaf_level][rank]] = rank;
+    out.leaves.push_back(levels.back().leaves[sequence[leaf_level][rank]]);
   }
-  offsets[leaf_level].assign(ranks[leaf_level].begin(), ranks[leaf_level].end());
-  for (const std::uint32_t id : sequence[leaf_level])
-    out.leaves.push_back(levels.back().leaves[id]);
   for (std::size_t l = leaf_level; l-- > 0;) {
-    offsets[l].resize(ranks[l].size());
-    std::uint64_t word = 0;
-    for (const std::uint32_t id : sequence[l]) {
-      offsets[l][id] = word, word += 1;
+    std::vector<std::uint64_t> size(levels[l].nodes.size(), 1);
+    for (std::size_t id = 0; id < size.size(); ++id)
       for (int o = 0; o < 8; ++o)
         if (const std::uint32_t ref = levels[l].nodes[id].v[1 + o]; ref != kAbsent)
-          word += narrow(offsets[l + 1][ref >> 3]) ? 1 : 2;
-    }
+          size[id] += narrow(offsets[l + 1][ref >> 3]) ? 1 : 2;
+    sequence[l] = layout_order(counts[l], size);
+    offsets[l].resize(size.size());
+    std::uint64_t word = 0;
+    for (const std::uint32_t id : sequence[l]) offsets[l][id] = word, word += size[id];
   }
   for (std::size_t l = 0; l < leaf_level; ++l) {
     auto& stats = out.level_stats[l];
