@@ -68,6 +68,7 @@ const char* const kVoxelStructures[] = {
     "dag:resolution=64",
     "dag:resolution=64,normals=true",
     "esvo:resolution=64,no-contours=true",
+    "ssvdag:resolution=64",
 };
 
 // A blob kept alive with its (aligned) bytes, opened from memory.

@@ -14,13 +14,15 @@ extern const StructureBuilder kBvhBuilder, kSbvhBuilder, kKdTreeBuilder, kPointT
 extern const StructureBuilder kNanocubeBuilder;      // nanocube_entry.cpp (issue 18)
 extern const StructureBuilder kPolygonIndexBuilder;  // polygon_index_entry.cpp
 extern const StructureBuilder kQuadtreeBuilder;      // quadtree_entry.cpp
+extern const StructureBuilder kSsvdagBuilder;        // ssvdag_entry.cpp (issue 20)
 
 namespace {
 
 const StructureBuilder* const kBuilders[] = {
     &kBvhBuilder,        &kSbvhBuilder,         &kKdTreeBuilder,   &kPointTreeBuilder,
     &kVoxelDagBuilder,   &kEsvoBuilder,         &kOctreeBuilder,   &kGridBuilder,
-    &kNestedGridBuilder, &kPolygonIndexBuilder, &kQuadtreeBuilder, &kNanocubeBuilder};
+    &kNestedGridBuilder, &kPolygonIndexBuilder, &kQuadtreeBuilder, &kNanocubeBuilder,
+    &kSsvdagBuilder};
 
 std::string join(const std::vector<std::string>& items) {
   std::string text;

@@ -16,12 +16,14 @@ extern const StructureKind kGridKind, kNestedGridKind;  // grid_kind.cpp
 extern const StructureKind kNanocubeKind;               // nanocube_kind.cpp
 extern const StructureKind kPolygonIndexKind;           // polygon_index_kind.cpp
 extern const StructureKind kQuadtreeKind;               // quadtree_kind.cpp
+extern const StructureKind kSsvdagKind;                 // ssvdag_kind.cpp
 
 namespace {
 
 constexpr const StructureKind* kKinds[] = {
-    &kBvhKind,    &kSbvhKind, &kKdTreeKind,     &kPointTreeKind,    &kVoxelDagKind, &kEsvoKind,
-    &kOctreeKind, &kGridKind, &kNestedGridKind, &kPolygonIndexKind, &kQuadtreeKind, &kNanocubeKind,
+    &kBvhKind,      &kSbvhKind,     &kKdTreeKind, &kPointTreeKind,  &kVoxelDagKind,
+    &kEsvoKind,     &kOctreeKind,   &kGridKind,   &kNestedGridKind, &kPolygonIndexKind,
+    &kQuadtreeKind, &kNanocubeKind, &kSsvdagKind,
 };
 
 }  // namespace

@@ -1,0 +1,47 @@
+// Symmetry-aware sparse voxel DAG construction (Villanueva, Marton, Gobbetti 2016) from the same
+// 4x4x4 leaves as the voxel DAG, producing the words and leaves of formats/ssvdag.hpp.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "kiln/compiler/voxelizer.hpp"
+
+namespace kiln {
+
+/// One level (root = 0, the last = the 4x4x4 leaves): node counts of the plain octree, of the
+/// DAG (identical subtrees merged) and of the SSVDAG (subtrees equal up to mirroring merged).
+struct SsvdagLevelStats {
+  std::uint64_t svo_nodes = 0, dag_nodes = 0, ssvdag_nodes = 0, bytes = 0, first_word = 0;
+  std::uint64_t wide_pointers = 0, narrow_pointers = 0;  // pointers from this level's nodes
+};
+
+/// The SSVDAG as laid out in its two sections, with the statistics kiln dump prints.
+struct FlatSsvdag {
+  std::uint32_t levels = 0;           // log2(resolution)
+  std::vector<std::uint16_t> words;   // SSVN: interior levels
+  std::vector<std::uint64_t> leaves;  // SSVL: 4x4x4 leaf masks
+  std::uint32_t root_mirror = 0;
+  std::vector<SsvdagLevelStats> level_stats;  // levels - 1 entries: 0 .. levels - 2 (leaves)
+  std::uint64_t voxel_count = 0, svo_bytes = 0, dag_bytes = 0, ssvdag_bytes = 0;
+  std::uint64_t symmetry_merges = 0;  // sum over levels of dag_nodes - ssvdag_nodes
+};
+
+/// Bottom up from the leaves: every node is brought to its canonical form, the least of its
+/// eight mirror images, and nodes with equal canonical forms merge; a pointer stores the mirror
+/// that turns the canonical node into the subtree it stands for. Then each level is ordered by
+/// reference count and laid out with narrow or wide pointers. Canonical forms are computed on
+/// `threads` threads, ids assigned in Morton order on one, so the output depends on the voxels
+/// alone. `leaves` as build_voxel_dag takes them (keys ascending, masks non-zero, non-empty).
+FlatSsvdag build_ssvdag(const VoxelLeaves& leaves, std::uint32_t resolution, unsigned threads);
+FlatSsvdag build_ssvdag(std::span<const std::uint64_t> codes, std::uint32_t resolution,
+                        unsigned threads);
+
+/// The interior levels' first words, as SsvdagView takes them.
+std::vector<std::uint64_t> ssvdag_level_first_words(const FlatSsvdag& ssvdag);
+
+/// Every voxel of the SSVDAG as sorted Morton codes, applying the mirrors (for tests and tools).
+std::vector<std::uint64_t> expand_ssvdag(const FlatSsvdag& ssvdag);
+
+}  // namespace kiln

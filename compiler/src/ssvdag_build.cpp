@@ -1,0 +1,341 @@
+// Symmetry-aware sparse voxel DAG (Villanueva, Marton, Gobbetti 2016): the DAG's bottom-up
+// reduction, with every node compared in its canonical form, the least of its eight mirror images.
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <numeric>
+#include <stdexcept>
+#include <unordered_map>
+
+#include "kiln/compiler/ssvdag_builder.hpp"
+#include "kiln/formats/ssvdag.hpp"
+#include "kiln/runtime/parallel.hpp"
+
+namespace kiln {
+
+namespace {
+
+constexpr std::uint32_t kAbsent = ~0u;
+constexpr std::size_t kBatch = 1024;
+
+// A node before layout: v[0] = child mask, v[1 + octant] = the child's reference
+// (canonical id << 3 | mirror) or kAbsent. For the DAG count the references are plain DAG ids.
+struct Signature {
+  std::array<std::uint32_t, 9> v;
+  bool operator==(const Signature&) const = default;
+};
+struct SignatureHash {
+  std::size_t operator()(const Signature& s) const {
+    std::uint64_t h = 0x9E3779B97F4A7C15ull;
+    for (const std::uint32_t x : s.v) h = (h ^ x) * 0x100000001B3ull, h ^= h >> 29;
+    return std::size_t(h);
+  }
+};
+
+// One level of the plain octree, in Morton order: each node's key, its SSVDAG reference and its
+// DAG id.
+struct Level {
+  std::vector<std::uint64_t> keys;
+  std::vector<std::uint32_t> refs, dag_ids;
+};
+
+// The unique nodes of one level: canonical signatures (interior) or masks (leaves), and per node
+// its symmetries (bit t: mirror t maps the node onto itself; bit 0 always).
+struct UniqueLevel {
+  std::vector<Signature> nodes;
+  std::vector<std::uint64_t> leaves;
+  std::vector<std::uint8_t> symmetries;
+};
+
+// One subtree has as many (id, mirror) names as its node has symmetries; the least mirror of the
+// coset is the one name used, so that equal subtrees always have equal signatures.
+std::uint32_t normalized(std::uint32_t mirror, std::uint8_t symmetries) {
+  std::uint32_t best = mirror;
+  for (std::uint32_t g = 1; g < 8; ++g)
+    if (symmetries >> g & 1) best = std::min(best, mirror ^ g);
+  return best;
+}
+
+std::uint32_t reference(std::uint32_t id, std::uint32_t mirror, std::uint8_t symmetries) {
+  if (id >= format::kSsvdagWideOffsets) throw std::length_error("SSVDAG level exceeds 2^29 nodes");
+  return id << 3 | normalized(mirror, symmetries);
+}
+
+// The node `s` mirrored by `t`: child o comes from octant o ^ t, itself mirrored by t.
+Signature mirrored(const Signature& s, std::uint32_t t, std::span<const std::uint8_t> below) {
+  Signature out;
+  out.v[0] = format::ssvdag_mirror_mask(s.v[0], t);
+  for (std::uint32_t o = 0; o < 8; ++o) {
+    const std::uint32_t ref = s.v[1 + (o ^ t)];
+    out.v[1 + o] =
+        ref == kAbsent ? kAbsent : (ref & ~7u) | normalized((ref & 7) ^ t, below[ref >> 3]);
+  }
+  return out;
+}
+
+// Leaves: canonical masks on `threads` threads, then ids in order of first occurrence.
+Level merge_leaves(const VoxelLeaves& leaves, UniqueLevel& unique, SsvdagLevelStats& stats,
+                   unsigned threads) {
+  const std::size_t n = leaves.keys.size();
+  std::vector<std::uint64_t> canonical(n);
+  std::vector<std::uint8_t> mirror(n);
+  parallel_for_batched(n, kBatch, threads, [&](std::size_t i) {
+    std::uint64_t best = leaves.masks[i];
+    for (std::uint32_t t = 1; t < 8; ++t)
+      if (const std::uint64_t m = format::ssvdag_mirror_leaf(leaves.masks[i], t); m < best)
+        best = m, mirror[i] = std::uint8_t(t);
+    canonical[i] = best;
+  });
+  Level level{leaves.keys, std::vector<std::uint32_t>(n), std::vector<std::uint32_t>(n)};
+  std::unordered_map<std::uint64_t, std::uint32_t> ids, dag_ids;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto [it, fresh] = ids.emplace(canonical[i], std::uint32_t(unique.leaves.size()));
+    if (fresh) {
+      std::uint8_t symmetries = 0;
+      for (std::uint32_t t = 0; t < 8; ++t)
+        if (format::ssvdag_mirror_leaf(canonical[i], t) == canonical[i]) symmetries |= 1u << t;
+      unique.leaves.push_back(canonical[i]);
+      unique.symmetries.push_back(symmetries);
+    }
+    level.refs[i] = reference(it->second, mirror[i], unique.symmetries[it->second]);
+    level.dag_ids[i] =
+        dag_ids.emplace(leaves.masks[i], std::uint32_t(dag_ids.size())).first->second;
+  }
+  stats.svo_nodes = n;
+  stats.dag_nodes = dag_ids.size();
+  stats.ssvdag_nodes = unique.leaves.size();
+  return level;
+}
+
+// The nodes of the level above `below`: siblings (same key >> 3) form one node.
+struct RawNodes {
+  std::vector<std::size_t> starts;  // node j holds below's entries [starts[j], starts[j + 1])
+  std::vector<Signature> canonical, dag;
+  std::vector<std::uint8_t> mirror;
+};
+
+RawNodes raw_nodes(const Level& below, std::span<const std::uint8_t> symmetries, unsigned threads) {
+  RawNodes raw;
+  for (std::size_t i = 0; i < below.keys.size(); ++i)
+    if (i == 0 || below.keys[i] >> 3 != below.keys[i - 1] >> 3) raw.starts.push_back(i);
+  raw.starts.push_back(below.keys.size());
+  const std::size_t n = raw.starts.size() - 1;
+  raw.canonical.resize(n), raw.dag.resize(n), raw.mirror.resize(n);
+  parallel_for_batched(n, kBatch, threads, [&](std::size_t j) {
+    Signature s, d;
+    s.v.fill(kAbsent), d.v.fill(kAbsent);
+    s.v[0] = d.v[0] = 0;
+    for (std::size_t i = raw.starts[j]; i < raw.starts[j + 1]; ++i) {
+      const auto octant = std::uint32_t(below.keys[i] & 7);
+      s.v[0] |= 1u << octant, d.v[0] |= 1u << octant;
+      s.v[1 + octant] = below.refs[i];
+      d.v[1 + octant] = below.dag_ids[i];
+    }
+    Signature best = s;
+    for (std::uint32_t t = 1; t < 8; ++t)
+      if (const Signature m = mirrored(s, t, symmetries); m.v < best.v)
+        best = m, raw.mirror[j] = std::uint8_t(t);
+    raw.canonical[j] = best, raw.dag[j] = d;
+  });
+  return raw;
+}
+
+// One interior level from the level below: canonical signatures merge (hash, then exact compare).
+Level merge_level(const Level& below, std::span<const std::uint8_t> below_symmetries,
+                  UniqueLevel& unique, SsvdagLevelStats& stats, std::uint64_t& svo_bytes,
+                  std::uint64_t& dag_bytes, unsigned threads) {
+  const RawNodes raw = raw_nodes(below, below_symmetries, threads);
+  const std::size_t n = raw.canonical.size();
+  Level level{std::vector<std::uint64_t>(n), std::vector<std::uint32_t>(n),
+              std::vector<std::uint32_t>(n)};
+  std::unordered_map<Signature, std::uint32_t, SignatureHash> ids, dag_ids;
+  for (std::size_t j = 0; j < n; ++j) {
+    const Signature& c = raw.canonical[j];
+    const auto [it, fresh] = ids.emplace(c, std::uint32_t(unique.nodes.size()));
+    if (fresh) {
+      std::uint8_t symmetries = 1;
+      for (std::uint32_t t = 1; t < 8; ++t)
+        if (mirrored(c, t, below_symmetries) == c) symmetries |= 1u << t;
+      unique.nodes.push_back(c);
+      unique.symmetries.push_back(symmetries);
+    }
+    level.keys[j] = below.keys[raw.starts[j]] >> 3;
+    level.refs[j] = reference(it->second, raw.mirror[j], unique.symmetries[it->second]);
+    const auto [dag, dag_fresh] = dag_ids.emplace(raw.dag[j], std::uint32_t(dag_ids.size()));
+    level.dag_ids[j] = dag->second;
+    const std::uint64_t bytes = 4 * (1 + std::popcount(c.v[0]));
+    svo_bytes += bytes;
+    if (dag_fresh) dag_bytes += bytes;
+  }
+  stats.svo_nodes = n;
+  stats.dag_nodes = dag_ids.size();
+  stats.ssvdag_nodes = unique.nodes.size();
+  return level;
+}
+
+}  // namespace
+
+namespace {
+
+// How many pointers reach each node of each level (the root: none).
+std::vector<std::vector<std::uint64_t>> reference_counts(const std::vector<UniqueLevel>& levels) {
+  std::vector<std::vector<std::uint64_t>> counts(levels.size());
+  counts[0] = {0};
+  for (std::size_t l = 1; l < levels.size(); ++l) {
+    counts[l].resize(levels[l].symmetries.size());
+    for (const Signature& s : levels[l - 1].nodes)
+      for (int o = 0; o < 8; ++o)
+        if (s.v[1 + o] != kAbsent) ++counts[l][s.v[1 + o] >> 3];
+  }
+  return counts;
+}
+
+// A level's nodes in layout order: most pointers per word first, ties by id. Narrow pointers
+// reach the first 2^13 words of a level; the paper orders by reference count, and dividing by the
+// node's size packs more of the pointers into that window where sizes differ.
+std::vector<std::uint32_t> layout_order(std::span<const std::uint64_t> count,
+                                        std::span<const std::uint64_t> size) {
+  std::vector<std::uint32_t> order(count.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return count[a] * size[b] > count[b] * size[a];
+  });
+  return order;
+}
+
+bool narrow(std::uint64_t offset) {
+  return offset < format::kSsvdagNarrowOffsets;
+}
+
+// The words of one node whose children lie at `offsets` (of the level below).
+void emit_node(const Signature& s, std::span<const std::uint64_t> offsets,
+               std::vector<std::uint16_t>& words, SsvdagLevelStats& stats) {
+  const std::size_t header = words.size();
+  words.push_back(0);
+  std::uint32_t wide = 0;
+  for (std::uint32_t o = 0; o < 8; ++o) {
+    const std::uint32_t ref = s.v[1 + o];
+    if (ref == kAbsent) continue;
+    const std::uint64_t offset = offsets[ref >> 3];
+    if (offset >= format::kSsvdagWideOffsets)
+      throw std::length_error("SSVDAG level exceeds 2^29 words");
+    const std::uint32_t value = std::uint32_t(offset << 3) | (ref & 7);
+    words.push_back(std::uint16_t(value));
+    if (narrow(offset)) {
+      ++stats.narrow_pointers;
+      continue;
+    }
+    words.push_back(std::uint16_t(value >> 16));
+    wide |= 1u << o, ++stats.wide_pointers;
+  }
+  words[header] = std::uint16_t(s.v[0] | wide << 8);
+}
+
+// Layout: orders and offsets bottom up (a node's size depends on its children's offsets), then
+// the words top down.
+void lay_out(const std::vector<UniqueLevel>& levels, FlatSsvdag& out) {
+  const std::size_t leaf_level = levels.size() - 1;
+  const auto counts = reference_counts(levels);
+  std::vector<std::vector<std::uint64_t>> offsets(levels.size());
+  std::vector<std::vector<std::uint32_t>> sequence(levels.size());
+  sequence[leaf_level] =
+      layout_order(counts[leaf_level], std::vector<std::uint64_t>(counts[leaf_level].size(), 1));
+  offsets[leaf_level].resize(sequence[leaf_level].size());
+  for (std::uint32_t rank = 0; rank < sequence[leaf_level].size(); ++rank) {
+    offsets[leaf_level][sequence[leaf_level][rank]] = rank;
+    out.leaves.push_back(levels.back().leaves[sequence[leaf_level][rank]]);
+  }
+  for (std::size_t l = leaf_level; l-- > 0;) {
+    std::vector<std::uint64_t> size(levels[l].nodes.size(), 1);
+    for (std::size_t id = 0; id < size.size(); ++id)
+      for (int o = 0; o < 8; ++o)
+        if (const std::uint32_t ref = levels[l].nodes[id].v[1 + o]; ref != kAbsent)
+          size[id] += narrow(offsets[l + 1][ref >> 3]) ? 1 : 2;
+    sequence[l] = layout_order(counts[l], size);
+    offsets[l].resize(size.size());
+    std::uint64_t word = 0;
+    for (const std::uint32_t id : sequence[l]) offsets[l][id] = word, word += size[id];
+  }
+  for (std::size_t l = 0; l < leaf_level; ++l) {
+    auto& stats = out.level_stats[l];
+    stats.first_word = out.words.size();
+    for (const std::uint32_t id : sequence[l])
+      emit_node(levels[l].nodes[id], offsets[l + 1], out.words, stats);
+    stats.bytes = 2 * (out.words.size() - stats.first_word);
+  }
+  if (out.words.size() > 0xFFFFFFFFull) throw std::length_error("SSVDAG exceeds 2^32 words");
+  out.level_stats[leaf_level].bytes = 8 * out.leaves.size();
+  out.ssvdag_bytes = 2 * out.words.size() + 8 * out.leaves.size();
+}
+
+}  // namespace
+
+FlatSsvdag build_ssvdag(std::span<const std::uint64_t> codes, std::uint32_t resolution,
+                        unsigned threads) {
+  return build_ssvdag(leaves_of(codes), resolution, threads);
+}
+
+FlatSsvdag build_ssvdag(const VoxelLeaves& leaves, std::uint32_t resolution, unsigned threads) {
+  if (leaves.keys.empty()) throw std::invalid_argument("an SSVDAG needs at least one voxel");
+  FlatSsvdag out;
+  out.levels = std::uint32_t(std::bit_width(resolution) - 1);
+  out.voxel_count = leaves.voxel_count;
+  const std::uint32_t leaf_level = out.levels - 2;
+  out.level_stats.resize(leaf_level + 1);
+  std::vector<UniqueLevel> levels(leaf_level + 1);
+  Level below = merge_leaves(leaves, levels[leaf_level], out.level_stats[leaf_level], threads);
+  out.svo_bytes = 8 * below.keys.size();
+  out.dag_bytes = 8 * out.level_stats[leaf_level].dag_nodes;
+  for (std::uint32_t l = leaf_level; l-- > 0;)
+    below = merge_level(below, levels[l + 1].symmetries, levels[l], out.level_stats[l],
+                        out.svo_bytes, out.dag_bytes, threads);
+  if (below.keys.size() != 1 || below.keys[0] != 0)
+    throw std::invalid_argument("voxel codes lie outside the grid");
+  out.root_mirror = below.refs[0] & 7;
+  for (const auto& s : out.level_stats) out.symmetry_merges += s.dag_nodes - s.ssvdag_nodes;
+  lay_out(levels, out);
+  return out;
+}
+
+std::vector<std::uint64_t> ssvdag_level_first_words(const FlatSsvdag& ssvdag) {
+  std::vector<std::uint64_t> firsts;
+  for (std::size_t l = 0; l + 1 < ssvdag.level_stats.size(); ++l)
+    firsts.push_back(ssvdag.level_stats[l].first_word);
+  return firsts;
+}
+
+std::vector<std::uint64_t> expand_ssvdag(const FlatSsvdag& ssvdag) {
+  const std::uint32_t leaf_level = ssvdag.levels - 2;
+  const auto firsts = ssvdag_level_first_words(ssvdag);
+  std::vector<std::uint64_t> codes;
+  struct Pending {
+    std::uint64_t word;
+    std::uint32_t level, mirror;
+    std::uint64_t key;
+  };
+  std::vector<Pending> stack{{0, 0, ssvdag.root_mirror, 0}};
+  while (!stack.empty()) {
+    const Pending p = stack.back();
+    stack.pop_back();
+    if (p.level == leaf_level) {
+      const std::uint64_t leaf = format::ssvdag_mirror_leaf(ssvdag.leaves[p.word], p.mirror);
+      for (std::uint32_t bit = 0; bit < 64; ++bit)
+        if (leaf >> bit & 1) codes.push_back(p.key << 6 | bit);
+      continue;
+    }
+    const std::uint32_t header = ssvdag.words[p.word];
+    std::uint64_t at = p.word + 1;
+    for (std::uint32_t stored = 0; stored < 8; ++stored) {
+      if ((header >> stored & 1) == 0) continue;
+      std::uint32_t value = ssvdag.words[at++];
+      if (header >> (8 + stored) & 1) value |= std::uint32_t(ssvdag.words[at++]) << 16;
+      const std::uint64_t offset = value >> 3;
+      stack.push_back({p.level + 1 < leaf_level ? firsts[p.level + 1] + offset : offset,
+                       p.level + 1, p.mirror ^ (value & 7), p.key << 3 | (stored ^ p.mirror)});
+    }
+  }
+  std::sort(codes.begin(), codes.end());
+  return codes;
+}
+
+}  // namespace kiln

@@ -1,0 +1,294 @@
+// The symmetry-aware sparse voxel DAG against the voxel DAG of the same voxels (the reference:
+// an independent structure): the same voxel set at several resolutions, the same ray hits, the
+// DAG's node counts and bytes; mirrors against coordinate flips; symmetric merges where a
+// mirrored copy exists; deterministic words; forged words refused; the command line.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/import.hpp"
+#include "kiln/compiler/ssvdag_builder.hpp"
+#include "kiln/compiler/voxel_dag_builder.hpp"
+#include "kiln/compiler/voxelizer.hpp"
+#include "kiln/formats/ssvdag.hpp"
+#include "kiln/runtime/bvh.hpp"
+#include "kiln/runtime/error.hpp"
+#include "kiln/runtime/ssvdag.hpp"
+#include "kiln/tools/ray_generator.hpp"
+#include "ray_fixtures.hpp"
+#include "test_support.hpp"
+#include "voxel_fixtures.hpp"
+
+namespace kiln {
+namespace {
+
+using format::Float3;
+using namespace kiln::test;
+
+// The surface voxels and both structures over them.
+struct Both {
+  BuiltDag dag;
+  FlatSsvdag ssvdag;
+  std::vector<std::uint64_t> firsts;
+  SsvdagView view() const {
+    return SsvdagView(ssvdag.words, ssvdag.leaves, frame_of(dag.voxels.grid), firsts,
+                      ssvdag.root_mirror);
+  }
+};
+
+Both build_both(const Scene& scene, std::uint32_t resolution) {
+  Both b;
+  b.dag = build_dag(scene, resolution);
+  b.ssvdag = build_ssvdag(b.dag.voxels.codes, resolution, 2);
+  b.firsts = ssvdag_level_first_words(b.ssvdag);
+  return b;
+}
+
+Scene mesh_or_icosphere(const char* relative) {
+  if (corpus_present()) return import_scene({mesh_path(relative)}, 2);
+  return icosphere(3);
+}
+
+// Primary rays at the mesh and random rays from inside the bounds, some along the axes.
+std::vector<Ray> rays_for(const Scene& scene, std::size_t count, std::uint32_t seed) {
+  const FlatBvh flat = build_bvh(scene, {});
+  const BvhView bvh(flat.nodes, flat.triangles, flat.prim_ids);
+  std::vector<Ray> rays =
+      generate_rays({bvh, scene.positions, scene.triangles, scene.bounds.min, scene.bounds.max},
+                    RayKind::kPrimary, count / 2, seed, 2);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> unit(0, 1), sym(-1, 1);
+  const Float3 lo = scene.bounds.min, hi = scene.bounds.max;
+  while (rays.size() < count) {
+    const Float3 o{lo.x + (hi.x - lo.x) * unit(rng), lo.y + (hi.y - lo.y) * unit(rng),
+                   lo.z + (hi.z - lo.z) * unit(rng)};
+    Float3 d{sym(rng), sym(rng), sym(rng)};
+    if (rays.size() % 10 == 0) {
+      const int axis = int(rays.size() / 10 % 3);
+      d = {axis == 0 ? -1.0f : 0.0f, axis == 1 ? 1.0f : 0.0f, axis == 2 ? -1.0f : 0.0f};
+    }
+    rays.push_back({o, 0.0f, d, INFINITY});
+  }
+  return rays;
+}
+
+TEST(Ssvdag, MirrorsAreCoordinateFlips) {
+  std::mt19937_64 rng(5);
+  for (int trial = 0; trial < 50; ++trial) {
+    const std::uint64_t leaf = rng();
+    for (std::uint32_t t = 0; t < 8; ++t) {
+      const std::uint64_t m = format::ssvdag_mirror_leaf(leaf, t);
+      EXPECT_EQ(format::ssvdag_mirror_leaf(m, t), leaf);
+      for (std::uint32_t x = 0; x < 4; ++x)
+        for (std::uint32_t y = 0; y < 4; ++y)
+          for (std::uint32_t z = 0; z < 4; ++z) {
+            const auto fx = t & 1 ? 3 - x : x, fy = t & 2 ? 3 - y : y, fz = t & 4 ? 3 - z : z;
+            ASSERT_EQ(m >> format::morton_code(fx, fy, fz) & 1,
+                      leaf >> format::morton_code(x, y, z) & 1);
+          }
+    }
+    const auto mask = std::uint32_t(rng() & 0xFF);
+    for (std::uint32_t t = 0; t < 8; ++t)
+      for (std::uint32_t o = 0; o < 8; ++o)
+        EXPECT_EQ(format::ssvdag_mirror_mask(mask, t) >> (o ^ t) & 1, mask >> o & 1);
+  }
+}
+
+TEST(Ssvdag, ExpandsToTheDagVoxelSetAtSeveralResolutions) {
+  const Scene scene = mesh_or_icosphere("stanford/stanford-bunny.obj.zst");
+  for (const std::uint32_t resolution : {8u, 16u, 32u, 64u, 128u, 256u}) {
+    const Both b = build_both(scene, resolution);
+    const auto& dag = b.dag.dag;
+    EXPECT_EQ(expand_ssvdag(b.ssvdag), expand_voxel_dag(dag.words, dag.levels)) << resolution;
+    EXPECT_EQ(expand_ssvdag(b.ssvdag), b.dag.voxels.codes) << resolution;
+    // The DAG the SSVDAG counts beside itself is the DAG builder's, node for node.
+    EXPECT_EQ(b.ssvdag.dag_bytes, dag.dag_bytes);
+    EXPECT_EQ(b.ssvdag.svo_bytes, dag.svo_bytes);
+    for (std::size_t l = 0; l < dag.level_stats.size(); ++l) {
+      EXPECT_EQ(b.ssvdag.level_stats[l].dag_nodes, dag.level_stats[l].dag_nodes);
+      EXPECT_LE(b.ssvdag.level_stats[l].ssvdag_nodes, dag.level_stats[l].dag_nodes);
+    }
+    EXPECT_EQ(b.view().count_voxels(), b.dag.voxels.codes.size());
+    if (resolution >= 64) EXPECT_LT(b.ssvdag.ssvdag_bytes, dag.dag_bytes) << resolution;
+  }
+}
+
+TEST(Ssvdag, OccupancyEqualsTheDagEverywhere) {
+  const Scene scene = mesh_or_icosphere("classic/teapot.obj");
+  for (const std::uint32_t resolution : {16u, 64u}) {
+    const Both b = build_both(scene, resolution);
+    const VoxelDagView dag = b.dag.view();
+    const SsvdagView ssvdag = b.view();
+    std::size_t set = 0;
+    for (std::uint32_t z = 0; z < resolution; ++z)
+      for (std::uint32_t y = 0; y < resolution; ++y)
+        for (std::uint32_t x = 0; x < resolution; ++x) {
+          ASSERT_EQ(ssvdag.occupied(x, y, z), dag.occupied(x, y, z)) << x << " " << y << " " << z;
+          set += dag.occupied(x, y, z);
+        }
+    EXPECT_EQ(set, b.dag.voxels.codes.size());
+    EXPECT_FALSE(ssvdag.occupied(resolution, 0, 0));
+  }
+}
+
+TEST(Ssvdag, SolidVoxelsExpandToTheDagSet) {
+  const Scene scene = icosphere(3);
+  const Voxels voxels = voxelize_surface(scene, {64, false, 2});
+  const VoxelLeaves solid = solid_leaves(scene, voxels.grid, voxels.codes, 2);
+  const FlatVoxelDag dag = build_voxel_dag(solid, 64);
+  const FlatSsvdag ssvdag = build_ssvdag(solid, 64, 2);
+  EXPECT_GT(solid.voxel_count, voxels.codes.size());
+  EXPECT_EQ(expand_ssvdag(ssvdag), expand_voxel_dag(dag.words, dag.levels));
+  EXPECT_EQ(ssvdag.dag_bytes, dag.dag_bytes);
+}
+
+TEST(Ssvdag, CastsEqualTheDagHits) {
+  const Scene scene = mesh_or_icosphere("classic/teapot.obj");
+  const auto rays = rays_for(scene, 4000, 3);
+  for (const std::uint32_t resolution : {32u, 128u}) {
+    const Both b = build_both(scene, resolution);
+    const VoxelDagView dag = b.dag.view();
+    const SsvdagView ssvdag = b.view();
+    std::size_t hits = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      const VoxelHit expected = dag.intersect_any(rays[i]);
+      Cost cost;
+      const VoxelHit got = ssvdag.intersect_counting(rays[i], cost);
+      ASSERT_EQ(got.hit(), expected.hit()) << "ray " << i;
+      EXPECT_EQ(ssvdag.occluded(rays[i]), expected.hit());
+      if (!expected.hit()) continue;
+      ++hits;
+      ASSERT_EQ(got.x, expected.x) << "ray " << i;
+      ASSERT_EQ(got.y, expected.y);
+      ASSERT_EQ(got.z, expected.z);
+      // The same steps on the same boxes: the same float t and entered face.
+      ASSERT_EQ(got.t, expected.t);
+      for (int a = 0; a < 3; ++a) ASSERT_EQ(got.face_normal[a], expected.face_normal[a]);
+    }
+    EXPECT_GT(hits, rays.size() / 4) << resolution;
+  }
+}
+
+// Random voxels in one octant of the grid and their mirror image in another: the DAG keeps both
+// subtrees, the SSVDAG one with a mirror pointer, for each of the seven mirrors.
+TEST(Ssvdag, MergesMirroredSubtrees) {
+  std::mt19937 rng(9);
+  for (std::uint32_t t = 1; t < 8; ++t) {
+    std::vector<std::uint64_t> codes;
+    for (int i = 0; i < 300; ++i) {
+      const std::uint32_t x = rng() % 16, y = rng() % 16, z = rng() % 16;
+      codes.push_back(format::morton_code(x, y, z));
+      codes.push_back(
+          format::morton_code(t & 1 ? 31 - x : x, t & 2 ? 31 - y : y, t & 4 ? 31 - z : z));
+    }
+    std::sort(codes.begin(), codes.end());
+    codes.erase(std::unique(codes.begin(), codes.end()), codes.end());
+    const FlatSsvdag s = build_ssvdag(codes, 32, 2);
+    EXPECT_EQ(expand_ssvdag(s), codes) << t;
+    EXPECT_EQ(s.level_stats[1].dag_nodes, 2u) << t;
+    EXPECT_EQ(s.level_stats[1].ssvdag_nodes, 1u) << t;
+    EXPECT_GE(s.symmetry_merges, 1u);
+    EXPECT_LT(s.ssvdag_bytes, s.dag_bytes);
+  }
+}
+
+TEST(Ssvdag, WordsIdenticalAcrossThreadCounts) {
+  const Scene scene = mesh_or_icosphere("classic/teapot.obj");
+  const Voxels voxels = voxelize_surface(scene, {128, false, 2});
+  const FlatSsvdag one = build_ssvdag(voxels.codes, 128, 1);
+  for (const unsigned threads : {2u, 8u}) {
+    const FlatSsvdag other = build_ssvdag(voxels.codes, 128, threads);
+    EXPECT_EQ(other.words, one.words);
+    EXPECT_EQ(other.leaves, one.leaves);
+    EXPECT_EQ(other.root_mirror, one.root_mirror);
+  }
+  EXPECT_THROW(build_ssvdag(std::vector<std::uint64_t>{}, 128, 1), std::invalid_argument);
+  EXPECT_THROW(build_ssvdag(std::vector<std::uint64_t>{std::uint64_t(1) << 24}, 128, 1),
+               std::invalid_argument);
+}
+
+TEST(Ssvdag, ForgedWordsAreRefusedOrSafe) {
+  const Both b = build_both(icosphere(2), 64);
+  const VoxelGridFrame frame = frame_of(b.dag.voxels.grid);
+  // The view keeps spans: the vectors outlive it (a temporary lives to the end of the statement).
+  auto open = [&](const std::vector<std::uint16_t>& words, const std::vector<std::uint64_t>& firsts,
+                  std::uint32_t root_mirror) {
+    return SsvdagView(words, b.ssvdag.leaves, frame, firsts, root_mirror);
+  };
+  const auto& w = b.ssvdag.words;
+  auto patched = [&](std::size_t at, std::uint16_t value) {
+    auto copy = w;
+    copy[at] = value;
+    return copy;
+  };
+  EXPECT_NO_THROW(open(w, b.firsts, b.ssvdag.root_mirror));
+  EXPECT_THROW(open(w, b.firsts, 8), BlobError);
+  EXPECT_THROW(open(patched(0, 0), b.firsts, 0), BlobError);  // empty root
+  ASSERT_GT(std::popcount(w[0] & 0xFFu), 1);
+  // A wide bit for an octant the child mask lacks.
+  EXPECT_THROW(open(patched(0, std::uint16_t((w[0] & 0xFE) | 0x100)), b.firsts, 0),
+               BlobError);  // a wide bit outside the child mask
+  EXPECT_THROW(open(patched(1, 0xFFF8), b.firsts, 0), BlobError);  // past the next level
+  auto firsts = b.firsts;
+  firsts[1] += 1;  // levels out of step with the nodes
+  EXPECT_THROW(open(w, firsts, 0), BlobError);
+  firsts.pop_back();
+  EXPECT_THROW(open(w, firsts, 0), BlobError);
+  // Any word changed: refused at open, or every query stays in range (ASan checks).
+  const auto rays = rays_for(icosphere(2), 64, 1);
+  std::mt19937 rng(2);
+  for (int trial = 0; trial < 300; ++trial) {
+    auto forged = patched(rng() % w.size(), std::uint16_t(rng()));
+    try {
+      const SsvdagView view = open(forged, b.firsts, rng() % 8);
+      for (const Ray& r : rays) view.intersect(r);
+      view.count_voxels();
+      for (std::uint32_t i = 0; i < 512; ++i) view.occupied(i % 64, i / 8 % 64, i * 7 % 64);
+    } catch (const BlobError&) {
+    }
+  }
+}
+
+TEST(Ssvdag, CommandLineBuildDumpVerifyTrace) {
+  KILN_REQUIRE_CORPUS();
+  TempDir dir;
+  const std::string mesh = mesh_path("classic/teapot.obj");
+  const std::string blob = dir.file("s.kiln"), rays = dir.file("r.bin"), hits = dir.file("h.bin");
+  ASSERT_EQ(
+      run_kiln("build " + quoted(mesh) + " --accel ssvdag --resolution 128 -o " + quoted(blob))
+          .exit_code,
+      0);
+  const auto dump = run_kiln("dump " + quoted(blob));
+  EXPECT_NE(dump.out.find("merged by symmetry"), std::string::npos) << dump.out;
+  EXPECT_NE(dump.out.find("SSVDAG/DAG"), std::string::npos) << dump.out;
+  const auto json = run_kiln("dump --json " + quoted(blob));
+  EXPECT_NE(json.out.find("\"ssvdag_dag_ratio\""), std::string::npos);
+  EXPECT_EQ(run_kiln("verify " + quoted(blob)).exit_code, 0);
+  ASSERT_EQ(run_kiln("rays " + quoted(mesh) + " --count 2000 -o " + quoted(rays)).exit_code, 0);
+  ASSERT_EQ(run_kiln("trace " + quoted(blob) + " --accel ssvdag --rays " + quoted(rays) +
+                     " --out " + quoted(hits))
+                .exit_code,
+            0);
+  const auto bytes = read_file(hits), ray_bytes = read_file(rays);
+  ASSERT_EQ(bytes.size(), 2000 * sizeof(VoxelHitRecord));
+  const Both b = build_both(import_scene({mesh}, 2), 128);
+  std::size_t wrong = 0;
+  for (std::size_t i = 0; i < 2000; ++i) {
+    Ray ray;
+    VoxelHitRecord from_file;
+    std::memcpy(&ray, ray_bytes.data() + i * sizeof ray, sizeof ray);
+    std::memcpy(&from_file, bytes.data() + i * sizeof from_file, sizeof from_file);
+    VoxelHit expected = b.dag.view().intersect_any(ray);  // no normals: the entered face
+    const VoxelHitRecord record = to_record(expected);
+    wrong += std::memcmp(&from_file, &record, sizeof record) != 0;
+  }
+  EXPECT_EQ(wrong, 0u);
+}
+
+}  // namespace
+}  // namespace kiln
