@@ -58,7 +58,9 @@ void check_strings(const Blob& blob, const std::string& what, std::uint32_t offs
 }  // namespace
 
 void Blob::validate_polygon_layer() {
-  const auto& layer = *manifest_of(*this).input_as_PolygonLayer();
+  const auto* found = manifest_of(*this).input_as_PolygonLayer();
+  if (found == nullptr) fail_section(0, "manifest names a polygon layer input but holds none");
+  const auto& layer = *found;
   const std::uint64_t features = layer.feature_count(), polygons = layer.polygon_count();
   const std::uint64_t rings = layer.ring_count(), vertices = layer.vertex_count();
   geo_ = {};
@@ -89,7 +91,9 @@ void Blob::validate_polygon_layer() {
 }
 
 void Blob::validate_point_table() {
-  const auto& table = *manifest_of(*this).input_as_PointTable();
+  const auto* found = manifest_of(*this).input_as_PointTable();
+  if (found == nullptr) fail_section(0, "manifest names a point table input but holds none");
+  const auto& table = *found;
   const std::uint64_t points = table.point_count(), features = table.feature_count();
   geo_ = {};
   geo_.points = table.points(), geo_.feature_points = table.feature_points();
@@ -135,7 +139,9 @@ PolygonLayerView Blob::polygon_layer() const {
 
 PointTableView Blob::point_table() const {
   if (input_.kind != InputKind::kPoint2) fail("is not built from a 2D point table");
-  const auto& table = *manifest_of(*this).input_as_PointTable();
+  const auto* found = manifest_of(*this).input_as_PointTable();
+  if (found == nullptr) fail_section(0, "manifest names a point table input but holds none");
+  const auto& table = *found;
   PointTableView view;
   view.points = section_view<format::Double2>(geo_.points);
   view.feature_points = section_view<std::uint64_t>(geo_.feature_points);
