@@ -35,6 +35,19 @@ namespace {
   throw BlobError("polygon index '" + name + "': " + what);
 }
 
+// Every leaf, reached or not (the leaf records built at open read them all): entries in range,
+// and leaves own disjoint ranges, so the walks over leaves read each entry at most once.
+void check_leaf_ranges(const PolygonIndexParts& p, const std::string& name) {
+  std::uint64_t leaf_entries = 0;
+  for (std::size_t i = 0; i < p.nodes.size(); ++i) {
+    const PolygonIndexNode& n = p.nodes[i];
+    if (!n.is_leaf()) continue;
+    if (std::uint64_t(n.first) + n.count > p.entries.size())
+      fail(name, "leaf " + std::to_string(i) + " has entries out of range");
+    if ((leaf_entries += n.count) > p.entries.size()) fail(name, "leaves share entries");
+  }
+}
+
 }  // namespace
 
 // Each node reached once from the root, children stored after their parent, depth bounded;
@@ -50,7 +63,7 @@ void PolygonIndexView::validate(const std::string& name) const {
   std::vector<bool> reached(p.nodes.size());
   std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{0, 0}};  // node, depth
   reached[0] = true;
-  std::uint64_t leaf_entries = 0;
+  check_leaf_ranges(p, name);
   while (!stack.empty()) {
     const auto [index, depth] = stack.back();
     stack.pop_back();
@@ -67,11 +80,6 @@ void PolygonIndexView::validate(const std::string& name) const {
       }
       continue;
     }
-    if (std::uint64_t(n.first) + n.count > p.entries.size())
-      fail(name, "leaf " + std::to_string(index) + " has entries out of range");
-    // Leaves own disjoint entry ranges, so the walk below reads each entry at most once.
-    if ((leaf_entries += n.count) > p.entries.size())
-      fail(name, "leaves share entries");
     for (std::uint32_t i = n.first + 1; i < n.first + n.count; ++i)
       if (p.entries[i].polygon <= p.entries[i - 1].polygon)
         fail(name, "entry " + std::to_string(i) + " names a polygon out of order");
