@@ -78,14 +78,8 @@ VoxelDagView VoxelDagView::from_blob(const Blob& blob, const std::string& name) 
 }
 
 bool VoxelDagView::occupied(const format::Float3& point) const {
-  const double p[3] = {point.x, point.y, point.z};
-  std::uint32_t cell[3];
-  for (int a = 0; a < 3; ++a) {
-    const double g = (p[a] - frame_.origin[a]) / frame_.voxel_size;
-    if (!(g >= 0 && g < double(frame_.resolution))) return false;
-    cell[a] = std::uint32_t(g);
-  }
-  return occupied(cell[0], cell[1], cell[2]);
+  const auto cell = frame_.cell_of(point);
+  return cell && occupied((*cell)[0], (*cell)[1], (*cell)[2]);
 }
 
 bool VoxelDagView::occupied(std::uint32_t x, std::uint32_t y, std::uint32_t z) const {
