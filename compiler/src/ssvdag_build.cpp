@@ -10,6 +10,7 @@
 #include "kiln/compiler/ssvdag_builder.hpp"
 #include "kiln/formats/ssvdag.hpp"
 #include "kiln/runtime/parallel.hpp"
+#include "voxel_node_signature.hpp"
 
 namespace kiln {
 
@@ -18,19 +19,10 @@ namespace {
 constexpr std::uint32_t kAbsent = ~0u;
 constexpr std::size_t kBatch = 1024;
 
-// A node before layout: v[0] = child mask, v[1 + octant] = the child's reference
-// (canonical id << 3 | mirror) or kAbsent. For the DAG count the references are plain DAG ids.
-struct Signature {
-  std::array<std::uint32_t, 9> v;
-  bool operator==(const Signature&) const = default;
-};
-struct SignatureHash {
-  std::size_t operator()(const Signature& s) const {
-    std::uint64_t h = 0x9E3779B97F4A7C15ull;
-    for (const std::uint32_t x : s.v) h = (h ^ x) * 0x100000001B3ull, h ^= h >> 29;
-    return std::size_t(h);
-  }
-};
+// A node before layout (voxel_node_signature.hpp); for the DAG count the references are plain
+// DAG ids.
+using Signature = VoxelNodeSignature;
+using SignatureHash = VoxelNodeSignatureHash;
 
 // One level of the plain octree, in Morton order: each node's key, its SSVDAG reference and its
 // DAG id.

@@ -5,23 +5,14 @@
 #include <unordered_map>
 
 #include "kiln/compiler/voxel_dag_builder.hpp"
+#include "voxel_node_signature.hpp"
 
 namespace kiln {
 
 namespace {
 
-// An interior node before layout: child mask and the DAG ids of its children (absent: ~0).
-struct Signature {
-  std::array<std::uint32_t, 9> v;  // v[0] = mask, v[1 + octant] = child id
-  bool operator==(const Signature&) const = default;
-};
-struct SignatureHash {
-  std::size_t operator()(const Signature& s) const {
-    std::uint64_t h = 0x9E3779B97F4A7C15ull;
-    for (const std::uint32_t x : s.v) h = (h ^ x) * 0x100000001B3ull, h ^= h >> 29;
-    return std::size_t(h);
-  }
-};
+using Signature = VoxelNodeSignature;
+using SignatureHash = VoxelNodeSignatureHash;
 
 // One level of the plain octree, in Morton order: each node's key and its DAG id.
 struct Level {
