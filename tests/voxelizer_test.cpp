@@ -109,6 +109,56 @@ TEST(Voxelizer, RefusesBadResolutions) {
     EXPECT_THROW(voxelize_surface(scene, {n, false, 1}), std::invalid_argument) << n;
 }
 
+// Cube by cube (as out-of-core builds go), in Morton order of the cubes, gives the whole grid's
+// voxels, normals and 4x4x4 leaves; each cube holds only its own voxels.
+TEST(Voxelizer, CubesConcatenateToTheWholeGrid) {
+  KILN_REQUIRE_CORPUS();
+  const Scene scene = import_scene({test::mesh_path("stanford/stanford-bunny.obj.zst")}, 2);
+  const std::uint32_t n = 256;
+  const Voxels whole = voxelize_surface(scene, {n, true, 2});
+  for (const std::uint32_t side : {32u, 64u, 256u}) {
+    Voxels joined;
+    VoxelLeaves leaves;
+    const std::uint32_t per_axis = n / side;
+    for (std::uint64_t c = 0; c < std::uint64_t(per_axis) * per_axis * per_axis; ++c) {
+      const VoxelCube cube{{format::compact_bits(c) * side, format::compact_bits(c >> 1) * side,
+                            format::compact_bits(c >> 2) * side},
+                           side};
+      const std::vector<std::uint32_t> tris = triangles_reaching(scene, whole.grid, cube);
+      const Voxels part = voxelize_surface_cube(scene, whole.grid, cube, tris, true, 2);
+      for (const std::uint64_t code : part.codes) {
+        const std::uint32_t x = format::compact_bits(code), y = format::compact_bits(code >> 1),
+                            z = format::compact_bits(code >> 2);
+        ASSERT_TRUE(x / side * side == cube.origin[0] && y / side * side == cube.origin[1] &&
+                    z / side * side == cube.origin[2]);
+      }
+      joined.codes.insert(joined.codes.end(), part.codes.begin(), part.codes.end());
+      joined.normals.insert(joined.normals.end(), part.normals.begin(), part.normals.end());
+      const VoxelLeaves l = voxelize_surface_leaves(scene, whole.grid, cube, tris, 2);
+      leaves.keys.insert(leaves.keys.end(), l.keys.begin(), l.keys.end());
+      leaves.masks.insert(leaves.masks.end(), l.masks.begin(), l.masks.end());
+      leaves.voxel_count += l.voxel_count;
+    }
+    EXPECT_EQ(joined.codes, whole.codes) << side;
+    EXPECT_EQ(joined.normals, whole.normals) << side;
+    const VoxelLeaves expected = leaves_of(whole.codes);
+    EXPECT_EQ(leaves.keys, expected.keys) << side;
+    EXPECT_EQ(leaves.masks, expected.masks) << side;
+    EXPECT_EQ(leaves.voxel_count, expected.voxel_count) << side;
+  }
+}
+
+TEST(Voxelizer, RefusesCubesOutsideTheGrid) {
+  const Scene scene = triangles_scene({{{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}});
+  const VoxelGrid grid = fit_voxel_grid(scene.bounds, 64);
+  const std::uint32_t none[] = {0};
+  for (const VoxelCube& cube :
+       {VoxelCube{{0, 0, 0}, 2}, VoxelCube{{0, 0, 0}, 48}, VoxelCube{{8, 0, 0}, 16},
+        VoxelCube{{64, 0, 0}, 16}, VoxelCube{{0, 0, 0}, 128}})
+    EXPECT_THROW(voxelize_surface_cube(scene, grid, cube, none, false, 1), std::invalid_argument);
+  EXPECT_NO_THROW(voxelize_surface_cube(scene, grid, VoxelCube{{48, 16, 0}, 16}, none, false, 1));
+}
+
 TEST(Voxelizer, NormalsAreDeterministicAndUnit) {
   KILN_REQUIRE_CORPUS();
   const Scene scene = import_scene({test::mesh_path("stanford/stanford-bunny.obj.zst")}, 2);

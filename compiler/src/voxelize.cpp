@@ -83,36 +83,50 @@ GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::uint3
                  scene.positions[tri.v[2]]);
 }
 
-// Every triangle's index, in triangle order, in the bin (Morton index) of each brick of side
-// `brick` its candidate voxels reach.
+// The cube as an inclusive voxel range.
+VoxelRange range_of(const VoxelCube& cube) {
+  VoxelRange r;
+  for (int a = 0; a < 3; ++a)
+    r.lo[a] = cube.origin[a], r.hi[a] = std::int64_t(cube.origin[a]) + cube.side - 1;
+  return r;
+}
+
+// Each of `triangles`, in the given order, in the bin (Morton index within `cube`) of each brick
+// of side `brick` its candidate voxels reach inside `cube`.
 std::vector<std::vector<std::uint32_t>> bin_triangles(const Scene& scene, const VoxelGrid& grid,
+                                                      const VoxelCube& cube,
+                                                      std::span<const std::uint32_t> triangles,
                                                       std::uint32_t brick) {
-  const std::uint32_t n = grid.resolution, bricks_per_axis = n / brick;
-  const VoxelRange whole{{0, 0, 0}, {n - 1, n - 1, n - 1}};
+  const std::uint32_t bricks_per_axis = cube.side / brick;
+  const VoxelRange whole = range_of(cube);
   std::vector<std::vector<std::uint32_t>> bins(std::size_t(bricks_per_axis) * bricks_per_axis *
                                                bricks_per_axis);
-  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
+  for (const std::uint32_t i : triangles) {
     const VoxelRange r = candidate_range(grid_triangle(scene, grid, i), whole);
     if (r.lo[0] > r.hi[0] || r.lo[1] > r.hi[1] || r.lo[2] > r.hi[2]) continue;
-    for (std::int64_t bz = r.lo[2] / brick; bz <= r.hi[2] / brick; ++bz)
-      for (std::int64_t by = r.lo[1] / brick; by <= r.hi[1] / brick; ++by)
-        for (std::int64_t bx = r.lo[0] / brick; bx <= r.hi[0] / brick; ++bx)
-          bins[format::morton_code(std::uint32_t(bx), std::uint32_t(by), std::uint32_t(bz))]
-              .push_back(i);
+    std::uint32_t lo[3], hi[3];
+    for (int a = 0; a < 3; ++a)
+      lo[a] = std::uint32_t((r.lo[a] - whole.lo[a]) / brick),
+      hi[a] = std::uint32_t((r.hi[a] - whole.lo[a]) / brick);
+    for (std::uint32_t bz = lo[2]; bz <= hi[2]; ++bz)
+      for (std::uint32_t by = lo[1]; by <= hi[1]; ++by)
+        for (std::uint32_t bx = lo[0]; bx <= hi[0]; ++bx)
+          bins[format::morton_code(bx, by, bz)].push_back(i);
   }
   return bins;
 }
 
-// The voxels of brick `b` (Morton index) that `triangles` touch, sorted, and with
-// `options.normals` the octahedral sum of their triangles' unit normals.
-BrickOutput voxelize_brick(const Scene& scene, const VoxelGrid& grid, std::uint32_t brick,
-                           std::size_t b, std::span<const std::uint32_t> triangles, bool normals) {
-  const std::uint32_t bx = format::compact_bits(b), by = format::compact_bits(b >> 1),
-                      bz = format::compact_bits(b >> 2);
-  const VoxelRange clip{
-      {std::int64_t(bx) * brick, std::int64_t(by) * brick, std::int64_t(bz) * brick},
-      {std::int64_t(bx + 1) * brick - 1, std::int64_t(by + 1) * brick - 1,
-       std::int64_t(bz + 1) * brick - 1}};
+// The voxels of brick `b` (Morton index within `cube`) that `triangles` touch, sorted, and with
+// `normals` the octahedral sum of their triangles' unit normals.
+BrickOutput voxelize_brick(const Scene& scene, const VoxelGrid& grid, const VoxelCube& cube,
+                           std::uint32_t brick, std::size_t b,
+                           std::span<const std::uint32_t> triangles, bool normals) {
+  const std::uint32_t local[3] = {format::compact_bits(b), format::compact_bits(b >> 1),
+                                  format::compact_bits(b >> 2)};
+  VoxelRange clip;
+  for (int a = 0; a < 3; ++a)
+    clip.lo[a] = std::int64_t(cube.origin[a]) + std::int64_t(local[a]) * brick,
+    clip.hi[a] = clip.lo[a] + brick - 1;
   // (code, triangle) pairs: sorting them fixes the order normals are summed in.
   std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
   for (const std::uint32_t i : triangles)
@@ -202,6 +216,49 @@ bool triangle_touches_voxel(const GridTriangle& t, std::uint32_t x, std::uint32_
   return triangle_overlaps_box(t.v[0], t.v[1], t.v[2], lo, hi);
 }
 
+bool is_valid_cube(const VoxelGrid& grid, const VoxelCube& cube) {
+  if (cube.side < 4 || (cube.side & (cube.side - 1)) != 0 || cube.side > grid.resolution)
+    return false;
+  for (const std::uint32_t o : cube.origin)
+    if (o % cube.side != 0 || std::uint64_t(o) + cube.side > grid.resolution) return false;
+  return true;
+}
+
+std::vector<std::uint32_t> triangles_reaching(const Scene& scene, const VoxelGrid& grid,
+                                              const VoxelCube& cube) {
+  const VoxelRange clip = range_of(cube);
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
+    const VoxelRange r = candidate_range(grid_triangle(scene, grid, i), clip);
+    if (r.lo[0] <= r.hi[0] && r.lo[1] <= r.hi[1] && r.lo[2] <= r.hi[2]) out.push_back(i);
+  }
+  return out;
+}
+
+Voxels voxelize_surface_cube(const Scene& scene, const VoxelGrid& grid, const VoxelCube& cube,
+                             std::span<const std::uint32_t> triangles, bool normals,
+                             unsigned threads) {
+  if (!is_valid_cube(grid, cube)) throw std::invalid_argument("voxel cube outside the grid");
+  Voxels out;
+  out.grid = grid;
+  const std::uint32_t brick = std::min(cube.side, kBrickSide);
+  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(scene, grid, cube, triangles, brick);
+  std::vector<BrickOutput> bricks(bins.size());
+  parallel_for(bins.size(), threads, [&](std::size_t b) {
+    if (bins[b].empty()) return;
+    bricks[b] = voxelize_brick(scene, grid, cube, brick, b, bins[b], normals);
+    std::vector<std::uint32_t>().swap(bins[b]);
+  });
+  concatenate_bricks(bricks, normals, out);
+  return out;
+}
+
+VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
+                                    const VoxelCube& cube, std::span<const std::uint32_t> triangles,
+                                    unsigned threads) {
+  return leaves_of(voxelize_surface_cube(scene, grid, cube, triangles, false, threads).codes);
+}
+
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
   const std::uint32_t n = options.resolution;
   if (!format::is_valid_voxel_resolution(n))
@@ -209,18 +266,11 @@ Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
                                 " must be a power of two in " +
                                 std::to_string(format::kVoxelMinResolution) + ".." +
                                 std::to_string(format::kVoxelMaxResolution));
-  Voxels out;
-  out.grid = fit_voxel_grid(scene.bounds, n);
-  const std::uint32_t brick = std::min(n, kBrickSide);
-  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(scene, out.grid, brick);
-  std::vector<BrickOutput> bricks(bins.size());
-  parallel_for(bins.size(), options.threads, [&](std::size_t b) {
-    if (bins[b].empty()) return;
-    bricks[b] = voxelize_brick(scene, out.grid, brick, b, bins[b], options.normals);
-    std::vector<std::uint32_t>().swap(bins[b]);
-  });
-  concatenate_bricks(bricks, options.normals, out);
-  return out;
+  const VoxelGrid grid = fit_voxel_grid(scene.bounds, n);
+  std::vector<std::uint32_t> all(scene.triangles.size());
+  for (std::uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+  return voxelize_surface_cube(scene, grid, VoxelCube{{0, 0, 0}, n}, all, options.normals,
+                               options.threads);
 }
 
 }  // namespace kiln

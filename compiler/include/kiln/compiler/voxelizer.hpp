@@ -64,6 +64,27 @@ struct Voxels {
 // [kVoxelMinResolution, kVoxelMaxResolution].
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options);
 
+/// A cube of grid cells, [origin, origin + side) on each axis: side a power of two >= 4 and
+/// <= the resolution, each origin a multiple of side. Out-of-core builds work cube by cube.
+struct VoxelCube {
+  std::array<std::uint32_t, 3> origin{};
+  std::uint32_t side = 0;
+};
+bool is_valid_cube(const VoxelGrid& grid, const VoxelCube& cube);
+
+/// The triangles (indices, ascending) whose candidate voxels reach `cube`: a superset of those
+/// that touch a voxel of it.
+std::vector<std::uint32_t> triangles_reaching(const Scene& scene, const VoxelGrid& grid,
+                                              const VoxelCube& cube);
+
+/// The voxels of `cube` that `triangles` touch, as voxelize_surface gives them for the whole grid
+/// (global Morton codes, ascending; normals when asked). Pass every triangle that can reach the
+/// cube (triangles_reaching); extra ones cost time only. Throws std::invalid_argument for a cube
+/// that is_valid_cube refuses.
+Voxels voxelize_surface_cube(const Scene& scene, const VoxelGrid& grid, const VoxelCube& cube,
+                             std::span<const std::uint32_t> triangles, bool normals,
+                             unsigned threads);
+
 // Voxels as 4x4x4 blocks: 8 bytes per 64 voxels, so a solid interior stays small.
 struct VoxelLeaves {
   std::vector<std::uint64_t> keys;   // Morton code >> 6 of each non-empty block, ascending
@@ -71,6 +92,13 @@ struct VoxelLeaves {
   std::uint64_t voxel_count = 0;
 };
 VoxelLeaves leaves_of(std::span<const std::uint64_t> codes);
+
+/// The surface voxels of `cube` as 4x4x4 blocks with global keys: equal to
+/// leaves_of(voxelize_surface_cube(scene, grid, cube, triangles, false, threads).codes), and for
+/// the whole grid to leaves_of(voxelize_surface(...).codes), without the per-voxel codes.
+VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
+                                    const VoxelCube& cube, std::span<const std::uint32_t> triangles,
+                                    unsigned threads);
 
 // The surface voxels plus every voxel whose centre lies inside the mesh: along each column of
 // voxel centres parallel to z, the crossings with the triangles (one per triangle whose xy
