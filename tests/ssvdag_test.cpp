@@ -114,7 +114,9 @@ TEST(Ssvdag, ExpandsToTheDagVoxelSetAtSeveralResolutions) {
       EXPECT_LE(b.ssvdag.level_stats[l].ssvdag_nodes, dag.level_stats[l].dag_nodes);
     }
     EXPECT_EQ(b.view().count_voxels(), b.dag.voxels.codes.size());
-    if (resolution >= 64) EXPECT_LT(b.ssvdag.ssvdag_bytes, dag.dag_bytes) << resolution;
+    if (resolution >= 64) {
+      EXPECT_LT(b.ssvdag.ssvdag_bytes, dag.dag_bytes) << resolution;
+    }
   }
 }
 

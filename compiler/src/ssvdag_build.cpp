@@ -1,5 +1,7 @@
-// Symmetry-aware sparse voxel DAG (Villanueva, Marton, Gobbetti 2016): the DAG's bottom-up
-// reduction, with every node compared in its canonical form, the least of its eight mirror images.
+// Symmetry-aware sparse voxel DAG (Villanueva, Marton, Gobbetti 2016), reduced from the voxel DAG:
+// bottom up over the DAG's unique nodes, every node is compared in its canonical form, the least
+// of its eight mirror images. Working on the DAG rather than on every octree node keeps the cost
+// with the DAG's size, so the SSVDAG goes wherever the (out-of-core) DAG build goes.
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -8,6 +10,7 @@
 #include <unordered_map>
 
 #include "kiln/compiler/ssvdag_builder.hpp"
+#include "kiln/compiler/voxel_dag_builder.hpp"
 #include "kiln/formats/ssvdag.hpp"
 #include "kiln/runtime/parallel.hpp"
 #include "voxel_node_signature.hpp"
@@ -23,13 +26,6 @@ constexpr std::size_t kBatch = 1024;
 // DAG ids.
 using Signature = VoxelNodeSignature;
 using SignatureHash = VoxelNodeSignatureHash;
-
-// One level of the plain octree, in Morton order: each node's key, its SSVDAG reference and its
-// DAG id.
-struct Level {
-  std::vector<std::uint64_t> keys;
-  std::vector<std::uint32_t> refs, dag_ids;
-};
 
 // The unique nodes of one level: canonical signatures (interior) or masks (leaves), and per node
 // its symmetries (bit t: mirror t maps the node onto itself; bit 0 always).
@@ -64,110 +60,6 @@ Signature mirrored(const Signature& s, std::uint32_t t, std::span<const std::uin
   }
   return out;
 }
-
-// Leaves: canonical masks on `threads` threads, then ids in order of first occurrence.
-Level merge_leaves(const VoxelLeaves& leaves, UniqueLevel& unique, SsvdagLevelStats& stats,
-                   unsigned threads) {
-  const std::size_t n = leaves.keys.size();
-  std::vector<std::uint64_t> canonical(n);
-  std::vector<std::uint8_t> mirror(n);
-  parallel_for_batched(n, kBatch, threads, [&](std::size_t i) {
-    std::uint64_t best = leaves.masks[i];
-    for (std::uint32_t t = 1; t < 8; ++t)
-      if (const std::uint64_t m = format::ssvdag_mirror_leaf(leaves.masks[i], t); m < best)
-        best = m, mirror[i] = std::uint8_t(t);
-    canonical[i] = best;
-  });
-  Level level{leaves.keys, std::vector<std::uint32_t>(n), std::vector<std::uint32_t>(n)};
-  std::unordered_map<std::uint64_t, std::uint32_t> ids, dag_ids;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto [it, fresh] = ids.emplace(canonical[i], std::uint32_t(unique.leaves.size()));
-    if (fresh) {
-      std::uint8_t symmetries = 0;
-      for (std::uint32_t t = 0; t < 8; ++t)
-        if (format::ssvdag_mirror_leaf(canonical[i], t) == canonical[i]) symmetries |= 1u << t;
-      unique.leaves.push_back(canonical[i]);
-      unique.symmetries.push_back(symmetries);
-    }
-    level.refs[i] = reference(it->second, mirror[i], unique.symmetries[it->second]);
-    level.dag_ids[i] =
-        dag_ids.emplace(leaves.masks[i], std::uint32_t(dag_ids.size())).first->second;
-  }
-  stats.svo_nodes = n;
-  stats.dag_nodes = dag_ids.size();
-  stats.ssvdag_nodes = unique.leaves.size();
-  return level;
-}
-
-// The nodes of the level above `below`: siblings (same key >> 3) form one node.
-struct RawNodes {
-  std::vector<std::size_t> starts;  // node j holds below's entries [starts[j], starts[j + 1])
-  std::vector<Signature> canonical, dag;
-  std::vector<std::uint8_t> mirror;
-};
-
-RawNodes raw_nodes(const Level& below, std::span<const std::uint8_t> symmetries, unsigned threads) {
-  RawNodes raw;
-  for (std::size_t i = 0; i < below.keys.size(); ++i)
-    if (i == 0 || below.keys[i] >> 3 != below.keys[i - 1] >> 3) raw.starts.push_back(i);
-  raw.starts.push_back(below.keys.size());
-  const std::size_t n = raw.starts.size() - 1;
-  raw.canonical.resize(n), raw.dag.resize(n), raw.mirror.resize(n);
-  parallel_for_batched(n, kBatch, threads, [&](std::size_t j) {
-    Signature s, d;
-    s.v.fill(kAbsent), d.v.fill(kAbsent);
-    s.v[0] = d.v[0] = 0;
-    for (std::size_t i = raw.starts[j]; i < raw.starts[j + 1]; ++i) {
-      const auto octant = std::uint32_t(below.keys[i] & 7);
-      s.v[0] |= 1u << octant, d.v[0] |= 1u << octant;
-      s.v[1 + octant] = below.refs[i];
-      d.v[1 + octant] = below.dag_ids[i];
-    }
-    Signature best = s;
-    for (std::uint32_t t = 1; t < 8; ++t)
-      if (const Signature m = mirrored(s, t, symmetries); m.v < best.v)
-        best = m, raw.mirror[j] = std::uint8_t(t);
-    raw.canonical[j] = best, raw.dag[j] = d;
-  });
-  return raw;
-}
-
-// One interior level from the level below: canonical signatures merge (hash, then exact compare).
-Level merge_level(const Level& below, std::span<const std::uint8_t> below_symmetries,
-                  UniqueLevel& unique, SsvdagLevelStats& stats, std::uint64_t& svo_bytes,
-                  std::uint64_t& dag_bytes, unsigned threads) {
-  const RawNodes raw = raw_nodes(below, below_symmetries, threads);
-  const std::size_t n = raw.canonical.size();
-  Level level{std::vector<std::uint64_t>(n), std::vector<std::uint32_t>(n),
-              std::vector<std::uint32_t>(n)};
-  std::unordered_map<Signature, std::uint32_t, SignatureHash> ids, dag_ids;
-  for (std::size_t j = 0; j < n; ++j) {
-    const Signature& c = raw.canonical[j];
-    const auto [it, fresh] = ids.emplace(c, std::uint32_t(unique.nodes.size()));
-    if (fresh) {
-      std::uint8_t symmetries = 1;
-      for (std::uint32_t t = 1; t < 8; ++t)
-        if (mirrored(c, t, below_symmetries) == c) symmetries |= 1u << t;
-      unique.nodes.push_back(c);
-      unique.symmetries.push_back(symmetries);
-    }
-    level.keys[j] = below.keys[raw.starts[j]] >> 3;
-    level.refs[j] = reference(it->second, raw.mirror[j], unique.symmetries[it->second]);
-    const auto [dag, dag_fresh] = dag_ids.emplace(raw.dag[j], std::uint32_t(dag_ids.size()));
-    level.dag_ids[j] = dag->second;
-    const std::uint64_t bytes = 4 * (1 + std::popcount(c.v[0]));
-    svo_bytes += bytes;
-    if (dag_fresh) dag_bytes += bytes;
-  }
-  stats.svo_nodes = n;
-  stats.dag_nodes = dag_ids.size();
-  stats.ssvdag_nodes = unique.nodes.size();
-  return level;
-}
-
-}  // namespace
-
-namespace {
 
 // How many pointers reach each node of each level (the root: none).
 std::vector<std::vector<std::uint64_t>> reference_counts(const std::vector<UniqueLevel>& levels) {
@@ -260,7 +152,150 @@ void lay_out(const std::vector<UniqueLevel>& levels, FlatSsvdag& out) {
   out.ssvdag_bytes = 2 * out.words.size() + 8 * out.leaves.size();
 }
 
+// The DAG's unique nodes per level, in id order: interior nodes with their children's ids in the
+// level below, and the leaves' masks.
+struct DagNodes {
+  std::vector<std::vector<Signature>> interior;  // levels 0 .. leaf level - 1
+  std::vector<std::uint64_t> leaves;
+};
+
+// Each node's first word, level by level (nodes are laid out back to back in id order).
+std::vector<std::vector<std::uint64_t>> node_starts(const FlatVoxelDag& dag) {
+  const std::uint32_t leaf_level = dag.levels - 2;
+  std::vector<std::vector<std::uint64_t>> starts(leaf_level);
+  for (std::uint32_t l = 0; l < leaf_level; ++l) {
+    const std::uint64_t end =
+        l + 1 < leaf_level ? dag.level_stats[l + 1].first_word : dag.leaf_first_word;
+    for (std::uint64_t w = dag.level_stats[l].first_word; w < end;
+         w += 1 + std::popcount(dag.words[w]))
+      starts[l].push_back(w);
+  }
+  return starts;
+}
+
+DagNodes read_dag(const FlatVoxelDag& dag) {
+  const std::uint32_t leaf_level = dag.levels - 2;
+  const auto& w = dag.words;
+  DagNodes out;
+  for (std::uint64_t i = dag.leaf_first_word; i + 1 < w.size(); i += 2)
+    out.leaves.push_back(w[i] | std::uint64_t(w[i + 1]) << 32);
+  const auto starts = node_starts(dag);
+  out.interior.resize(leaf_level);
+  for (std::uint32_t l = 0; l < leaf_level; ++l)
+    for (const std::uint64_t first : starts[l]) {
+      Signature s;
+      s.v.fill(kAbsent);
+      s.v[0] = w[first];
+      std::uint64_t at = first + 1;
+      for (std::uint32_t o = 0; o < 8; ++o) {
+        if ((s.v[0] >> o & 1) == 0) continue;
+        const std::uint64_t child = w[at++];
+        s.v[1 + o] = l + 1 < leaf_level
+                         ? std::uint32_t(
+                               std::lower_bound(starts[l + 1].begin(), starts[l + 1].end(), child) -
+                               starts[l + 1].begin())
+                         : std::uint32_t((child - dag.leaf_first_word) / 2);
+      }
+      out.interior[l].push_back(s);
+    }
+  return out;
+}
+
+// The leaves' canonical masks on `threads` threads, then ids in DAG id order; returns each DAG
+// leaf's SSVDAG reference.
+std::vector<std::uint32_t> merge_dag_leaves(std::span<const std::uint64_t> masks,
+                                            UniqueLevel& unique, unsigned threads) {
+  const std::size_t n = masks.size();
+  std::vector<std::uint64_t> canonical(n);
+  std::vector<std::uint8_t> mirror(n);
+  parallel_for_batched(n, kBatch, threads, [&](std::size_t i) {
+    std::uint64_t best = masks[i];
+    for (std::uint32_t t = 1; t < 8; ++t)
+      if (const std::uint64_t m = format::ssvdag_mirror_leaf(masks[i], t); m < best)
+        best = m, mirror[i] = std::uint8_t(t);
+    canonical[i] = best;
+  });
+  std::vector<std::uint32_t> refs(n);
+  std::unordered_map<std::uint64_t, std::uint32_t> ids;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto [it, fresh] = ids.emplace(canonical[i], std::uint32_t(unique.leaves.size()));
+    if (fresh) {
+      std::uint8_t symmetries = 0;
+      for (std::uint32_t t = 0; t < 8; ++t)
+        if (format::ssvdag_mirror_leaf(canonical[i], t) == canonical[i]) symmetries |= 1u << t;
+      unique.leaves.push_back(canonical[i]);
+      unique.symmetries.push_back(symmetries);
+    }
+    refs[i] = reference(it->second, mirror[i], unique.symmetries[it->second]);
+  }
+  return refs;
+}
+
+// One interior level: each DAG node's children become the level below's references, the node
+// its canonical form, and equal canonical forms merge (ids in DAG id order). Returns each DAG
+// node's SSVDAG reference.
+std::vector<std::uint32_t> merge_dag_level(std::span<const Signature> nodes,
+                                           std::span<const std::uint32_t> below_refs,
+                                           std::span<const std::uint8_t> below_symmetries,
+                                           UniqueLevel& unique, unsigned threads) {
+  const std::size_t n = nodes.size();
+  std::vector<Signature> canonical(n);
+  std::vector<std::uint8_t> mirror(n);
+  parallel_for_batched(n, kBatch, threads, [&](std::size_t j) {
+    Signature s = nodes[j];
+    for (std::uint32_t o = 0; o < 8; ++o)
+      if (s.v[1 + o] != kAbsent) s.v[1 + o] = below_refs[s.v[1 + o]];
+    Signature best = s;
+    for (std::uint32_t t = 1; t < 8; ++t)
+      if (const Signature m = mirrored(s, t, below_symmetries); m.v < best.v)
+        best = m, mirror[j] = std::uint8_t(t);
+    canonical[j] = best;
+  });
+  std::vector<std::uint32_t> refs(n);
+  std::unordered_map<Signature, std::uint32_t, SignatureHash> ids;
+  for (std::size_t j = 0; j < n; ++j) {
+    const Signature& c = canonical[j];
+    const auto [it, fresh] = ids.emplace(c, std::uint32_t(unique.nodes.size()));
+    if (fresh) {
+      std::uint8_t symmetries = 1;
+      for (std::uint32_t t = 1; t < 8; ++t)
+        if (mirrored(c, t, below_symmetries) == c) symmetries |= 1u << t;
+      unique.nodes.push_back(c);
+      unique.symmetries.push_back(symmetries);
+    }
+    refs[j] = reference(it->second, mirror[j], unique.symmetries[it->second]);
+  }
+  return refs;
+}
+
 }  // namespace
+
+FlatSsvdag build_ssvdag(const FlatVoxelDag& dag, unsigned threads) {
+  FlatSsvdag out;
+  out.levels = dag.levels;
+  out.voxel_count = dag.voxel_count;
+  out.svo_bytes = dag.svo_bytes;
+  out.dag_bytes = dag.dag_bytes;
+  const std::uint32_t leaf_level = out.levels - 2;
+  out.level_stats.resize(leaf_level + 1);
+  std::vector<UniqueLevel> levels(leaf_level + 1);
+  DagNodes nodes = read_dag(dag);
+  std::vector<std::uint32_t> refs = merge_dag_leaves(nodes.leaves, levels[leaf_level], threads);
+  for (std::uint32_t l = leaf_level + 1; l-- > 0;) {
+    if (l < leaf_level) {
+      refs = merge_dag_level(nodes.interior[l], refs, levels[l + 1].symmetries, levels[l], threads);
+      std::vector<Signature>().swap(nodes.interior[l]);
+    }
+    auto& stats = out.level_stats[l];
+    stats.svo_nodes = dag.level_stats[l].svo_nodes;
+    stats.dag_nodes = dag.level_stats[l].dag_nodes;
+    stats.ssvdag_nodes = l < leaf_level ? levels[l].nodes.size() : levels[l].leaves.size();
+  }
+  out.root_mirror = refs.at(0) & 7;
+  for (const auto& s : out.level_stats) out.symmetry_merges += s.dag_nodes - s.ssvdag_nodes;
+  lay_out(levels, out);
+  return out;
+}
 
 FlatSsvdag build_ssvdag(std::span<const std::uint64_t> codes, std::uint32_t resolution,
                         unsigned threads) {
@@ -269,24 +304,7 @@ FlatSsvdag build_ssvdag(std::span<const std::uint64_t> codes, std::uint32_t reso
 
 FlatSsvdag build_ssvdag(const VoxelLeaves& leaves, std::uint32_t resolution, unsigned threads) {
   if (leaves.keys.empty()) throw std::invalid_argument("an SSVDAG needs at least one voxel");
-  FlatSsvdag out;
-  out.levels = std::uint32_t(std::bit_width(resolution) - 1);
-  out.voxel_count = leaves.voxel_count;
-  const std::uint32_t leaf_level = out.levels - 2;
-  out.level_stats.resize(leaf_level + 1);
-  std::vector<UniqueLevel> levels(leaf_level + 1);
-  Level below = merge_leaves(leaves, levels[leaf_level], out.level_stats[leaf_level], threads);
-  out.svo_bytes = 8 * below.keys.size();
-  out.dag_bytes = 8 * out.level_stats[leaf_level].dag_nodes;
-  for (std::uint32_t l = leaf_level; l-- > 0;)
-    below = merge_level(below, levels[l + 1].symmetries, levels[l], out.level_stats[l],
-                        out.svo_bytes, out.dag_bytes, threads);
-  if (below.keys.size() != 1 || below.keys[0] != 0)
-    throw std::invalid_argument("voxel codes lie outside the grid");
-  out.root_mirror = below.refs[0] & 7;
-  for (const auto& s : out.level_stats) out.symmetry_merges += s.dag_nodes - s.ssvdag_nodes;
-  lay_out(levels, out);
-  return out;
+  return build_ssvdag(build_voxel_dag(leaves, resolution), threads);
 }
 
 std::vector<std::uint64_t> ssvdag_level_first_words(const FlatSsvdag& ssvdag) {

@@ -6,6 +6,7 @@
 #include <span>
 #include <vector>
 
+#include "kiln/compiler/voxel_dag_builder.hpp"
 #include "kiln/compiler/voxelizer.hpp"
 
 namespace kiln {
@@ -28,12 +29,16 @@ struct FlatSsvdag {
   std::uint64_t symmetry_merges = 0;  // sum over levels of dag_nodes - ssvdag_nodes
 };
 
-/// Bottom up from the leaves: every node is brought to its canonical form, the least of its
-/// eight mirror images, and nodes with equal canonical forms merge; a pointer stores the mirror
-/// that turns the canonical node into the subtree it stands for. Then each level is ordered by
-/// reference count and laid out with narrow or wide pointers. Canonical forms are computed on
-/// `threads` threads, ids assigned in Morton order on one, so the output depends on the voxels
-/// alone. `leaves` as build_voxel_dag takes them (keys ascending, masks non-zero, non-empty).
+/// Bottom up over the voxel DAG's unique nodes: every node is brought to its canonical form, the
+/// least of its eight mirror images, and nodes with equal canonical forms merge; a pointer stores
+/// the mirror that turns the canonical node into the subtree it stands for. Then each level is
+/// ordered by reference count and laid out with narrow or wide pointers. Canonical forms are
+/// computed on `threads` threads, ids assigned in the DAG's id order (first occurrence in Morton
+/// order) on one, so the output depends on the voxels alone. Touching only unique nodes (far
+/// fewer than the octree's), it scales with the DAG, not with the voxels.
+FlatSsvdag build_ssvdag(const FlatVoxelDag& dag, unsigned threads);
+/// The same from the voxels: build_voxel_dag, then the above. `leaves` as build_voxel_dag takes
+/// them (keys ascending, masks non-zero, non-empty).
 FlatSsvdag build_ssvdag(const VoxelLeaves& leaves, std::uint32_t resolution, unsigned threads);
 FlatSsvdag build_ssvdag(std::span<const std::uint64_t> codes, std::uint32_t resolution,
                         unsigned threads);
