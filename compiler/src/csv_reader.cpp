@@ -1,5 +1,7 @@
 #include "kiln/compiler/csv_reader.hpp"
 
+#include <charconv>
+#include <limits>
 #include <stdexcept>
 
 namespace kiln {
@@ -74,6 +76,26 @@ std::optional<std::size_t> csv_column(std::span<const std::string_view> header,
   for (std::size_t i = 0; i < header.size(); ++i)
     if (header[i] == name) return i;
   return std::nullopt;
+}
+
+std::optional<double> parse_csv_number(std::string_view text) {
+  while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
+  while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
+  if (text.size() > 1 && text[0] == '+' && text[1] != '-') text.remove_prefix(1);
+  if (text.empty()) return std::nullopt;
+  double value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (end != text.data() + text.size()) return std::nullopt;
+  if (ec == std::errc::result_out_of_range) {
+    // from_chars leaves the value alone: a negative exponent underflowed, anything else overflowed.
+    const bool negative = text[0] == '-';
+    const std::size_t e = text.find_first_of("eE");
+    const bool underflow = e != std::string_view::npos && e + 1 < text.size() && text[e + 1] == '-';
+    const double magnitude = underflow ? 0.0 : std::numeric_limits<double>::infinity();
+    return negative ? -magnitude : magnitude;
+  }
+  if (ec != std::errc()) return std::nullopt;
+  return value;
 }
 
 }  // namespace kiln

@@ -1,6 +1,5 @@
 // A CSV table's coordinate columns into a PointTable2, through CsvReader (RFC 4180). Only the two
 // coordinate columns are stored: the query tools read the other columns from the CSV itself.
-#include <charconv>
 #include <cmath>
 #include <string>
 #include <system_error>
@@ -12,25 +11,12 @@
 namespace kiln {
 namespace {
 
-// A coordinate field: optional surrounding spaces, then a whole number as std::from_chars
-// reads it (a leading '+' allowed), finite.
+// A coordinate field (parse_csv_number), finite.
 enum class Parsed { kOk, kNotNumber, kNotFinite };
 Parsed parse_coordinate(std::string_view text, double& value) {
-  while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
-  while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
-  if (text.size() > 1 && text[0] == '+' && text[1] != '-') text.remove_prefix(1);
-  if (text.empty()) return Parsed::kNotNumber;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (end != text.data() + text.size()) return Parsed::kNotNumber;
-  if (ec == std::errc::result_out_of_range) {
-    // Underflow is zero; overflow is not finite.
-    const std::size_t e = text.find_first_of("eE");
-    if (e == std::string_view::npos || e + 1 >= text.size() || text[e + 1] != '-')
-      return Parsed::kNotFinite;
-    value = 0;
-    return Parsed::kOk;
-  }
-  if (ec != std::errc()) return Parsed::kNotNumber;
+  const std::optional<double> number = parse_csv_number(text);
+  if (!number) return Parsed::kNotNumber;
+  value = *number;
   return std::isfinite(value) ? Parsed::kOk : Parsed::kNotFinite;
 }
 

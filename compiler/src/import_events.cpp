@@ -15,18 +15,6 @@ namespace kiln {
 
 namespace {
 
-std::optional<double> parse_number(std::string_view text) {
-  while (!text.empty() && text.front() == ' ') text.remove_prefix(1);
-  while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
-  if (!text.empty() && text.front() == '+') text.remove_prefix(1);
-  if (text == "inf" || text == "+inf") return std::numeric_limits<double>::infinity();
-  if (text == "-inf") return -std::numeric_limits<double>::infinity();
-  double value = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (text.empty() || ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
-  return value;
-}
-
 std::string shortest(double value) {
   if (std::isinf(value)) return value < 0 ? "-inf" : "inf";
   char buffer[64];
@@ -149,7 +137,7 @@ EventCategorySpec parse_event_category(std::string_view text) {
     std::string_view edges = std::string_view(spec.column).substr(colon + 1);
     while (!edges.empty()) {
       const auto comma = edges.find(',');
-      const auto value = parse_number(edges.substr(0, comma));
+      const auto value = parse_csv_number(edges.substr(0, comma));
       if (!value || std::isnan(*value))
         throw std::invalid_argument("--category " + std::string(text) + ": '" +
                                     std::string(edges.substr(0, comma)) + "' is not a number");
@@ -250,7 +238,7 @@ std::string parse_row(std::span<const std::string_view> fields, const ColumnInde
   if (fields.size() < index.needed)
     return std::to_string(fields.size()) + " fields, expected at least " +
            std::to_string(index.needed);
-  const auto lon = parse_number(fields[index.lon]), lat = parse_number(fields[index.lat]);
+  const auto lon = parse_csv_number(fields[index.lon]), lat = parse_csv_number(fields[index.lat]);
   if (!lon || !std::isfinite(*lon) || *lon < -180 || *lon > 180)
     return bad_value(columns.lon, fields[index.lon], "a longitude in [-180, 180]");
   if (!lat || !std::isfinite(*lat) || *lat < -90 || *lat > 90)
@@ -272,7 +260,7 @@ std::string parse_row(std::span<const std::string_view> fields, const ColumnInde
       row.codes.push_back(it->second);
       continue;
     }
-    const auto value = parse_number(field);
+    const auto value = parse_csv_number(field);
     if (!value || std::isnan(*value)) return bad_value(spec.column, field, "a number");
     const auto upper = std::upper_bound(spec.edges.begin(), spec.edges.end(), *value);
     if (upper == spec.edges.begin() || upper == spec.edges.end())

@@ -26,11 +26,9 @@ namespace {
 constexpr std::size_t kBatch = 1024;
 
 bool parse_double(std::string_view text, double& value) {
-  while (!text.empty() && text.front() == ' ') text.remove_prefix(1);
-  while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
-  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-  return !text.empty() && error == std::errc() && end == text.data() + text.size() &&
-         std::isfinite(value);
+  const std::optional<double> number = parse_csv_number(text);
+  if (number) value = *number;
+  return number && std::isfinite(*number);
 }
 
 // `stride` numbers per query, from CSV (by extension .csv, also inside .zst) or raw float64.

@@ -4,7 +4,6 @@
 // depends on the thread count.
 #include "query_polygon.hpp"
 
-#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <iostream>
@@ -49,16 +48,11 @@ void put_field(std::string& out, std::string_view field) {
 }
 
 double parse_double(const CsvReader& reader, std::string_view field, std::string_view column) {
-  double value = 0;
-  const char* begin = field.data();
-  const char* end = begin + field.size();
-  while (begin < end && *begin == ' ') ++begin;
-  if (begin < end && *begin == '+') ++begin;
-  const auto [ptr, error] = std::from_chars(begin, end, value);
-  if (begin == end || error != std::errc() || ptr != end)
+  const std::optional<double> value = parse_csv_number(field);
+  if (!value)
     throw std::runtime_error(
         reader.where(std::string(column) + " '" + std::string(field) + "' is not a number"));
-  return value;
+  return *value;
 }
 
 // Runs `answer(i, part)` for every index in parallel batches, concatenated in order.

@@ -52,4 +52,10 @@ class CsvReader {
 std::optional<std::size_t> csv_column(std::span<const std::string_view> header,
                                       std::string_view name);
 
+/// A number field as CSV tables write them: surrounding spaces and tabs ignored, an optional
+/// leading '+', then what std::from_chars reads as a whole (decimal or scientific, "inf", "nan").
+/// A value too small for a double reads as a zero, one too large as an infinity, both with their
+/// sign. nullopt for anything else; callers that need a finite value check it themselves.
+std::optional<double> parse_csv_number(std::string_view field);
+
 }  // namespace kiln
