@@ -58,6 +58,10 @@ class VoxelStructure final : public StructureView, public RayQueries, public Occ
     else
       return false;
   }
+  bool voxel_frame(VoxelGridFrame& out) const override {
+    out = view_.frame();
+    return true;
+  }
   SurfaceHit intersect_counting(const Ray& ray, Cost& cost) const override {
     const VoxelHit h = view_.intersect_counting(ray, cost);
     SurfaceHit surface{h};

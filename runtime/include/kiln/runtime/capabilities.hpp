@@ -18,6 +18,7 @@
 #include "kiln/formats/vector.hpp"
 #include "kiln/runtime/query_results.hpp"
 #include "kiln/runtime/ray.hpp"
+#include "kiln/runtime/voxel_grid.hpp"
 
 namespace kiln {
 
@@ -51,6 +52,12 @@ class RayQueries {
   }
   /// Whether voxel hits carry a stored colour (an ESVO built from coloured input).
   virtual bool has_colors() const { return false; }
+  /// Voxel structures: the finest grid (origin, voxel size, resolution) into `out`, true; false,
+  /// nothing written, for triangle structures.
+  virtual bool voxel_frame(VoxelGridFrame& out) const {
+    (void)out;
+    return false;
+  }
 };
 
 /// Proximity on a triangle surface: closest point, inside/outside (by ray parity; meaningful
