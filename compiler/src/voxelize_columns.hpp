@@ -1,0 +1,146 @@
+// The surface voxelizer's inner loop: one triangle's voxels as runs along columns, decided by the
+// separating-axis tests in closed form instead of voxel by voxel.
+//
+// Every one of the 13 axes of triangle_overlaps_box (Akenine-Moller 2001) is a slab test
+// "c . X in [B_lo, B_hi]" on the voxel centre c, linear in c; these are also Schwarz & Seidel's
+// (2010) plane and 2D edge-function tests. Along a column parallel to the axis `a` where the
+// triangle's normal is largest, each test with a non-zero a-component bounds the centre's a
+// coordinate to an interval, so a column's voxels are one run [lo, hi], computed with a few
+// multiply-adds; tests with a zero a-component bound the columns (rows along v, then u). The box
+// axes are the candidate range, which is exact.
+//
+// Exactness: the predicate evaluates each test in double with rounding, so it may differ from the
+// exact-arithmetic test near the slab's boundary. Each test carries a margin `m` (see
+// margin_of_* in voxelize_columns.cpp) that bounds the difference between the predicate's value
+// and the exact value plus the error of our own evaluation; a voxel whose centre is farther than
+// `m` inside every test is set, one farther than `m` outside some test is skipped, and the rest
+// ("maybe") are decided by triangle_touches_voxel itself. So the output equals the predicate's
+// voxel set exactly, and only voxels within ~1e-12 voxel of a boundary (or all voxels of a
+// degenerate triangle) cost the full test.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+
+#include "kiln/compiler/voxelizer.hpp"
+
+namespace kiln::voxelize_detail {
+
+struct VoxelRange {
+  std::int64_t lo[3], hi[3];  // inclusive; empty when lo > hi on an axis
+};
+inline bool is_empty(const VoxelRange& r) {
+  return r.lo[0] > r.hi[0] || r.lo[1] > r.hi[1] || r.lo[2] > r.hi[2];
+}
+
+// Voxels whose closed box can meet the triangle's bounding box, clipped to `clip`: exactly the
+// voxels that pass the predicate's three box-axis tests (the subtractions there are exact near
+// the boundary, Sterbenz), so no margin is needed on these axes.
+VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip);
+
+// One slab test as an interval of the local centre coordinate x along its level's axis:
+// x in [lo + qu * cu + qv * cv, hi + qu * cu + qv * cv] (cu, cv: the local centre coordinates of
+// the column's u and v), with the margin folded in: *_m widened (maybe), *_s narrowed (sure).
+struct SlabInterval {
+  double lo_m, lo_s, hi_s, hi_m, qu, qv;
+};
+
+// Indices [lo, hi] (local: voxel index minus the triangle's origin) with centres j + 0.5 within
+// [x_lo, x_hi], clipped to [clip_lo, clip_hi].
+inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo, std::int64_t clip_hi,
+                         std::int64_t& lo, std::int64_t& hi) {
+  // Clamp first so the conversions never overflow (bounds may be huge or infinite).
+  const double f_lo = std::clamp(x_lo - 0.5, double(clip_lo) - 1, double(clip_hi) + 1);
+  const double f_hi = std::clamp(x_hi - 0.5, double(clip_lo) - 1, double(clip_hi) + 1);
+  lo = std::max(clip_lo, std::int64_t(std::ceil(f_lo)));
+  hi = std::min(clip_hi, std::int64_t(std::floor(f_hi)));
+}
+
+class TriangleColumns {
+ public:
+  /// Prepares the tests; false when the triangle touches no voxel at all.
+  bool setup(const GridTriangle& t);
+  /// The candidate range (every voxel the predicate can accept lies in it).
+  const VoxelRange& range() const { return range_; }
+  int dominant_axis() const { return a_; }
+  /// The inclusive range of `a` indices (global) the triangle may reach over the columns
+  /// [u0, u1] x [v0, v1] (global indices): the plane test's maybe-interval over the rectangle.
+  void reach_along_a(std::int64_t u0, std::int64_t u1, std::int64_t v0, std::int64_t v1,
+                     std::int64_t& a0, std::int64_t& a1) const;
+  /// Calls set(x, y, z) once for every voxel of `clip` that triangle_touches_voxel accepts.
+  template <class Set>
+  void walk(const VoxelRange& clip, Set set) const;
+
+ private:
+  void add_test(const std::array<double, 3>& axis, double margin);
+  void add_interval(double b_lo, double b_hi, double k, double q1, double q2, double margin,
+                    int level);
+
+  GridTriangle t_{};
+  VoxelRange range_{};
+  int a_ = 2, u_ = 0, v_ = 1;
+  std::int64_t origin_[3] = {0, 0, 0};  // local origin (integers), per axis
+  std::array<double, 3> p_[3]{};        // corners minus the origin
+  double extent_ = 1;                   // M: bounds |corner - centre| over candidate voxels
+  bool uncertain_all_ = false;          // every voxel is decided by the exact predicate
+  bool empty_ = false;                  // a test separates every voxel
+  int plane_ = -1;                      // index of the plane test among the column tests
+  // Tests per level: [0] bound the u index, [1] the v index per row, [2] the a index per column.
+  SlabInterval tests_[3][10]{};
+  int count_[3] = {0, 0, 0};
+};
+
+template <class Set>
+void TriangleColumns::walk(const VoxelRange& clip, Set set) const {
+  VoxelRange r;
+  for (int k = 0; k < 3; ++k)
+    r.lo[k] = std::max(range_.lo[k], clip.lo[k]) - origin_[k],
+    r.hi[k] = std::min(range_.hi[k], clip.hi[k]) - origin_[k];
+  if (is_empty(r)) return;
+  const int a = a_, u = u_, v = v_;
+  auto interval = [](const SlabInterval* tests, int count, double cu, double cv, double& lo_m,
+                     double& lo_s, double& hi_s, double& hi_m) {
+    lo_m = lo_s = -INFINITY, hi_s = hi_m = INFINITY;
+    for (int k = 0; k < count; ++k) {
+      const SlabInterval& s = tests[k];
+      const double w = s.qu * cu + s.qv * cv;
+      lo_m = std::max(lo_m, s.lo_m + w), lo_s = std::max(lo_s, s.lo_s + w);
+      hi_s = std::min(hi_s, s.hi_s + w), hi_m = std::min(hi_m, s.hi_m + w);
+    }
+  };
+  double lo_m, lo_s, hi_s, hi_m;
+  std::int64_t u0, u1, us0, us1;
+  interval(tests_[0], count_[0], 0, 0, lo_m, lo_s, hi_s, hi_m);
+  centre_range(lo_m, hi_m, r.lo[u], r.hi[u], u0, u1);
+  centre_range(lo_s, hi_s, r.lo[u], r.hi[u], us0, us1);
+  std::int64_t c[3];
+  for (std::int64_t iu = u0; iu <= u1; ++iu) {
+    const double cu = double(iu) + 0.5;
+    const bool sure_u = !uncertain_all_ && iu >= us0 && iu <= us1;
+    std::int64_t v0, v1, vs0, vs1;
+    interval(tests_[1], count_[1], cu, 0, lo_m, lo_s, hi_s, hi_m);
+    centre_range(lo_m, hi_m, r.lo[v], r.hi[v], v0, v1);
+    centre_range(lo_s, hi_s, r.lo[v], r.hi[v], vs0, vs1);
+    c[u] = iu + origin_[u];
+    for (std::int64_t iv = v0; iv <= v1; ++iv) {
+      const double cv = double(iv) + 0.5;
+      const bool sure_v = sure_u && iv >= vs0 && iv <= vs1;
+      std::int64_t a0, a1, as0, as1;
+      interval(tests_[2], count_[2], cu, cv, lo_m, lo_s, hi_s, hi_m);
+      centre_range(lo_m, hi_m, r.lo[a], r.hi[a], a0, a1);
+      if (a0 > a1) continue;
+      centre_range(lo_s, hi_s, r.lo[a], r.hi[a], as0, as1);
+      if (!sure_v) as0 = a1 + 1, as1 = a1;
+      c[v] = iv + origin_[v];
+      for (std::int64_t ia = a0; ia <= a1; ++ia) {
+        c[a] = ia + origin_[a];
+        const auto x = std::uint32_t(c[0]), y = std::uint32_t(c[1]), z = std::uint32_t(c[2]);
+        if ((ia >= as0 && ia <= as1) || triangle_touches_voxel(t_, x, y, z)) set(x, y, z);
+      }
+    }
+  }
+}
+
+}  // namespace kiln::voxelize_detail
