@@ -221,9 +221,19 @@ std::vector<std::vector<std::uint32_t>> bin_triangles(const Scene& scene, const 
   std::vector<std::vector<std::uint32_t>> bins(std::size_t(per_axis) * per_axis * per_axis);
   TriangleColumns columns;
   for (const std::uint32_t i : triangles) {
-    if (!columns.setup(grid_triangle(scene, grid, i))) continue;
-    const VoxelRange r = candidate_range(grid_triangle(scene, grid, i), whole);
+    const GridTriangle t = grid_triangle(scene, grid, i);
+    const VoxelRange r = candidate_range(t, whole);
     if (is_empty(r)) continue;
+    if ((r.lo[0] - whole.lo[0]) / brick == (r.hi[0] - whole.lo[0]) / brick &&
+        (r.lo[1] - whole.lo[1]) / brick == (r.hi[1] - whole.lo[1]) / brick &&
+        (r.lo[2] - whole.lo[2]) / brick == (r.hi[2] - whole.lo[2]) / brick) {
+      bins[format::morton_code(std::uint32_t((r.lo[0] - whole.lo[0]) / brick),
+                               std::uint32_t((r.lo[1] - whole.lo[1]) / brick),
+                               std::uint32_t((r.lo[2] - whole.lo[2]) / brick))]
+          .push_back(i);  // one brick: nothing to prune
+      continue;
+    }
+    if (!columns.setup(t)) continue;
     const int a = columns.dominant_axis(), u = (a + 1) % 3, v = (a + 2) % 3;
     std::int64_t b[3];
     for (b[u] = (r.lo[u] - whole.lo[u]) / brick; b[u] <= (r.hi[u] - whole.lo[u]) / brick; ++b[u])

@@ -50,8 +50,8 @@ VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip) {
     const double hi =
         std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
     // A box [k, k+1] touches a coordinate in [lo, hi] for k in [ceil(lo) - 1, floor(hi)].
-    r.lo[a] = std::max(clip.lo[a], std::int64_t(std::ceil(lo)) - 1);
-    r.hi[a] = std::min(clip.hi[a], std::int64_t(std::floor(hi)));
+    r.lo[a] = std::max(clip.lo[a], ceil_to_int(lo) - 1);
+    r.hi[a] = std::min(clip.hi[a], floor_to_int(hi));
   }
   return r;
 }
@@ -70,9 +70,9 @@ bool TriangleColumns::setup(const GridTriangle& t) {
   if (is_empty(range_)) return false;
   double extent = 0;
   for (int k = 0; k < 3; ++k) {
-    const double lo =
-        std::floor(std::min({format::at(t.v[0], k), format::at(t.v[1], k), format::at(t.v[2], k)}));
-    origin_[k] = std::int64_t(lo);
+    origin_[k] = floor_to_int(
+        std::min({format::at(t.v[0], k), format::at(t.v[1], k), format::at(t.v[2], k)}));
+    const double lo = double(origin_[k]);
     for (int j = 0; j < 3; ++j) {
       p_[j][std::size_t(k)] = format::at(t.v[j], k) - lo;
       extent = std::max(extent, p_[j][std::size_t(k)]);
@@ -92,11 +92,12 @@ bool TriangleColumns::setup(const GridTriangle& t) {
     for (int k = 0; k < 3; ++k)
       if (range_.hi[k] - range_.lo[k] > range_.hi[a_] - range_.lo[a_]) a_ = k;
   u_ = (a_ + 1) % 3, v_ = (a_ + 2) % 3;
-  count_[0] = count_[1] = count_[2] = 0;
+  std::fill(std::begin(count_), std::end(count_), 0);
   uncertain_all_ = empty_ = false;
   const double m = extent_;
   add_test(n, 2048 * kRoundoff * m * m * m);
-  plane_ = count_[2] == 1 ? 0 : -1;
+  has_plane_ = count_[2] == 1;
+  if (has_plane_) plane_ = tests_[2][0];
   for (int j = 0; j < 3; ++j)
     for (int i = 0; i < 3; ++i) {
       // An edge parallel to axis i gives the exact zero axis, which never separates.
@@ -106,6 +107,17 @@ bool TriangleColumns::setup(const GridTriangle& t) {
         continue;
       add_test(cross_unit(i, e[j]), 256 * kRoundoff * m * m);
     }
+  // Split the column tests by what they depend on (see tests_).
+  int general = 0;
+  for (int k = 0; k < count_[2]; ++k) {
+    const SlabInterval& s = tests_[2][k];
+    const int level = s.qv == 0 ? 3 : s.qu == 0 ? 4 : 2;
+    if (level == 2)
+      tests_[2][general++] = s;
+    else
+      tests_[level][count_[level]++] = s;
+  }
+  count_[2] = general;
   return !empty_;
 }
 
@@ -134,13 +146,15 @@ void TriangleColumns::add_test(const std::array<double, 3>& axis, double margin)
 
 void TriangleColumns::add_interval(double b_lo, double b_hi, double k, double q1, double q2,
                                    double margin, int level) {
-  const double lo = (k > 0 ? b_lo : b_hi) / k, hi = (k > 0 ? b_hi : b_lo) / k;
-  const double qu = -q1 / k, qv = -q2 / k;
-  const double m = margin / std::fabs(k) + 16 * kRoundoff *
-                                               (std::max(std::fabs(lo), std::fabs(hi)) +
-                                                (std::fabs(qu) + std::fabs(qv)) * extent_ + 1);
-  if (!std::isfinite(lo) || !std::isfinite(hi) || !std::isfinite(qu) || !std::isfinite(qv) ||
-      !std::isfinite(m)) {
+  // A reciprocal instead of four divisions: one more rounding each, within the 16u term.
+  const double inv = 1 / k;
+  const double lo = (k > 0 ? b_lo : b_hi) * inv, hi = (k > 0 ? b_hi : b_lo) * inv;
+  const double qu = -q1 * inv, qv = -q2 * inv;
+  const double m = margin * std::fabs(inv) + 16 * kRoundoff *
+                                                 (std::max(std::fabs(lo), std::fabs(hi)) +
+                                                  (std::fabs(qu) + std::fabs(qv)) * extent_ + 1);
+  // NaN or infinity anywhere makes the sum non-finite (lo, hi, |qu|, |qv| <= m / (16u)).
+  if (!(std::fabs(m) < INFINITY)) {
     uncertain_all_ = true;  // no usable bound: the exact test decides every voxel
     return;
   }
@@ -150,8 +164,8 @@ void TriangleColumns::add_interval(double b_lo, double b_hi, double k, double q1
 void TriangleColumns::reach_along_a(std::int64_t u0, std::int64_t u1, std::int64_t v0,
                                     std::int64_t v1, std::int64_t& a0, std::int64_t& a1) const {
   a0 = range_.lo[a_], a1 = range_.hi[a_];
-  if (plane_ < 0) return;
-  const SlabInterval& s = tests_[2][plane_];
+  if (!has_plane_) return;
+  const SlabInterval& s = plane_;
   double lo = INFINITY, hi = -INFINITY;
   for (const std::int64_t iu : {u0, u1})
     for (const std::int64_t iv : {v0, v1}) {

@@ -23,6 +23,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include "kiln/compiler/voxelizer.hpp"
 
@@ -47,6 +48,17 @@ struct SlabInterval {
   double lo_m, lo_s, hi_s, hi_m, qu, qv;
 };
 
+// floor and ceil of a double within +-2^52 without libm calls (the baseline, SSE2, has no
+// rounding instruction, so std::floor is a call there).
+inline std::int64_t floor_to_int(double x) {
+  const auto i = std::int64_t(x);
+  return i - std::int64_t(double(i) > x);
+}
+inline std::int64_t ceil_to_int(double x) {
+  const auto i = std::int64_t(x);
+  return i + std::int64_t(double(i) < x);
+}
+
 // Indices [lo, hi] (local: voxel index minus the triangle's origin) with centres j + 0.5 within
 // [x_lo, x_hi], clipped to [clip_lo, clip_hi].
 inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo, std::int64_t clip_hi,
@@ -54,8 +66,8 @@ inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo, std::in
   // Clamp first so the conversions never overflow (bounds may be huge or infinite).
   const double f_lo = std::clamp(x_lo - 0.5, double(clip_lo) - 1, double(clip_hi) + 1);
   const double f_hi = std::clamp(x_hi - 0.5, double(clip_lo) - 1, double(clip_hi) + 1);
-  lo = std::max(clip_lo, std::int64_t(std::ceil(f_lo)));
-  hi = std::min(clip_hi, std::int64_t(std::floor(f_hi)));
+  lo = std::max(clip_lo, ceil_to_int(f_lo));
+  hi = std::min(clip_hi, floor_to_int(f_hi));
 }
 
 class TriangleColumns {
@@ -71,7 +83,7 @@ class TriangleColumns {
                      std::int64_t& a0, std::int64_t& a1) const;
   /// Calls set(x, y, z) once for every voxel of `clip` that triangle_touches_voxel accepts.
   template <class Set>
-  void walk(const VoxelRange& clip, Set set) const;
+  void walk(const VoxelRange& clip, Set set);
 
  private:
   void add_test(const std::array<double, 3>& axis, double margin);
@@ -86,49 +98,67 @@ class TriangleColumns {
   double extent_ = 1;                   // M: bounds |corner - centre| over candidate voxels
   bool uncertain_all_ = false;          // every voxel is decided by the exact predicate
   bool empty_ = false;                  // a test separates every voxel
-  int plane_ = -1;                      // index of the plane test among the column tests
+  bool has_plane_ = false;              // the plane test bounds the a index (plane_)
+  SlabInterval plane_{};
   // Tests per level: [0] bound the u index, [1] the v index per row, [2] the a index per column.
-  SlabInterval tests_[3][10]{};
-  int count_[3] = {0, 0, 0};
+  // After setup, the a-index tests that depend on cu only move to [3] (once per row) and those
+  // on cv only to [4] (once per v index, tabled): a column then evaluates only [2], mostly the
+  // plane, since an edge axis cross(unit u, e) has no u component and cross(unit v, e) no v.
+  SlabInterval tests_[5][10]{};
+  int count_[5] = {0, 0, 0, 0, 0};
+  std::vector<double> v_table_;  // per v index of the walk: lo_m, lo_s, hi_s, hi_m of [4]
 };
 
+// Narrows [lo_m, hi_m] (maybe) and [lo_s, hi_s] (sure) by `tests` at (cu, cv).
+inline void narrow(const SlabInterval* tests, int count, double cu, double cv, double& lo_m,
+                   double& lo_s, double& hi_s, double& hi_m) {
+  for (int k = 0; k < count; ++k) {
+    const SlabInterval& s = tests[k];
+    const double w = s.qu * cu + s.qv * cv;
+    lo_m = std::max(lo_m, s.lo_m + w), lo_s = std::max(lo_s, s.lo_s + w);
+    hi_s = std::min(hi_s, s.hi_s + w), hi_m = std::min(hi_m, s.hi_m + w);
+  }
+}
+
 template <class Set>
-void TriangleColumns::walk(const VoxelRange& clip, Set set) const {
+void TriangleColumns::walk(const VoxelRange& clip, Set set) {
   VoxelRange r;
   for (int k = 0; k < 3; ++k)
     r.lo[k] = std::max(range_.lo[k], clip.lo[k]) - origin_[k],
     r.hi[k] = std::min(range_.hi[k], clip.hi[k]) - origin_[k];
   if (is_empty(r)) return;
   const int a = a_, u = u_, v = v_;
-  auto interval = [](const SlabInterval* tests, int count, double cu, double cv, double& lo_m,
-                     double& lo_s, double& hi_s, double& hi_m) {
-    lo_m = lo_s = -INFINITY, hi_s = hi_m = INFINITY;
-    for (int k = 0; k < count; ++k) {
-      const SlabInterval& s = tests[k];
-      const double w = s.qu * cu + s.qv * cv;
-      lo_m = std::max(lo_m, s.lo_m + w), lo_s = std::max(lo_s, s.lo_s + w);
-      hi_s = std::min(hi_s, s.hi_s + w), hi_m = std::min(hi_m, s.hi_m + w);
-    }
-  };
-  double lo_m, lo_s, hi_s, hi_m;
+  double lo_m = -INFINITY, lo_s = -INFINITY, hi_s = INFINITY, hi_m = INFINITY;
   std::int64_t u0, u1, us0, us1;
-  interval(tests_[0], count_[0], 0, 0, lo_m, lo_s, hi_s, hi_m);
+  narrow(tests_[0], count_[0], 0, 0, lo_m, lo_s, hi_s, hi_m);
   centre_range(lo_m, hi_m, r.lo[u], r.hi[u], u0, u1);
   centre_range(lo_s, hi_s, r.lo[u], r.hi[u], us0, us1);
+  v_table_.resize(4 * std::size_t(r.hi[v] - r.lo[v] + 1));
+  for (std::int64_t iv = r.lo[v]; iv <= r.hi[v]; ++iv) {
+    double* t = &v_table_[4 * std::size_t(iv - r.lo[v])];
+    t[0] = t[1] = -INFINITY, t[2] = t[3] = INFINITY;
+    narrow(tests_[4], count_[4], 0, double(iv) + 0.5, t[0], t[1], t[2], t[3]);
+  }
   std::int64_t c[3];
   for (std::int64_t iu = u0; iu <= u1; ++iu) {
     const double cu = double(iu) + 0.5;
     const bool sure_u = !uncertain_all_ && iu >= us0 && iu <= us1;
     std::int64_t v0, v1, vs0, vs1;
-    interval(tests_[1], count_[1], cu, 0, lo_m, lo_s, hi_s, hi_m);
+    lo_m = lo_s = -INFINITY, hi_s = hi_m = INFINITY;
+    narrow(tests_[1], count_[1], cu, 0, lo_m, lo_s, hi_s, hi_m);
     centre_range(lo_m, hi_m, r.lo[v], r.hi[v], v0, v1);
     centre_range(lo_s, hi_s, r.lo[v], r.hi[v], vs0, vs1);
+    double row[4] = {-INFINITY, -INFINITY, INFINITY, INFINITY};
+    narrow(tests_[3], count_[3], cu, 0, row[0], row[1], row[2], row[3]);
     c[u] = iu + origin_[u];
     for (std::int64_t iv = v0; iv <= v1; ++iv) {
       const double cv = double(iv) + 0.5;
       const bool sure_v = sure_u && iv >= vs0 && iv <= vs1;
+      const double* t = &v_table_[4 * std::size_t(iv - r.lo[v])];
+      lo_m = std::max(row[0], t[0]), lo_s = std::max(row[1], t[1]);
+      hi_s = std::min(row[2], t[2]), hi_m = std::min(row[3], t[3]);
+      narrow(tests_[2], count_[2], cu, cv, lo_m, lo_s, hi_s, hi_m);
       std::int64_t a0, a1, as0, as1;
-      interval(tests_[2], count_[2], cu, cv, lo_m, lo_s, hi_s, hi_m);
       centre_range(lo_m, hi_m, r.lo[a], r.hi[a], a0, a1);
       if (a0 > a1) continue;
       centre_range(lo_s, hi_s, r.lo[a], r.hi[a], as0, as1);
