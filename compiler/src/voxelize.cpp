@@ -53,6 +53,18 @@ const SpreadTable& spread_table() {
   return table;
 }
 
+// Bits of the voxels k0..k1 (0..3) along axis a inside a 4x4x4 leaf, at u = v = 0.
+struct RunTable {
+  std::uint64_t masks[3][4][4] = {};
+  RunTable() {
+    for (int a = 0; a < 3; ++a)
+      for (std::uint32_t k0 = 0; k0 < 4; ++k0)
+        for (std::uint32_t k1 = k0; k1 < 4; ++k1)
+          for (std::uint32_t k = k0; k <= k1; ++k)
+            masks[a][k0][k1] |= std::uint64_t{1} << (format::spread_bits(k) << a);
+  }
+};
+
 // A brick's voxels as bits in Morton order: word w is the 4x4x4 leaf whose local key is w, so the
 // leaves come out in order with no per-voxel codes and no sort. A summary bit per word lists the
 // non-empty leaves without scanning the whole brick (mostly empty on a surface), and clearing
@@ -70,6 +82,19 @@ class BrickBits {
   void set(std::uint32_t i) {
     words_[i >> 6] |= std::uint64_t{1} << (i & 63);
     summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
+  }
+  // Voxels (x, y, z) with coordinate `a` from p[a] to last (local), a 4x4x4 leaf at a time: the
+  // run's bits within a leaf come from a table, shifted to the column's place.
+  void set_run(std::uint32_t p[3], int a, std::uint32_t last) {
+    static const RunTable table;
+    for (std::uint32_t first = p[a]; first <= last;) {
+      const std::uint32_t end = std::min(last, first | 3);
+      p[a] = first & ~3u;
+      const std::uint32_t i = index(p[0], p[1], p[2]);
+      words_[i >> 6] |= table.masks[a][first & 3][end & 3] << (i & 63);
+      summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
+      first = end + 1;
+    }
   }
   std::uint64_t word(std::size_t w) const { return words_[w]; }
   // f(w, mask) for every non-empty word, ascending.
@@ -90,12 +115,23 @@ class BrickBits {
   std::vector<std::uint64_t> words_, summary_;
 };
 
-// This thread's bit array, empty, for a brick of `side`.
-BrickBits& thread_bits(std::uint32_t side) {
-  thread_local BrickBits bits;
-  bits.prepare(side);
-  return bits;
-}
+// This thread's bit array, empty, for a brick of `side`; cleared again when the lease ends, even
+// by an exception, so the next brick on this thread starts empty.
+class BitsLease {
+ public:
+  explicit BitsLease(std::uint32_t side) : bits_(storage()) { bits_.prepare(side); }
+  ~BitsLease() { bits_.clear(); }
+  BitsLease(const BitsLease&) = delete;
+  BitsLease& operator=(const BitsLease&) = delete;
+  BrickBits& bits() { return bits_; }
+
+ private:
+  static BrickBits& storage() {
+    thread_local BrickBits bits;
+    return bits;
+  }
+  BrickBits& bits_;
+};
 
 struct Brick {
   VoxelRange clip;
@@ -117,20 +153,56 @@ Brick brick_of(const VoxelCube& cube, std::uint32_t brick, std::size_t b) {
   return out;
 }
 
-// Calls on_voxel(triangle, brick-local Morton index) for every voxel of `brick` each triangle
-// touches, triangle by triangle in the given order.
-template <class OnVoxel>
+// Calls on_run(triangle, local p, a, last) for runs of voxels along axis a (brick-local, p[a] to
+// last) and on_voxel(triangle, x, y, z) for single voxels (brick-local), covering every voxel of
+// `brick` each triangle touches once, triangle by triangle in the given order.
+template <class OnRun, class OnVoxel>
 void rasterize(const Scene& scene, const VoxelGrid& grid, std::span<const std::uint32_t> triangles,
-               const Brick& brick, OnVoxel on_voxel) {
+               const Brick& brick, OnRun on_run, OnVoxel on_voxel) {
   TriangleColumns columns;
-  const auto x0 = std::uint32_t(brick.clip.lo[0]), y0 = std::uint32_t(brick.clip.lo[1]),
-             z0 = std::uint32_t(brick.clip.lo[2]);
+  const std::int64_t* o = brick.clip.lo;
   for (const std::uint32_t i : triangles) {
     if (!columns.setup(grid_triangle(scene, grid, i))) continue;
-    columns.walk(brick.clip, [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-      on_voxel(i, BrickBits::index(x - x0, y - y0, z - z0));
-    });
+    columns.walk(
+        brick.clip,
+        [&](const std::int64_t* c, int a, std::int64_t last) {
+          std::uint32_t p[3] = {std::uint32_t(c[0] - o[0]), std::uint32_t(c[1] - o[1]),
+                                std::uint32_t(c[2] - o[2])};
+          on_run(i, p, a, std::uint32_t(last - o[a]));
+        },
+        [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+          on_voxel(i, std::uint32_t(x - o[0]), std::uint32_t(y - o[1]), std::uint32_t(z - o[2]));
+        });
   }
+}
+
+// rasterize with one callback per voxel (brick-local Morton index).
+template <class OnVoxel>
+void rasterize_voxels(const Scene& scene, const VoxelGrid& grid,
+                      std::span<const std::uint32_t> triangles, const Brick& brick,
+                      OnVoxel on_voxel) {
+  rasterize(
+      scene, grid, triangles, brick,
+      [&](std::uint32_t t, std::uint32_t* p, int a, std::uint32_t last) {
+        for (std::uint32_t k = p[a]; k <= last; ++k) {
+          p[a] = k;
+          on_voxel(t, BrickBits::index(p[0], p[1], p[2]));
+        }
+      },
+      [&](std::uint32_t t, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+        on_voxel(t, BrickBits::index(x, y, z));
+      });
+}
+
+// Sets the bits of every voxel `triangles` touch in `brick`.
+void rasterize_bits(const Scene& scene, const VoxelGrid& grid,
+                    std::span<const std::uint32_t> triangles, const Brick& brick, BrickBits& bits) {
+  rasterize(
+      scene, grid, triangles, brick,
+      [&](std::uint32_t, std::uint32_t* p, int a, std::uint32_t last) { bits.set_run(p, a, last); },
+      [&](std::uint32_t, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+        bits.set(BrickBits::index(x, y, z));
+      });
 }
 
 struct BrickLeaves {
@@ -141,15 +213,15 @@ struct BrickLeaves {
 BrickLeaves voxelize_brick_leaves(const Scene& scene, const VoxelGrid& grid,
                                   std::span<const std::uint32_t> triangles, const Brick& brick,
                                   std::uint32_t side) {
-  BrickBits& bits = thread_bits(side);
-  rasterize(scene, grid, triangles, brick, [&](std::uint32_t, std::uint32_t i) { bits.set(i); });
+  BitsLease lease(side);
+  BrickBits& bits = lease.bits();
+  rasterize_bits(scene, grid, triangles, brick, bits);
   BrickLeaves out;
   bits.for_each_leaf([&](std::size_t w, std::uint64_t mask) {
     out.keys.push_back(brick.first_key + w);
     out.masks.push_back(mask);
     out.voxel_count += std::uint64_t(std::popcount(mask));
   });
-  bits.clear();
   return out;
 }
 
@@ -172,8 +244,9 @@ void append_codes(const BrickLeaves& leaves, std::vector<std::uint64_t>& codes) 
 BrickOutput voxelize_brick_normals(const Scene& scene, const VoxelGrid& grid,
                                    std::span<const std::uint32_t> triangles, const Brick& brick,
                                    std::uint32_t side) {
-  BrickBits& bits = thread_bits(side);
-  rasterize(scene, grid, triangles, brick, [&](std::uint32_t, std::uint32_t i) { bits.set(i); });
+  BitsLease lease(side);
+  BrickBits& bits = lease.bits();
+  rasterize_bits(scene, grid, triangles, brick, bits);
   BrickOutput out;
   std::vector<std::uint32_t> rank(std::size_t(side) * side * side / 64);
   std::uint32_t total = 0;
@@ -186,7 +259,7 @@ BrickOutput voxelize_brick_normals(const Scene& scene, const VoxelGrid& grid,
   std::vector<double> sums(3 * std::size_t(total), 0.0);
   std::uint32_t current = ~0u;
   double unit[3] = {0, 0, 0};
-  rasterize(scene, grid, triangles, brick, [&](std::uint32_t t, std::uint32_t i) {
+  rasterize_voxels(scene, grid, triangles, brick, [&](std::uint32_t t, std::uint32_t i) {
     if (t != current) {
       const auto& tri = scene.triangles[t];
       const format::Double3 a = to_d(scene.positions[tri.v[0]]),
@@ -201,7 +274,6 @@ BrickOutput voxelize_brick_normals(const Scene& scene, const VoxelGrid& grid,
     double* sum = &sums[3 * (rank[i >> 6] + std::uint32_t(std::popcount(below)))];
     for (int axis = 0; axis < 3; ++axis) sum[axis] += unit[axis];
   });
-  bits.clear();
   out.normals.resize(total);
   for (std::size_t k = 0; k < total; ++k)
     out.normals[k] = format::encode_octahedral(float(sums[3 * k]), float(sums[3 * k + 1]),

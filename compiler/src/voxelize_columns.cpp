@@ -93,6 +93,7 @@ bool TriangleColumns::setup(const GridTriangle& t) {
       if (range_.hi[k] - range_.lo[k] > range_.hi[a_] - range_.lo[a_]) a_ = k;
   u_ = (a_ + 1) % 3, v_ = (a_ + 2) % 3;
   std::fill(std::begin(count_), std::end(count_), 0);
+  sure_inset_ = 0;
   uncertain_all_ = empty_ = false;
   const double m = extent_;
   add_test(n, 2048 * kRoundoff * m * m * m);
@@ -158,7 +159,8 @@ void TriangleColumns::add_interval(double b_lo, double b_hi, double k, double q1
     uncertain_all_ = true;  // no usable bound: the exact test decides every voxel
     return;
   }
-  tests_[level][count_[level]++] = {lo - m, lo + m, hi - m, hi + m, qu, qv};
+  tests_[level][count_[level]++] = {lo - m, hi + m, qu, qv};
+  sure_inset_ = std::max(sure_inset_, 2 * m);
 }
 
 void TriangleColumns::reach_along_a(std::int64_t u0, std::int64_t u1, std::int64_t v0,

@@ -43,9 +43,11 @@ VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip);
 
 // One slab test as an interval of the local centre coordinate x along its level's axis:
 // x in [lo + qu * cu + qv * cv, hi + qu * cu + qv * cv] (cu, cv: the local centre coordinates of
-// the column's u and v), with the margin folded in: *_m widened (maybe), *_s narrowed (sure).
+// the column's u and v), widened by its margin m (maybe). The sure interval is the maybe interval
+// narrowed by twice the triangle's largest margin (lo_m + 2 max m >= lo + m for every test), so
+// only the maybe bounds are evaluated.
 struct SlabInterval {
-  double lo_m, lo_s, hi_s, hi_m, qu, qv;
+  double lo_m, hi_m, qu, qv;
 };
 
 // floor and ceil of a double within +-2^52 without libm calls (the baseline, SSE2, has no
@@ -81,9 +83,11 @@ class TriangleColumns {
   /// [u0, u1] x [v0, v1] (global indices): the plane test's maybe-interval over the rectangle.
   void reach_along_a(std::int64_t u0, std::int64_t u1, std::int64_t v0, std::int64_t v1,
                      std::int64_t& a0, std::int64_t& a1) const;
-  /// Calls set(x, y, z) once for every voxel of `clip` that triangle_touches_voxel accepts.
-  template <class Set>
-  void walk(const VoxelRange& clip, Set set);
+  /// Reports every voxel of `clip` that triangle_touches_voxel accepts, once: runs of voxels
+  /// along the dominant axis as run(c, a, a1) (c: the first voxel, global; the run goes to
+  /// c[a] = a1), single voxels as voxel(x, y, z).
+  template <class Run, class Voxel>
+  void walk(const VoxelRange& clip, Run run, Voxel voxel);
 
  private:
   void add_test(const std::array<double, 3>& axis, double margin);
@@ -96,6 +100,7 @@ class TriangleColumns {
   std::int64_t origin_[3] = {0, 0, 0};  // local origin (integers), per axis
   std::array<double, 3> p_[3]{};        // corners minus the origin
   double extent_ = 1;                   // M: bounds |corner - centre| over candidate voxels
+  double sure_inset_ = 0;               // twice the largest margin of the tests
   bool uncertain_all_ = false;          // every voxel is decided by the exact predicate
   bool empty_ = false;                  // a test separates every voxel
   bool has_plane_ = false;              // the plane test bounds the a index (plane_)
@@ -106,69 +111,77 @@ class TriangleColumns {
   // plane, since an edge axis cross(unit u, e) has no u component and cross(unit v, e) no v.
   SlabInterval tests_[5][10]{};
   int count_[5] = {0, 0, 0, 0, 0};
-  std::vector<double> v_table_;  // per v index of the walk: lo_m, lo_s, hi_s, hi_m of [4]
+  std::vector<double> v_table_;  // per v index of the walk: lo_m, hi_m of [4]
 };
 
-// Narrows [lo_m, hi_m] (maybe) and [lo_s, hi_s] (sure) by `tests` at (cu, cv).
-inline void narrow(const SlabInterval* tests, int count, double cu, double cv, double& lo_m,
-                   double& lo_s, double& hi_s, double& hi_m) {
+// Narrows the maybe interval [lo, hi] by `tests` at (cu, cv).
+inline void narrow(const SlabInterval* tests, int count, double cu, double cv, double& lo,
+                   double& hi) {
   for (int k = 0; k < count; ++k) {
     const SlabInterval& s = tests[k];
     const double w = s.qu * cu + s.qv * cv;
-    lo_m = std::max(lo_m, s.lo_m + w), lo_s = std::max(lo_s, s.lo_s + w);
-    hi_s = std::min(hi_s, s.hi_s + w), hi_m = std::min(hi_m, s.hi_m + w);
+    lo = std::max(lo, s.lo_m + w), hi = std::min(hi, s.hi_m + w);
   }
 }
 
-template <class Set>
-void TriangleColumns::walk(const VoxelRange& clip, Set set) {
+template <class Run, class Voxel>
+void TriangleColumns::walk(const VoxelRange& clip, Run run, Voxel voxel) {
   VoxelRange r;
   for (int k = 0; k < 3; ++k)
     r.lo[k] = std::max(range_.lo[k], clip.lo[k]) - origin_[k],
     r.hi[k] = std::min(range_.hi[k], clip.hi[k]) - origin_[k];
   if (is_empty(r)) return;
   const int a = a_, u = u_, v = v_;
-  double lo_m = -INFINITY, lo_s = -INFINITY, hi_s = INFINITY, hi_m = INFINITY;
-  std::int64_t u0, u1, us0, us1;
-  narrow(tests_[0], count_[0], 0, 0, lo_m, lo_s, hi_s, hi_m);
-  centre_range(lo_m, hi_m, r.lo[u], r.hi[u], u0, u1);
-  centre_range(lo_s, hi_s, r.lo[u], r.hi[u], us0, us1);
-  v_table_.resize(4 * std::size_t(r.hi[v] - r.lo[v] + 1));
+  const double inset = sure_inset_;
+  double lo = -INFINITY, hi = INFINITY;
+  std::int64_t u0, u1;
+  narrow(tests_[0], count_[0], 0, 0, lo, hi);
+  centre_range(lo, hi, r.lo[u], r.hi[u], u0, u1);
+  const double u_sure_lo = lo + inset, u_sure_hi = hi - inset;
+  v_table_.resize(2 * std::size_t(r.hi[v] - r.lo[v] + 1));
   for (std::int64_t iv = r.lo[v]; iv <= r.hi[v]; ++iv) {
-    double* t = &v_table_[4 * std::size_t(iv - r.lo[v])];
-    t[0] = t[1] = -INFINITY, t[2] = t[3] = INFINITY;
-    narrow(tests_[4], count_[4], 0, double(iv) + 0.5, t[0], t[1], t[2], t[3]);
+    double* t = &v_table_[2 * std::size_t(iv - r.lo[v])];
+    t[0] = -INFINITY, t[1] = INFINITY;
+    narrow(tests_[4], count_[4], 0, double(iv) + 0.5, t[0], t[1]);
   }
   std::int64_t c[3];
+  auto exact = [&](std::int64_t from, std::int64_t to) {
+    for (std::int64_t ia = from; ia <= to; ++ia) {
+      c[a] = ia + origin_[a];
+      const auto x = std::uint32_t(c[0]), y = std::uint32_t(c[1]), z = std::uint32_t(c[2]);
+      if (triangle_touches_voxel(t_, x, y, z)) voxel(x, y, z);
+    }
+  };
   for (std::int64_t iu = u0; iu <= u1; ++iu) {
     const double cu = double(iu) + 0.5;
-    const bool sure_u = !uncertain_all_ && iu >= us0 && iu <= us1;
-    std::int64_t v0, v1, vs0, vs1;
-    lo_m = lo_s = -INFINITY, hi_s = hi_m = INFINITY;
-    narrow(tests_[1], count_[1], cu, 0, lo_m, lo_s, hi_s, hi_m);
-    centre_range(lo_m, hi_m, r.lo[v], r.hi[v], v0, v1);
-    centre_range(lo_s, hi_s, r.lo[v], r.hi[v], vs0, vs1);
-    double row[4] = {-INFINITY, -INFINITY, INFINITY, INFINITY};
-    narrow(tests_[3], count_[3], cu, 0, row[0], row[1], row[2], row[3]);
+    const bool sure_u = !uncertain_all_ && cu >= u_sure_lo && cu <= u_sure_hi;
+    std::int64_t v0, v1;
+    lo = -INFINITY, hi = INFINITY;
+    narrow(tests_[1], count_[1], cu, 0, lo, hi);
+    centre_range(lo, hi, r.lo[v], r.hi[v], v0, v1);
+    const double v_sure_lo = lo + inset, v_sure_hi = hi - inset;
+    double row_lo = -INFINITY, row_hi = INFINITY;
+    narrow(tests_[3], count_[3], cu, 0, row_lo, row_hi);
     c[u] = iu + origin_[u];
     for (std::int64_t iv = v0; iv <= v1; ++iv) {
       const double cv = double(iv) + 0.5;
-      const bool sure_v = sure_u && iv >= vs0 && iv <= vs1;
-      const double* t = &v_table_[4 * std::size_t(iv - r.lo[v])];
-      lo_m = std::max(row[0], t[0]), lo_s = std::max(row[1], t[1]);
-      hi_s = std::min(row[2], t[2]), hi_m = std::min(row[3], t[3]);
-      narrow(tests_[2], count_[2], cu, cv, lo_m, lo_s, hi_s, hi_m);
-      std::int64_t a0, a1, as0, as1;
-      centre_range(lo_m, hi_m, r.lo[a], r.hi[a], a0, a1);
+      const double* t = &v_table_[2 * std::size_t(iv - r.lo[v])];
+      lo = std::max(row_lo, t[0]), hi = std::min(row_hi, t[1]);
+      narrow(tests_[2], count_[2], cu, cv, lo, hi);
+      std::int64_t a0, a1, s0 = 1, s1 = 0;
+      centre_range(lo, hi, r.lo[a], r.hi[a], a0, a1);
       if (a0 > a1) continue;
-      centre_range(lo_s, hi_s, r.lo[a], r.hi[a], as0, as1);
-      if (!sure_v) as0 = a1 + 1, as1 = a1;
       c[v] = iv + origin_[v];
-      for (std::int64_t ia = a0; ia <= a1; ++ia) {
-        c[a] = ia + origin_[a];
-        const auto x = std::uint32_t(c[0]), y = std::uint32_t(c[1]), z = std::uint32_t(c[2]);
-        if ((ia >= as0 && ia <= as1) || triangle_touches_voxel(t_, x, y, z)) set(x, y, z);
+      if (sure_u && cv >= v_sure_lo && cv <= v_sure_hi)
+        centre_range(lo + inset, hi - inset, r.lo[a], r.hi[a], s0, s1);
+      if (s0 > s1) {
+        exact(a0, a1);
+        continue;
       }
+      exact(a0, s0 - 1);  // within the margin of a bound: rare
+      c[a] = s0 + origin_[a];
+      run(c, a, s1 + origin_[a]);
+      exact(s1 + 1, a1);
     }
   }
 }
