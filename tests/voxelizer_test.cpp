@@ -185,6 +185,212 @@ TEST(Voxelizer, NormalsAreDeterministicAndUnit) {
   }
 }
 
+// Reference for the fast paths: per triangle, every voxel of its bounding box (the predicate's
+// box-axis tests reject every other voxel) against triangle_touches_voxel, as (code, triangle)
+// pairs sorted, and the normals summed per voxel in that order as the voxelizer documents.
+Voxels reference_voxels(const Scene& scene, const VoxelGrid& grid, bool normals) {
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
+  const auto n = std::int64_t(grid.resolution);
+  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
+    const auto& tri = scene.triangles[i];
+    const GridTriangle t = to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
+                                   scene.positions[tri.v[2]]);
+    std::int64_t lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      const double mn =
+          std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
+      const double mx =
+          std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
+      lo[a] = std::max<std::int64_t>(0, std::int64_t(std::floor(mn)) - 2);
+      hi[a] = std::min<std::int64_t>(n - 1, std::int64_t(std::floor(mx)) + 2);
+    }
+    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
+      for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+        for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
+          if (triangle_touches_voxel(t, std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)))
+            hits.emplace_back(
+                format::morton_code(std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)), i);
+  }
+  std::sort(hits.begin(), hits.end());
+  Voxels out;
+  out.grid = grid;
+  for (std::size_t k = 0; k < hits.size();) {
+    double sum[3] = {0, 0, 0};
+    std::size_t end = k;
+    for (; end < hits.size() && hits[end].first == hits[k].first; ++end) {
+      const auto& tri = scene.triangles[hits[end].second];
+      const format::Double3 a = to_d(scene.positions[tri.v[0]]),
+                            b = to_d(scene.positions[tri.v[1]]),
+                            c = to_d(scene.positions[tri.v[2]]);
+      const format::Double3 nrm = cross(b - a, c - a);
+      const double length = std::sqrt(dot(nrm, nrm));
+      for (int axis = 0; axis < 3; ++axis) sum[axis] += format::at(nrm, axis) / length;
+    }
+    out.codes.push_back(hits[k].first);
+    if (normals)
+      out.normals.push_back(format::encode_octahedral(float(sum[0]), float(sum[1]), float(sum[2])));
+    k = end;
+  }
+  return out;
+}
+
+std::vector<std::uint32_t> all_triangles(const Scene& scene) {
+  std::vector<std::uint32_t> all(scene.triangles.size());
+  for (std::uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+  return all;
+}
+
+void expect_leaves_equal(const VoxelLeaves& got, const VoxelLeaves& want, const std::string& what) {
+  EXPECT_EQ(got.keys, want.keys) << what;
+  EXPECT_EQ(got.masks, want.masks) << what;
+  EXPECT_EQ(got.voxel_count, want.voxel_count) << what;
+}
+
+// The whole grid through every path (leaves, codes, codes with normals) against the reference.
+void expect_paths_match_reference(const Scene& scene, const VoxelGrid& grid,
+                                  const std::string& what) {
+  const Voxels want = reference_voxels(scene, grid, true);
+  const std::vector<std::uint32_t> all = all_triangles(scene);
+  const VoxelCube cube{{0, 0, 0}, grid.resolution};
+  expect_leaves_equal(voxelize_surface_leaves(scene, grid, cube, all, 2), leaves_of(want.codes),
+                      what);
+  EXPECT_EQ(voxelize_surface_cube(scene, grid, cube, all, false, 2).codes, want.codes) << what;
+  const Voxels with_normals = voxelize_surface_cube(scene, grid, cube, all, true, 2);
+  EXPECT_EQ(with_normals.codes, want.codes) << what;
+  EXPECT_EQ(with_normals.normals, want.normals) << what;
+}
+
+// Leaves, codes and normals equal the reference on corpus meshes at several resolutions.
+TEST(Voxelizer, FastPathsMatchReferenceOnCorpusMeshes) {
+  KILN_REQUIRE_CORPUS();
+  for (const auto& [mesh, resolutions] :
+       std::vector<std::pair<const char*, std::vector<std::uint32_t>>>{
+           {"stanford/stanford-bunny.obj.zst", {64, 256}},
+           {"assimp/OBJ/spider.obj", {32, 128}},
+           {"classic/fandisk.obj", {64}},
+           {"assimp/OBJ/box.obj", {16, 64}}}) {
+    const Scene scene = import_scene({test::mesh_path(mesh)}, 2);
+    for (const auto n : resolutions)
+      expect_paths_match_reference(scene, fit_voxel_grid(scene.bounds, n),
+                                   std::string(mesh) + " at " + std::to_string(n));
+  }
+}
+
+// Triangles given in grid units on a unit grid (origin 0, voxel size 1), where the decision
+// boundaries fall exactly on voxel faces, edges and corners.
+Scene grid_unit_scene(const std::vector<std::array<Float3, 3>>& triangles) {
+  return triangles_scene(triangles);
+}
+VoxelGrid unit_grid(std::uint32_t n) {
+  return VoxelGrid{{0, 0, 0}, 1.0, n};
+}
+
+std::vector<std::array<Float3, 3>> worst_case_triangles(std::uint32_t n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  const float top = float(n);
+  auto pick = [&](int kind) -> float {
+    std::uniform_real_distribution<float> any(0, top);
+    switch (kind) {
+      case 0:
+        return float(std::uniform_int_distribution<int>(0, int(n))(rng));  // on a face
+      case 1:
+        return float(std::uniform_int_distribution<int>(0, int(2 * n))(rng)) / 2;  // centre
+      case 2:
+        return std::nextafter(float(std::uniform_int_distribution<int>(1, int(n) - 1)(rng)),
+                              (rng() & 1) ? 0.0f : top);  // one ulp off a face
+      default:
+        return any(rng);
+    }
+  };
+  std::vector<std::array<Float3, 3>> out;
+  for (int i = 0; i < 400; ++i) {
+    const int kind = int(rng() % 5);
+    Float3 p[3];
+    for (auto& q : p) q = {pick(int(rng() % 4)), pick(int(rng() % 4)), pick(int(rng() % 4))};
+    if (kind == 1) {  // axis-aligned: one coordinate shared
+      const int a = int(rng() % 3);
+      for (auto& q : p) format::at(q, a) = format::at(p[0], a);
+    } else if (kind == 2) {  // sliver: the third corner near the first edge
+      const float t = std::uniform_real_distribution<float>(0, 1)(rng);
+      for (int a = 0; a < 3; ++a)
+        format::at(p[2], a) = format::at(p[0], a) + (format::at(p[1], a) - format::at(p[0], a)) * t;
+      format::at(p[2], int(rng() % 3)) += (rng() & 1) ? 1e-4f : 0.0f;
+    } else if (kind == 3) {  // tiny, inside or across a voxel
+      const float s = (rng() & 1) ? 1e-3f : 0.3f;
+      p[1] = {p[0].x + s, p[0].y, p[0].z + s / 2}, p[2] = {p[0].x, p[0].y + s, p[0].z + s};
+    } else if (kind == 4 && (rng() & 1)) {  // degenerate: a repeated corner
+      p[2] = p[1];
+    }
+    for (auto& q : p)
+      for (int a = 0; a < 3; ++a) format::at(q, a) = std::clamp(format::at(q, a), 0.0f, top);
+    out.push_back({p[0], p[1], p[2]});
+  }
+  // Huge ones: the grid's diagonals and a face.
+  out.push_back({{{0, 0, 0}, {top, top, 0}, {0, top, top}}});
+  out.push_back({{{0, 0, 0}, {top, 0, 0}, {top, top, top}}});
+  out.push_back({{{0, 0, top}, {top, 0, top}, {0, top, top}}});
+  return out;
+}
+
+TEST(Voxelizer, FastPathsMatchReferenceOnWorstCases) {
+  for (const std::uint32_t n : {8u, 16u, 64u}) {
+    const auto triangles = worst_case_triangles(n, n);
+    // One triangle at a time (a wrong voxel is then easy to find), then all together.
+    for (std::size_t i = 0; i < triangles.size(); i += 7)
+      expect_paths_match_reference(grid_unit_scene({triangles[i]}), unit_grid(n),
+                                   "triangle " + std::to_string(i) + " at " + std::to_string(n));
+    expect_paths_match_reference(grid_unit_scene(triangles), unit_grid(n),
+                                 "all at " + std::to_string(n));
+  }
+  // Scaled grids (voxel size not 1, origin off zero): rounding in to_grid.
+  auto triangles = worst_case_triangles(16, 99);
+  triangles.resize(120);
+  const Scene scene = grid_unit_scene(triangles);
+  for (const std::uint32_t n : {32u, 128u})
+    expect_paths_match_reference(scene, fit_voxel_grid(scene.bounds, n),
+                                 "fitted at " + std::to_string(n));
+}
+
+TEST(Voxelizer, LeavesByteIdenticalAcrossThreadsAndCubes) {
+  KILN_REQUIRE_CORPUS();
+  const Scene scene = import_scene({test::mesh_path("classic/spot.obj")}, 2);
+  const VoxelGrid grid = fit_voxel_grid(scene.bounds, 512);
+  const std::vector<std::uint32_t> all = all_triangles(scene);
+  const VoxelLeaves one = voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 512}, all, 1);
+  for (const unsigned threads : {2u, 8u})
+    expect_leaves_equal(voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 512}, all, threads), one,
+                        std::to_string(threads) + " threads");
+  // Sub-cubes smaller than a brick (4, 16) and larger (256), with triangles_reaching.
+  for (const std::uint32_t side : {4u, 16u, 256u}) {
+    VoxelLeaves joined;
+    const std::uint32_t per_axis = 512 / side;
+    std::uint64_t cubes_done = 0;
+    for (std::uint64_t c = 0; c < std::uint64_t(per_axis) * per_axis * per_axis; ++c) {
+      const VoxelCube cube{{format::compact_bits(c) * side, format::compact_bits(c >> 1) * side,
+                            format::compact_bits(c >> 2) * side},
+                           side};
+      if (side == 4 && (c % 97) != 0) continue;  // a sample of the 2M small cubes
+      ++cubes_done;
+      const VoxelLeaves l =
+          voxelize_surface_leaves(scene, grid, cube, triangles_reaching(scene, grid, cube), 2);
+      if (side == 4) {  // compare with the whole grid's leaves in this cube
+        const std::uint64_t key =
+            format::morton_code(cube.origin[0], cube.origin[1], cube.origin[2]) >> 6;
+        const auto it = std::lower_bound(one.keys.begin(), one.keys.end(), key);
+        const bool present = it != one.keys.end() && *it == key;
+        ASSERT_EQ(l.keys.size(), present ? 1u : 0u);
+        if (present) EXPECT_EQ(l.masks[0], one.masks[std::size_t(it - one.keys.begin())]);
+        continue;
+      }
+      joined.keys.insert(joined.keys.end(), l.keys.begin(), l.keys.end());
+      joined.masks.insert(joined.masks.end(), l.masks.begin(), l.masks.end());
+      joined.voxel_count += l.voxel_count;
+    }
+    if (side != 4) expect_leaves_equal(joined, one, "cubes of " + std::to_string(side));
+    EXPECT_GT(cubes_done, 0u);
+  }
+}
+
 TEST(VoxelDag, ExpandsToExactlyTheVoxelSet) {
   std::vector<std::pair<std::string, std::pair<std::vector<std::uint64_t>, std::uint32_t>>> sets;
   sets.push_back({"one voxel", {{format::morton_code(5, 1, 7)}, 8}});

@@ -1,9 +1,12 @@
 // Surface voxelization brick by brick: triangles are binned to the bricks (128^3 voxels, in
-// Morton order) their candidate voxels touch; each brick tests its triangles column by column
-// along the triangle's dominant axis (only the few voxels the plane can reach in each column),
-// then sorts its codes. Concatenating bricks in Morton order gives the global order, so no global
-// sort and no dense grid is needed, and every brick is a pure function of its triangles.
+// Morton order) their plane's slab reaches; each brick walks its triangles column by column along
+// each triangle's dominant axis, where every separating-axis test is an interval of the column
+// (voxelize_columns.hpp: closed form, exact via margins), and sets bits in a per-thread bit array
+// laid out in Morton order, whose words are the 4x4x4 leaves. Leaves come out in order without
+// per-voxel codes or a sort; concatenating bricks in Morton order gives the global order, and
+// every brick is a pure function of its triangles, so any thread count gives the same bytes.
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -11,71 +14,18 @@
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/formats/voxel_grid.hpp"
 #include "kiln/runtime/parallel.hpp"
+#include "voxelize_columns.hpp"
 
 namespace kiln {
 
 namespace {
 
+using voxelize_detail::candidate_range;
+using voxelize_detail::is_empty;
+using voxelize_detail::TriangleColumns;
+using voxelize_detail::VoxelRange;
+
 constexpr std::uint32_t kBrickSide = 128;
-
-struct VoxelRange {
-  std::int64_t lo[3], hi[3];  // inclusive; empty when lo > hi on an axis
-};
-
-// Voxels whose closed box can meet the triangle's bounding box, clipped to `clip`.
-VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip) {
-  VoxelRange r;
-  for (int a = 0; a < 3; ++a) {
-    const double lo =
-        std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-    const double hi =
-        std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-    // A box [k, k+1] touches a coordinate in [lo, hi] for k in [ceil(lo) - 1, floor(hi)].
-    r.lo[a] = std::max(clip.lo[a], std::int64_t(std::ceil(lo)) - 1);
-    r.hi[a] = std::min(clip.hi[a], std::int64_t(std::floor(hi)));
-  }
-  return r;
-}
-
-// Calls emit(x, y, z) for every voxel of `clip` the triangle touches.
-template <class Emit>
-void voxelize_triangle(const GridTriangle& t, const VoxelRange& clip, Emit emit) {
-  const VoxelRange r = candidate_range(t, clip);
-  if (r.lo[0] > r.hi[0] || r.lo[1] > r.hi[1] || r.lo[2] > r.hi[2]) return;
-  const format::Double3 n = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
-  int a = 0;
-  for (int i = 1; i < 3; ++i)
-    if (std::fabs(format::at(n, i)) > std::fabs(format::at(n, a))) a = i;
-  const double na = format::at(n, a), nu = format::at(n, (a + 1) % 3),
-               nv = format::at(n, (a + 2) % 3);
-  const int u = (a + 1) % 3, v = (a + 2) % 3;
-  const double d = dot(n, t.v[0]);
-  for (std::int64_t iu = r.lo[u]; iu <= r.hi[u]; ++iu)
-    for (std::int64_t iv = r.lo[v]; iv <= r.hi[v]; ++iv) {
-      // The plane's extent along `a` over the column's closed rectangle; one voxel of slack on
-      // each side absorbs rounding, and the exact test below decides.
-      double amin = INFINITY, amax = -INFINITY;
-      for (const double cu : {double(iu), double(iu + 1)})
-        for (const double cv : {double(iv), double(iv + 1)}) {
-          const double at = (d - nu * cu - nv * cv) / na;
-          amin = std::min(amin, at), amax = std::max(amax, at);
-        }
-      const std::int64_t lo = std::max(r.lo[a], std::int64_t(std::floor(amin)) - 1);
-      const std::int64_t hi = std::min(r.hi[a], std::int64_t(std::floor(amax)) + 1);
-      for (std::int64_t ia = lo; ia <= hi; ++ia) {
-        std::int64_t c[3];
-        c[a] = ia, c[u] = iu, c[v] = iv;
-        if (triangle_touches_voxel(t, std::uint32_t(c[0]), std::uint32_t(c[1]),
-                                   std::uint32_t(c[2])))
-          emit(std::uint32_t(c[0]), std::uint32_t(c[1]), std::uint32_t(c[2]));
-      }
-    }
-}
-
-struct BrickOutput {
-  std::vector<std::uint64_t> codes;
-  std::vector<std::uint32_t> normals;
-};
 
 GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::uint32_t i) {
   const auto& tri = scene.triangles[i];
@@ -91,84 +41,290 @@ VoxelRange range_of(const VoxelCube& cube) {
   return r;
 }
 
+// Morton bits of 0..127, one table for the three axes (shifted by 0, 1, 2).
+struct SpreadTable {
+  std::uint32_t bits[kBrickSide];
+  SpreadTable() {
+    for (std::uint32_t i = 0; i < kBrickSide; ++i) bits[i] = std::uint32_t(format::spread_bits(i));
+  }
+};
+const SpreadTable& spread_table() {
+  static const SpreadTable table;
+  return table;
+}
+
+// Bits of the voxels k0..k1 (0..3) along axis a inside a 4x4x4 leaf, at u = v = 0.
+struct RunTable {
+  std::uint64_t masks[3][4][4] = {};
+  RunTable() {
+    for (int a = 0; a < 3; ++a)
+      for (std::uint32_t k0 = 0; k0 < 4; ++k0)
+        for (std::uint32_t k1 = k0; k1 < 4; ++k1)
+          for (std::uint32_t k = k0; k <= k1; ++k)
+            masks[a][k0][k1] |= std::uint64_t{1} << (format::spread_bits(k) << a);
+  }
+};
+
+// A brick's voxels as bits in Morton order: word w is the 4x4x4 leaf whose local key is w, so the
+// leaves come out in order with no per-voxel codes and no sort. A summary bit per word lists the
+// non-empty leaves without scanning the whole brick (mostly empty on a surface), and clearing
+// touches only those, so one array per thread serves every brick.
+class BrickBits {
+ public:
+  void prepare(std::uint32_t side) {
+    const std::size_t words = std::size_t(side) * side * side / 64;
+    if (words_.size() != words) words_.assign(words, 0), summary_.assign((words + 63) / 64, 0);
+  }
+  static std::uint32_t index(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+    const std::uint32_t* s = spread_table().bits;
+    return s[x] | s[y] << 1 | s[z] << 2;
+  }
+  void set(std::uint32_t i) {
+    words_[i >> 6] |= std::uint64_t{1} << (i & 63);
+    summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
+  }
+  // Voxels (x, y, z) with coordinate `a` from p[a] to last (local), a 4x4x4 leaf at a time: the
+  // run's bits within a leaf come from a table, shifted to the column's place.
+  void set_run(std::uint32_t p[3], int a, std::uint32_t last) {
+    static const RunTable table;
+    for (std::uint32_t first = p[a]; first <= last;) {
+      const std::uint32_t end = std::min(last, first | 3);
+      p[a] = first & ~3u;
+      const std::uint32_t i = index(p[0], p[1], p[2]);
+      words_[i >> 6] |= table.masks[a][first & 3][end & 3] << (i & 63);
+      summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
+      first = end + 1;
+    }
+  }
+  std::uint64_t word(std::size_t w) const { return words_[w]; }
+  // f(w, mask) for every non-empty word, ascending.
+  template <class F>
+  void for_each_leaf(F f) const {
+    for (std::size_t s = 0; s < summary_.size(); ++s)
+      for (std::uint64_t bits = summary_[s]; bits != 0; bits &= bits - 1) {
+        const std::size_t w = s * 64 + std::size_t(std::countr_zero(bits));
+        f(w, words_[w]);
+      }
+  }
+  void clear() {
+    for_each_leaf([&](std::size_t w, std::uint64_t) { words_[w] = 0; });
+    std::fill(summary_.begin(), summary_.end(), 0);
+  }
+
+ private:
+  std::vector<std::uint64_t> words_, summary_;
+};
+
+// This thread's bit array, empty, for a brick of `side`; cleared again when the lease ends, even
+// by an exception, so the next brick on this thread starts empty.
+class BitsLease {
+ public:
+  explicit BitsLease(std::uint32_t side) : bits_(storage()) { bits_.prepare(side); }
+  ~BitsLease() { bits_.clear(); }
+  BitsLease(const BitsLease&) = delete;
+  BitsLease& operator=(const BitsLease&) = delete;
+  BrickBits& bits() { return bits_; }
+
+ private:
+  static BrickBits& storage() {
+    thread_local BrickBits bits;
+    return bits;
+  }
+  BrickBits& bits_;
+};
+
+struct Brick {
+  VoxelRange clip;
+  std::uint64_t first_key = 0;  // global leaf key of the brick's first 4x4x4 block
+};
+
+// Brick `b` (Morton index within `cube`) of side `brick`.
+Brick brick_of(const VoxelCube& cube, std::uint32_t brick, std::size_t b) {
+  Brick out;
+  const std::uint32_t local[3] = {format::compact_bits(b), format::compact_bits(b >> 1),
+                                  format::compact_bits(b >> 2)};
+  for (int a = 0; a < 3; ++a)
+    out.clip.lo[a] = std::int64_t(cube.origin[a]) + std::int64_t(local[a]) * brick,
+    out.clip.hi[a] = out.clip.lo[a] + brick - 1;
+  const int shift = 3 * std::countr_zero(brick);
+  out.first_key = (format::morton_code(cube.origin[0], cube.origin[1], cube.origin[2]) |
+                   std::uint64_t(b) << shift) >>
+                  6;
+  return out;
+}
+
+// Calls on_run(triangle, local p, a, last) for runs of voxels along axis a (brick-local, p[a] to
+// last) and on_voxel(triangle, x, y, z) for single voxels (brick-local), covering every voxel of
+// `brick` each triangle touches once, triangle by triangle in the given order.
+template <class OnRun, class OnVoxel>
+void rasterize(const Scene& scene, const VoxelGrid& grid, std::span<const std::uint32_t> triangles,
+               const Brick& brick, OnRun on_run, OnVoxel on_voxel) {
+  TriangleColumns columns;
+  const std::int64_t* o = brick.clip.lo;
+  for (const std::uint32_t i : triangles) {
+    if (!columns.setup(grid_triangle(scene, grid, i))) continue;
+    columns.walk(
+        brick.clip,
+        [&](const std::int64_t* c, int a, std::int64_t last) {
+          std::uint32_t p[3] = {std::uint32_t(c[0] - o[0]), std::uint32_t(c[1] - o[1]),
+                                std::uint32_t(c[2] - o[2])};
+          on_run(i, p, a, std::uint32_t(last - o[a]));
+        },
+        [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+          on_voxel(i, std::uint32_t(x - o[0]), std::uint32_t(y - o[1]), std::uint32_t(z - o[2]));
+        });
+  }
+}
+
+// rasterize with one callback per voxel (brick-local Morton index).
+template <class OnVoxel>
+void rasterize_voxels(const Scene& scene, const VoxelGrid& grid,
+                      std::span<const std::uint32_t> triangles, const Brick& brick,
+                      OnVoxel on_voxel) {
+  rasterize(
+      scene, grid, triangles, brick,
+      [&](std::uint32_t t, std::uint32_t* p, int a, std::uint32_t last) {
+        for (std::uint32_t k = p[a]; k <= last; ++k) {
+          p[a] = k;
+          on_voxel(t, BrickBits::index(p[0], p[1], p[2]));
+        }
+      },
+      [&](std::uint32_t t, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+        on_voxel(t, BrickBits::index(x, y, z));
+      });
+}
+
+// Sets the bits of every voxel `triangles` touch in `brick`.
+void rasterize_bits(const Scene& scene, const VoxelGrid& grid,
+                    std::span<const std::uint32_t> triangles, const Brick& brick, BrickBits& bits) {
+  rasterize(
+      scene, grid, triangles, brick,
+      [&](std::uint32_t, std::uint32_t* p, int a, std::uint32_t last) { bits.set_run(p, a, last); },
+      [&](std::uint32_t, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+        bits.set(BrickBits::index(x, y, z));
+      });
+}
+
+struct BrickLeaves {
+  std::vector<std::uint64_t> keys, masks;
+  std::uint64_t voxel_count = 0;
+};
+
+BrickLeaves voxelize_brick_leaves(const Scene& scene, const VoxelGrid& grid,
+                                  std::span<const std::uint32_t> triangles, const Brick& brick,
+                                  std::uint32_t side) {
+  BitsLease lease(side);
+  BrickBits& bits = lease.bits();
+  rasterize_bits(scene, grid, triangles, brick, bits);
+  BrickLeaves out;
+  bits.for_each_leaf([&](std::size_t w, std::uint64_t mask) {
+    out.keys.push_back(brick.first_key + w);
+    out.masks.push_back(mask);
+    out.voxel_count += std::uint64_t(std::popcount(mask));
+  });
+  return out;
+}
+
+struct BrickOutput {
+  std::vector<std::uint64_t> codes;
+  std::vector<std::uint32_t> normals;
+};
+
+// Codes from leaves, ascending.
+void append_codes(const BrickLeaves& leaves, std::vector<std::uint64_t>& codes) {
+  codes.reserve(codes.size() + leaves.voxel_count);
+  for (std::size_t k = 0; k < leaves.keys.size(); ++k)
+    for (std::uint64_t m = leaves.masks[k]; m != 0; m &= m - 1)
+      codes.push_back(leaves.keys[k] << 6 | std::uint64_t(std::countr_zero(m)));
+}
+
+// The brick's voxels with the octahedral sum of their triangles' unit normals, summed in
+// ascending triangle order (as sorting (code, triangle) pairs would): a first pass sets the bits,
+// whose ranks give each voxel its slot, and a second pass adds each triangle's normal there.
+BrickOutput voxelize_brick_normals(const Scene& scene, const VoxelGrid& grid,
+                                   std::span<const std::uint32_t> triangles, const Brick& brick,
+                                   std::uint32_t side) {
+  BitsLease lease(side);
+  BrickBits& bits = lease.bits();
+  rasterize_bits(scene, grid, triangles, brick, bits);
+  BrickOutput out;
+  std::vector<std::uint32_t> rank(std::size_t(side) * side * side / 64);
+  std::uint32_t total = 0;
+  bits.for_each_leaf([&](std::size_t w, std::uint64_t mask) {
+    rank[w] = total;
+    total += std::uint32_t(std::popcount(mask));
+    for (std::uint64_t m = mask; m != 0; m &= m - 1)
+      out.codes.push_back((brick.first_key + w) << 6 | std::uint64_t(std::countr_zero(m)));
+  });
+  std::vector<double> sums(3 * std::size_t(total), 0.0);
+  std::uint32_t current = ~0u;
+  double unit[3] = {0, 0, 0};
+  rasterize_voxels(scene, grid, triangles, brick, [&](std::uint32_t t, std::uint32_t i) {
+    if (t != current) {
+      const auto& tri = scene.triangles[t];
+      const format::Double3 a = to_d(scene.positions[tri.v[0]]),
+                            b = to_d(scene.positions[tri.v[1]]),
+                            c = to_d(scene.positions[tri.v[2]]);
+      const format::Double3 nrm = cross(b - a, c - a);
+      const double length = std::sqrt(dot(nrm, nrm));
+      for (int axis = 0; axis < 3; ++axis) unit[axis] = format::at(nrm, axis) / length;
+      current = t;
+    }
+    const std::uint64_t below = bits.word(i >> 6) & ((std::uint64_t{1} << (i & 63)) - 1);
+    double* sum = &sums[3 * (rank[i >> 6] + std::uint32_t(std::popcount(below)))];
+    for (int axis = 0; axis < 3; ++axis) sum[axis] += unit[axis];
+  });
+  out.normals.resize(total);
+  for (std::size_t k = 0; k < total; ++k)
+    out.normals[k] = format::encode_octahedral(float(sums[3 * k]), float(sums[3 * k + 1]),
+                                               float(sums[3 * k + 2]));
+  return out;
+}
+
 // Each of `triangles`, in the given order, in the bin (Morton index within `cube`) of each brick
-// of side `brick` its candidate voxels reach inside `cube`.
+// of side `brick` its voxels may reach: over each column of bricks along the triangle's dominant
+// axis, only the bricks its plane's slab (with margin) meets, not its whole bounding box.
 std::vector<std::vector<std::uint32_t>> bin_triangles(const Scene& scene, const VoxelGrid& grid,
                                                       const VoxelCube& cube,
                                                       std::span<const std::uint32_t> triangles,
                                                       std::uint32_t brick) {
-  const std::uint32_t bricks_per_axis = cube.side / brick;
+  const std::uint32_t per_axis = cube.side / brick;
   const VoxelRange whole = range_of(cube);
-  std::vector<std::vector<std::uint32_t>> bins(std::size_t(bricks_per_axis) * bricks_per_axis *
-                                               bricks_per_axis);
+  std::vector<std::vector<std::uint32_t>> bins(std::size_t(per_axis) * per_axis * per_axis);
+  TriangleColumns columns;
   for (const std::uint32_t i : triangles) {
-    const VoxelRange r = candidate_range(grid_triangle(scene, grid, i), whole);
-    if (r.lo[0] > r.hi[0] || r.lo[1] > r.hi[1] || r.lo[2] > r.hi[2]) continue;
-    std::uint32_t lo[3], hi[3];
-    for (int a = 0; a < 3; ++a)
-      lo[a] = std::uint32_t((r.lo[a] - whole.lo[a]) / brick),
-      hi[a] = std::uint32_t((r.hi[a] - whole.lo[a]) / brick);
-    for (std::uint32_t bz = lo[2]; bz <= hi[2]; ++bz)
-      for (std::uint32_t by = lo[1]; by <= hi[1]; ++by)
-        for (std::uint32_t bx = lo[0]; bx <= hi[0]; ++bx)
-          bins[format::morton_code(bx, by, bz)].push_back(i);
+    const GridTriangle t = grid_triangle(scene, grid, i);
+    const VoxelRange r = candidate_range(t, whole);
+    if (is_empty(r)) continue;
+    if ((r.lo[0] - whole.lo[0]) / brick == (r.hi[0] - whole.lo[0]) / brick &&
+        (r.lo[1] - whole.lo[1]) / brick == (r.hi[1] - whole.lo[1]) / brick &&
+        (r.lo[2] - whole.lo[2]) / brick == (r.hi[2] - whole.lo[2]) / brick) {
+      bins[format::morton_code(std::uint32_t((r.lo[0] - whole.lo[0]) / brick),
+                               std::uint32_t((r.lo[1] - whole.lo[1]) / brick),
+                               std::uint32_t((r.lo[2] - whole.lo[2]) / brick))]
+          .push_back(i);  // one brick: nothing to prune
+      continue;
+    }
+    if (!columns.setup(t)) continue;
+    const int a = columns.dominant_axis(), u = (a + 1) % 3, v = (a + 2) % 3;
+    std::int64_t b[3];
+    for (b[u] = (r.lo[u] - whole.lo[u]) / brick; b[u] <= (r.hi[u] - whole.lo[u]) / brick; ++b[u])
+      for (b[v] = (r.lo[v] - whole.lo[v]) / brick; b[v] <= (r.hi[v] - whole.lo[v]) / brick;
+           ++b[v]) {
+        const std::int64_t u0 = std::max(r.lo[u], whole.lo[u] + b[u] * brick),
+                           u1 = std::min(r.hi[u], whole.lo[u] + b[u] * brick + brick - 1),
+                           v0 = std::max(r.lo[v], whole.lo[v] + b[v] * brick),
+                           v1 = std::min(r.hi[v], whole.lo[v] + b[v] * brick + brick - 1);
+        std::int64_t a0, a1;
+        columns.reach_along_a(u0, u1, v0, v1, a0, a1);
+        a0 = std::max(a0, r.lo[a]), a1 = std::min(a1, r.hi[a]);
+        if (a0 > a1) continue;
+        for (b[a] = (a0 - whole.lo[a]) / brick; b[a] <= (a1 - whole.lo[a]) / brick; ++b[a])
+          bins[format::morton_code(std::uint32_t(b[0]), std::uint32_t(b[1]), std::uint32_t(b[2]))]
+              .push_back(i);
+      }
   }
   return bins;
-}
-
-// The voxels of brick `b` (Morton index within `cube`) that `triangles` touch, sorted, and with
-// `normals` the octahedral sum of their triangles' unit normals.
-BrickOutput voxelize_brick(const Scene& scene, const VoxelGrid& grid, const VoxelCube& cube,
-                           std::uint32_t brick, std::size_t b,
-                           std::span<const std::uint32_t> triangles, bool normals) {
-  const std::uint32_t local[3] = {format::compact_bits(b), format::compact_bits(b >> 1),
-                                  format::compact_bits(b >> 2)};
-  VoxelRange clip;
-  for (int a = 0; a < 3; ++a)
-    clip.lo[a] = std::int64_t(cube.origin[a]) + std::int64_t(local[a]) * brick,
-    clip.hi[a] = clip.lo[a] + brick - 1;
-  // (code, triangle) pairs: sorting them fixes the order normals are summed in.
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
-  for (const std::uint32_t i : triangles)
-    voxelize_triangle(grid_triangle(scene, grid, i), clip,
-                      [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-                        hits.emplace_back(format::morton_code(x, y, z), i);
-                      });
-  std::sort(hits.begin(), hits.end());
-  BrickOutput result;
-  for (std::size_t k = 0; k < hits.size();) {
-    std::size_t end = k;
-    double sum[3] = {0, 0, 0};
-    for (; end < hits.size() && hits[end].first == hits[k].first; ++end) {
-      if (!normals) continue;
-      const auto& tri = scene.triangles[hits[end].second];
-      const format::Double3 a = to_d(scene.positions[tri.v[0]]),
-                            b2 = to_d(scene.positions[tri.v[1]]),
-                            c = to_d(scene.positions[tri.v[2]]);
-      const format::Double3 nrm = cross(b2 - a, c - a);
-      const double length = std::sqrt(dot(nrm, nrm));
-      for (int axis = 0; axis < 3; ++axis) sum[axis] += format::at(nrm, axis) / length;
-    }
-    result.codes.push_back(hits[k].first);
-    if (normals)
-      result.normals.push_back(
-          format::encode_octahedral(float(sum[0]), float(sum[1]), float(sum[2])));
-    k = end;
-  }
-  return result;
-}
-
-// Bricks in Morton order give the global Morton order; each brick is released once copied.
-void concatenate_bricks(std::vector<BrickOutput>& bricks, bool normals, Voxels& out) {
-  std::size_t total = 0;
-  for (const auto& b : bricks) total += b.codes.size();
-  out.codes.reserve(total);
-  if (normals) out.normals.reserve(total);
-  for (auto& b : bricks) {
-    out.codes.insert(out.codes.end(), b.codes.begin(), b.codes.end());
-    out.normals.insert(out.normals.end(), b.normals.begin(), b.normals.end());
-    b = {};
-  }
 }
 
 }  // namespace
@@ -228,10 +384,8 @@ std::vector<std::uint32_t> triangles_reaching(const Scene& scene, const VoxelGri
                                               const VoxelCube& cube) {
   const VoxelRange clip = range_of(cube);
   std::vector<std::uint32_t> out;
-  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
-    const VoxelRange r = candidate_range(grid_triangle(scene, grid, i), clip);
-    if (r.lo[0] <= r.hi[0] && r.lo[1] <= r.hi[1] && r.lo[2] <= r.hi[2]) out.push_back(i);
-  }
+  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i)
+    if (!is_empty(candidate_range(grid_triangle(scene, grid, i), clip))) out.push_back(i);
   return out;
 }
 
@@ -246,17 +400,53 @@ Voxels voxelize_surface_cube(const Scene& scene, const VoxelGrid& grid, const Vo
   std::vector<BrickOutput> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
     if (bins[b].empty()) return;
-    bricks[b] = voxelize_brick(scene, grid, cube, brick, b, bins[b], normals);
+    const Brick frame = brick_of(cube, brick, b);
+    if (normals) {
+      // Normals are summed in ascending triangle order, whatever order the caller gave.
+      if (!std::is_sorted(bins[b].begin(), bins[b].end()))
+        std::sort(bins[b].begin(), bins[b].end());
+      bricks[b] = voxelize_brick_normals(scene, grid, bins[b], frame, brick);
+    } else {
+      append_codes(voxelize_brick_leaves(scene, grid, bins[b], frame, brick), bricks[b].codes);
+    }
     std::vector<std::uint32_t>().swap(bins[b]);
   });
-  concatenate_bricks(bricks, normals, out);
+  std::size_t total = 0;
+  for (const auto& b : bricks) total += b.codes.size();
+  out.codes.reserve(total);
+  if (normals) out.normals.reserve(total);
+  for (auto& b : bricks) {  // bricks in Morton order give the global order
+    out.codes.insert(out.codes.end(), b.codes.begin(), b.codes.end());
+    out.normals.insert(out.normals.end(), b.normals.begin(), b.normals.end());
+    b = {};
+  }
   return out;
 }
 
 VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
                                     const VoxelCube& cube, std::span<const std::uint32_t> triangles,
                                     unsigned threads) {
-  return leaves_of(voxelize_surface_cube(scene, grid, cube, triangles, false, threads).codes);
+  if (!is_valid_cube(grid, cube)) throw std::invalid_argument("voxel cube outside the grid");
+  const std::uint32_t brick = std::min(cube.side, kBrickSide);
+  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(scene, grid, cube, triangles, brick);
+  std::vector<BrickLeaves> bricks(bins.size());
+  parallel_for(bins.size(), threads, [&](std::size_t b) {
+    if (bins[b].empty()) return;
+    bricks[b] = voxelize_brick_leaves(scene, grid, bins[b], brick_of(cube, brick, b), brick);
+    std::vector<std::uint32_t>().swap(bins[b]);
+  });
+  VoxelLeaves out;
+  std::size_t total = 0;
+  for (const auto& b : bricks) total += b.keys.size();
+  out.keys.reserve(total);
+  out.masks.reserve(total);
+  for (auto& b : bricks) {
+    out.keys.insert(out.keys.end(), b.keys.begin(), b.keys.end());
+    out.masks.insert(out.masks.end(), b.masks.begin(), b.masks.end());
+    out.voxel_count += b.voxel_count;
+    b = {};
+  }
+  return out;
 }
 
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options) {
