@@ -89,7 +89,7 @@ std::function<std::uint64_t(const Query&)> runner(const EventQueries& e, const s
 template <class View>
 std::string topk_work(const View& cube, const std::vector<Query>& qs, const std::string& by) {
   if constexpr (requires { typename View::TopkTrace; }) {
-    std::vector<std::size_t> counted;
+    std::vector<std::size_t> counted, nodes, lists;
     std::size_t walked = 0, blocks = 0;
     for (const Query& q : qs) {
       typename View::TopkTrace trace;
@@ -97,11 +97,18 @@ std::string topk_work(const View& cube, const std::vector<Query>& qs, const std:
       walked += trace.path == View::TopkTrace::Path::kThreshold;
       blocks += trace.block_lists > 0;
       counted.push_back(trace.labels_counted);
+      nodes.push_back(trace.counted_labels);
+      lists.push_back(trace.block_lists);
     }
     std::sort(counted.begin(), counted.end());
+    std::sort(nodes.begin(), nodes.end());
+    std::sort(lists.begin(), lists.end());
     return "  walk " + std::to_string(100 * walked / qs.size()) + "% (blocks " +
            std::to_string(100 * blocks / qs.size()) + "%), labels counted p50 " +
-           std::to_string(counted[counted.size() / 2]);
+           std::to_string(counted[counted.size() / 2]) + " counted-node labels p50 " +
+           std::to_string(nodes[nodes.size() / 2]) + " p90 " +
+           std::to_string(nodes[nodes.size() * 9 / 10]) + " lists p50 " +
+           std::to_string(lists[lists.size() / 2]);
   } else {
     return "";
   }
@@ -114,7 +121,7 @@ int main(int argc, char** argv) {
   if (argc < 2 || help) {
     std::fprintf(
         help ? stdout : stderr,
-        "usage: %s BLOB [--queries N] [--scan-queries M] [--sqlite]\n"
+        "usage: %s BLOB [--queries N] [--scan-queries M] [--sqlite] [--only TYPE]\n"
         "Latency p50/p99 of count, series, tiles and topk on the blob's nanocube against a\n"
         "scan of its mapped table (and SQLite with --sqlite), 1 thread.\n",
         argv[0]);
@@ -122,6 +129,7 @@ int main(int argc, char** argv) {
   }
   std::size_t queries = 1000, scan_queries = 20;
   bool sqlite = false;
+  std::string only;  // one query type, else all
   for (int i = 2; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--queries") && i + 1 < argc)
       queries = std::stoul(argv[++i]);
@@ -129,6 +137,8 @@ int main(int argc, char** argv) {
       scan_queries = std::stoul(argv[++i]);
     else if (!std::strcmp(argv[i], "--sqlite"))
       sqlite = true;
+    else if (!std::strcmp(argv[i], "--only") && i + 1 < argc)
+      only = argv[++i];
   }
   const Blob blob = Blob::open_file(argv[1]);
   const NanocubeView cube = NanocubeView::from_blob(blob, *blob.structure("nanocube"));
@@ -143,7 +153,7 @@ int main(int argc, char** argv) {
   // topk-all: the same boxes over all time, which the stored rankings answer alone.
   for (const std::string type :
        {"count", "series", "tiles", "topk", "topk-all", "topk-month", "topk-week"}) {
-    if (type.starts_with("topk") && by.empty()) continue;
+    if ((type.starts_with("topk") && by.empty()) || (!only.empty() && type != only)) continue;
     const auto qs = make_queries(type, t, cube.grid().max_level, queries, 42);
     std::uint64_t a = 0, b = 0, c = 0;
     const auto [p50, p99] = latency(qs, runner(cube, type, by), a);

@@ -32,6 +32,10 @@ std::vector<StructureOption> nanocube_options() {
       {"topk-min-labels", "--topk-min-labels", "32",
        "Nanocube: ... and at least this many labels of the category", false,
        parse_uint_in(1, 0xFFFFFFFFu)},
+      {"topk-block-bytes", "--topk-block-bytes", "6",
+       "Nanocube: bytes of block rankings allowed per event of a node and category (the finest "
+       "blocks are dropped until they fit)",
+       false, parse_uint_in(0, 1024)},
   };
 }
 
@@ -42,6 +46,7 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
   options.sharing = request.text_option("sharing") == "on";
   options.block_min_events = request.uint_option("topk-min-events");
   options.block_min_labels = request.uint_option("topk-min-labels");
+  options.block_bytes_per_event = request.uint_option("topk-block-bytes");
   auto cube = std::make_shared<NanocubeData>(build_nanocube(*scene.events, options));
   BuiltStructure built;
   built.sections = {raw_section(format::kSectionNanocubeNodes, cube->nodes),

@@ -22,7 +22,7 @@ struct NanocubeOptions {
   std::uint32_t block_min_labels = 32;
   /// Bytes of block rankings allowed per event of the node and category: the finest levels
   /// are dropped until the node's block rankings fit.
-  double block_bytes_per_event = 2.0;
+  double block_bytes_per_event = 6.0;
   std::uint32_t block_shift = 1,
                 block_stride = 2;  ///< level i: blocks of 2^(shift + stride i) bins
 };

@@ -76,6 +76,7 @@ class NanocubeView final : public EventQueries {
     std::size_t block_lists = 0;     ///< rankings of time blocks the walk read (not all-time)
     std::size_t walked_nodes = 0;    ///< covered nodes the walk ranked (the rest were counted)
     std::size_t counted_nodes = 0;   ///< covered nodes whose labels were each counted
+    std::size_t counted_labels = 0;  ///< labels those nodes hold (over all time)
   };
   std::vector<EventLabelCount> topk_traced(const EventSelection& selection, std::string_view by,
                                            std::size_t k, TopkTrace& trace) const;
