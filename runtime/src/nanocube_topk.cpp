@@ -19,7 +19,7 @@ namespace {
 // walked node `slot` (the last slot: the counted nodes' exact counts).
 // A node is walked when it selects at least 1/kLoose of the events its lists rank: looser bounds
 // make the walk count more labels in every walked node than counting that node's own (measured
-// on the 10 M table: 4 beats 2, 16 and no limit).
+// on the 10 M table: 4 beats 16, 64 and no limit).
 constexpr std::uint64_t kLoose = 4;
 
 struct WalkList {
