@@ -8,6 +8,7 @@
 #include <limits>
 #include <span>
 #include <stdexcept>
+#include <utility>
 
 #include "kiln/compiler/nanocube_builder.hpp"
 
@@ -71,6 +72,13 @@ std::vector<Group> group_by(std::span<std::uint32_t> ev, const std::vector<Run>&
   return groups;
 }
 
+// One block level's (label, count) pairs under a node: block b's are entries[start[b] ..
+// start[b + 1]), unsorted.
+struct LevelRanks {
+  std::vector<format::NanocubeRankEntry> entries;
+  std::vector<std::uint64_t> start;
+};
+
 class CubeBuilder {
  public:
   CubeBuilder(const EventTable& table, const NanocubeOptions& options, NanocubeData& out)
@@ -87,6 +95,10 @@ class CubeBuilder {
   std::uint32_t add_node(std::size_t dim, std::span<const format::NanocubeEdge> edges,
                          std::uint32_t content);
   void rank(std::span<const std::uint32_t> ev, std::span<const format::NanocubeEdge> children);
+  format::NanocubeBlockIndex rank_blocks(std::size_t c, std::span<const std::uint32_t> ev);
+  void rank_level(std::size_t c, std::span<const std::uint32_t> ev, LevelRanks& out);
+  void coarser_level(std::size_t c, const LevelRanks& fine, LevelRanks& out);
+  void emit_block_lists(std::size_t c, const std::vector<LevelRanks>& levels, std::uint32_t finest);
   std::uint32_t child_of(std::size_t dim, std::uint32_t node, std::uint32_t key) const;
   // A shared child link: the runs are one part built before.
   bool shared(const std::vector<Run>& runs) {
@@ -109,8 +121,14 @@ class CubeBuilder {
   std::vector<std::uint32_t> perm_, scratch_, cx_, cy_, bin_;
   std::vector<std::vector<TmpNode>> nodes_;
   std::vector<std::vector<format::NanocubeEdge>> edges_;
-  std::vector<std::vector<format::NanocubeRankList>> ranks_;  // per category, per spatial node
-  std::vector<std::vector<std::uint32_t>> tally_;             // per category, per label: zeros
+  std::vector<std::vector<format::NanocubeRankList>> ranks_;     // per category, per spatial node
+  std::vector<std::vector<std::uint32_t>> tally_;                // per category, per label: zeros
+  std::vector<std::vector<format::NanocubeBlockIndex>> blocks_;  // per category, per spatial node
+  std::vector<std::uint32_t> seen_;                              // labels met while tallying
+  // Per category: its block lists (entries indices local to the category) and entries, written
+  // category after category at the end so open can check each category's labels once.
+  std::vector<std::vector<format::NanocubeRankList>> block_lists_;
+  std::vector<std::vector<format::NanocubeRankEntry>> block_entries_;
 };
 
 // Topkube's stored rankings of the spatial node about to be added: per category, its events'
@@ -123,6 +141,7 @@ void CubeBuilder::rank(std::span<const std::uint32_t> ev,
   for (std::size_t c = 0; c + 1 < dims_; ++c) {
     if (options_.sharing && children.size() == 1) {
       ranks_[c].push_back(ranks_[c][children[0].node]);
+      blocks_[c].push_back(blocks_[c][children[0].node]);
       continue;
     }
     std::vector<std::uint32_t>& tally = tally_[c];
@@ -139,6 +158,100 @@ void CubeBuilder::rank(std::span<const std::uint32_t> ev,
                 return a.count != b.count ? a.count > b.count : a.label < b.label;
               });
     ranks_[c].push_back({first, std::uint32_t(seen.size()), 0});
+    const bool big =
+        ev.size() >= options_.block_min_events && seen.size() >= options_.block_min_labels;
+    blocks_[c].push_back(big ? rank_blocks(c, ev)
+                             : format::NanocubeBlockIndex{0, out_.block_levels, 0});
+  }
+}
+
+// Level 0's pairs from the events: bucketed by block (a counting sort), each block's labels
+// tallied.
+void CubeBuilder::rank_level(std::size_t c, std::span<const std::uint32_t> ev, LevelRanks& out) {
+  const std::size_t rows = table_.rows();
+  const std::uint32_t shift = out_.block_shift;
+  const std::uint64_t blocks =
+      format::nanocube_block_count(out_.bin_count, format::nanocube_block_size(shift, 1, 0));
+  std::vector<std::uint64_t> at(blocks + 1, 0);
+  for (const std::uint32_t e : ev) ++at[(bin_[e] >> shift) + 1];
+  for (std::uint64_t b = 0; b < blocks; ++b) at[b + 1] += at[b];
+  std::vector<std::uint32_t> codes(ev.size());
+  std::vector<std::uint64_t> fill(at.begin(), at.end() - 1);
+  for (const std::uint32_t e : ev) codes[fill[bin_[e] >> shift]++] = table_.codes[c * rows + e];
+  std::vector<std::uint32_t>& tally = tally_[c];
+  out.start.assign(1, 0);
+  for (std::uint64_t b = 0; b < blocks; ++b) {
+    seen_.clear();
+    for (std::uint64_t i = at[b]; i < at[b + 1]; ++i)
+      if (tally[codes[i]]++ == 0) seen_.push_back(codes[i]);
+    for (const std::uint32_t code : seen_)
+      out.entries.push_back({code, std::exchange(tally[code], 0)});
+    out.start.push_back(out.entries.size());
+  }
+}
+
+// A coarser level's pairs: each block's 2^stride finer blocks' pairs tallied.
+void CubeBuilder::coarser_level(std::size_t c, const LevelRanks& fine, LevelRanks& out) {
+  std::vector<std::uint32_t>& tally = tally_[c];
+  const std::uint64_t fine_blocks = fine.start.size() - 1, per = std::uint64_t(1)
+                                                                 << out_.block_stride;
+  out.start.assign(1, 0);
+  for (std::uint64_t b = 0; b * per < fine_blocks; ++b) {
+    seen_.clear();
+    const std::uint64_t end = fine.start[std::min(fine_blocks, (b + 1) * per)];
+    for (std::uint64_t i = fine.start[b * per]; i < end; ++i) {
+      const format::NanocubeRankEntry& e = fine.entries[i];
+      if (tally[e.label] == 0) seen_.push_back(e.label);
+      tally[e.label] += e.count;
+    }
+    for (const std::uint32_t code : seen_)
+      out.entries.push_back({code, std::exchange(tally[code], 0)});
+    out.start.push_back(out.entries.size());
+  }
+}
+
+// Topkube's rankings over time of one node and category: every level's blocks, then the finest
+// levels dropped until the rest fits block_bytes_per_event times the node's events (a node
+// whose coarsest level does not fit stores none).
+format::NanocubeBlockIndex CubeBuilder::rank_blocks(std::size_t c,
+                                                    std::span<const std::uint32_t> ev) {
+  const std::uint32_t levels = out_.block_levels;
+  if (levels == 0) return {0, 0, 0};
+  std::vector<LevelRanks> level(levels);
+  rank_level(c, ev, level[0]);
+  for (std::uint32_t i = 1; i < levels; ++i) coarser_level(c, level[i - 1], level[i]);
+  const double budget = options_.block_bytes_per_event * double(ev.size());
+  double bytes = 0;
+  std::uint32_t finest = levels;
+  while (finest > 0) {
+    const LevelRanks& l = level[finest - 1];
+    bytes += double(l.entries.size() * sizeof(format::NanocubeRankEntry) +
+                    (l.start.size() - 1) * sizeof(format::NanocubeRankList));
+    if (bytes > budget) break;
+    --finest;
+  }
+  if (finest == levels) return {0, levels, 0};
+  const format::NanocubeBlockIndex index{block_lists_[c].size(), finest, 0};
+  emit_block_lists(c, level, finest);
+  return index;
+}
+
+// Levels finest .. levels - 1 written out, each block's pairs ranked (counts down, then labels).
+void CubeBuilder::emit_block_lists(std::size_t c, const std::vector<LevelRanks>& levels,
+                                   std::uint32_t finest) {
+  auto& entries = block_entries_[c];
+  for (std::size_t i = finest; i < levels.size(); ++i) {
+    const LevelRanks& l = levels[i];
+    for (std::size_t b = 0; b + 1 < l.start.size(); ++b) {
+      const std::size_t first = entries.size();
+      entries.insert(entries.end(), l.entries.begin() + std::ptrdiff_t(l.start[b]),
+                     l.entries.begin() + std::ptrdiff_t(l.start[b + 1]));
+      std::sort(entries.begin() + std::ptrdiff_t(first), entries.end(),
+                [](const format::NanocubeRankEntry& a, const format::NanocubeRankEntry& b) {
+                  return a.count != b.count ? a.count > b.count : a.label < b.label;
+                });
+      block_lists_[c].push_back({first, std::uint32_t(l.start[b + 1] - l.start[b]), 0});
+    }
   }
 }
 
@@ -290,7 +403,18 @@ void CubeBuilder::run() {
   }
   perm_.resize(rows), scratch_.resize(rows);
   for (std::size_t i = 0; i < rows; ++i) perm_[i] = std::uint32_t(i);
-  nodes_.resize(dims_), edges_.resize(dims_), ranks_.resize(dims_ - 1);
+  nodes_.resize(dims_), edges_.resize(dims_), ranks_.resize(dims_ - 1), blocks_.resize(dims_ - 1);
+  block_lists_.resize(dims_ - 1), block_entries_.resize(dims_ - 1);
+  // Block levels of 2^shift, 2^(shift + stride), ... bins, each smaller than the whole range
+  // (the all-time rankings are the range's one block).
+  out_.block_shift = options_.block_shift, out_.block_stride = options_.block_stride;
+  out_.block_levels = 0;
+  while (
+      out_.block_levels < format::kNanocubeMaxBlockLevels &&
+      format::nanocube_blocks_valid(out_.block_shift, out_.block_stride, out_.block_levels + 1) &&
+      format::nanocube_block_size(out_.block_shift, out_.block_stride, out_.block_levels) <
+          out_.bin_count)
+    ++out_.block_levels;
   for (const auto& category : table_.categories) tally_.emplace_back(category.labels.size(), 0);
   out_.root = space(0, perm_, {{kNone, rows}});
   flatten();
@@ -318,6 +442,21 @@ void CubeBuilder::flatten() {
   for (auto& lists : ranks_)
     out_.rank_lists.insert(out_.rank_lists.end(), lists.begin(), lists.end());
   ranks_ = {};
+  // Block rankings category after category: list and entry indices become global.
+  for (std::size_t c = 0; c < blocks_.size(); ++c) {
+    const std::uint64_t lists = out_.block_lists.size(), entries = out_.block_entries.size();
+    for (format::NanocubeBlockIndex index : blocks_[c]) {
+      if (index.finest < out_.block_levels) index.first_list += lists;
+      out_.block_index.push_back(index);
+    }
+    for (format::NanocubeRankList list : block_lists_[c]) {
+      list.first += entries;
+      out_.block_lists.push_back(list);
+    }
+    out_.block_entries.insert(out_.block_entries.end(), block_entries_[c].begin(),
+                              block_entries_[c].end());
+  }
+  blocks_ = {}, block_lists_ = {}, block_entries_ = {};
 }
 
 }  // namespace

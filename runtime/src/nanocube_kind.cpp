@@ -18,7 +18,8 @@ constexpr std::uint32_t kSections[] = {
     format::kSectionNanocubeNodes,        format::kSectionNanocubeEdges,
     format::kSectionNanocubeSeries,       format::kSectionNanocubeSeriesBins,
     format::kSectionNanocubeSeriesCounts, format::kSectionNanocubeRankLists,
-    format::kSectionNanocubeRankEntries};
+    format::kSectionNanocubeRankEntries,  format::kSectionNanocubeBlockIndex,
+    format::kSectionNanocubeBlockLists,   format::kSectionNanocubeBlockEntries};
 
 class NanocubeStructure final : public StructureView {
  public:
@@ -28,6 +29,24 @@ class NanocubeStructure final : public StructureView {
  private:
   NanocubeView view_;
 };
+
+std::uint64_t elements(const Blob& blob, std::uint32_t section) {
+  return section < blob.sections().size() ? blob.sections()[section].element_count : 0;
+}
+
+// The block rankings' sections: all three or none (a blob written before them).
+void check_blocks(const Blob& blob, const schema::NanocubeDesc& d, const std::string& where) {
+  const bool none = d.block_index() == kNoSection;
+  if (none != (d.block_lists() == kNoSection) || none != (d.block_entries() == kNoSection))
+    blob.fail_section(0, where + "names some block ranking sections, not all three");
+  blob.check_section(where + "block index", d.block_index(), format::kSectionNanocubeBlockIndex,
+                     sizeof(format::NanocubeBlockIndex), elements(blob, d.block_index()), true);
+  blob.check_section(where + "block lists", d.block_lists(), format::kSectionNanocubeBlockLists,
+                     sizeof(format::NanocubeRankList), elements(blob, d.block_lists()), true);
+  blob.check_section(where + "block entries", d.block_entries(),
+                     format::kSectionNanocubeBlockEntries, sizeof(format::NanocubeRankEntry),
+                     elements(blob, d.block_entries()), true);
+}
 
 std::uint64_t nodes_in(const schema::NanocubeDesc& d) {
   const std::vector<std::uint64_t> dims = copy_vector(d.dimension_nodes());
@@ -66,6 +85,7 @@ void check(const Blob& blob, const StructureInfo& info) {
                                     : 0;
   blob.check_section(where + "rank entries", d.rank_entries(), format::kSectionNanocubeRankEntries,
                      sizeof(format::NanocubeRankEntry), entries, false);
+  check_blocks(blob, d, where);
 }
 
 std::unique_ptr<StructureView> open(const Blob& blob, const StructureInfo& info) {
@@ -79,6 +99,9 @@ void verify(const Blob& blob, const StructureInfo& info) {
     blob.fail("nanocube '" + info.name + "' does not count every event once");
   if (!view.rankings_consistent())
     blob.fail("nanocube '" + info.name + "': a top-k ranking disagrees with the events it ranks");
+  if (!view.block_rankings_consistent())
+    blob.fail("nanocube '" + info.name +
+              "': a time block's top-k ranking disagrees with the events it ranks");
 }
 
 std::string utc(std::int64_t t) {
@@ -91,6 +114,29 @@ std::string utc(std::int64_t t) {
   const long long year = (long long)(yoe) + era * 400 + (month <= 2);
   return printf_string("%04lld-%02u-%02uT%02d:%02dZ", year, month, day, int(rest / 3600),
                        int(rest / 60 % 60));
+}
+
+// The block rankings: levels, lists, entries and their bytes.
+void describe_blocks(const Blob& blob, const schema::NanocubeDesc& d, Description& out) {
+  const std::uint64_t lists = elements(blob, d.block_lists());
+  const std::uint64_t entries = elements(blob, d.block_entries());
+  const std::uint64_t bytes = elements(blob, d.block_index()) * sizeof(format::NanocubeBlockIndex) +
+                              lists * sizeof(format::NanocubeRankList) +
+                              entries * sizeof(format::NanocubeRankEntry);
+  std::string sizes;
+  const bool valid =
+      format::nanocube_blocks_valid(d.block_shift(), d.block_stride(), d.block_levels());
+  for (std::uint32_t i = 0; valid && i < d.block_levels(); ++i)
+    sizes += (i ? ", " : "") +
+             std::to_string(format::nanocube_block_size(d.block_shift(), d.block_stride(), i));
+  out.lines.push_back(printf_string(
+      "topkube block rankings: blocks of %s bins, under nodes of >= %llu events; %llu lists, "
+      "%llu entries, %llu bytes (%.2f bytes/event)",
+      sizes.empty() ? "none" : sizes.c_str(), (unsigned long long)d.block_min_events(),
+      (unsigned long long)lists, (unsigned long long)entries, (unsigned long long)bytes,
+      d.event_count() ? double(bytes) / double(d.event_count()) : 0.0));
+  out.field("block_levels", d.block_levels()).field("block_lists", lists);
+  out.field("block_entries", entries).field("block_bytes", bytes);
 }
 
 Description describe(const Blob& blob, const StructureInfo& info) {
@@ -147,6 +193,7 @@ Description describe(const Blob& blob, const StructureInfo& info) {
                                     (unsigned long long)rank_entries,
                                     (unsigned long long)nodes(0)));
   out.field("rank_entries", rank_entries);
+  describe_blocks(blob, d, out);
   out.field("event_count", d.event_count()).field("bytes", bytes);
   out.field("bytes_per_event", per_event);
   out.tables.push_back(std::move(dim_table));

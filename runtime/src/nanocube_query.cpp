@@ -177,161 +177,21 @@ std::uint64_t NanocubeView::label_count(const ResolvedSelection& r, std::uint32_
   return total;
 }
 
-std::span<const format::NanocubeRankEntry> NanocubeView::ranking(std::size_t c,
-                                                                 std::uint32_t node) const {
-  const format::NanocubeRankList& list = rank_lists_[c * dimension_nodes_[1] + node];
-  return rank_entries_.subspan(list.first, list.count);
-}
-
-bool NanocubeView::rankings_consistent() const {
-  const ResolvedSelection all = resolve_event_selection({}, table_, grid_);
-  std::vector<std::uint64_t> expected;
-  for (std::size_t c = 0; c < table_.categories.size(); ++c) {
-    expected.assign(table_.categories[c].label_count, 0);
-    for (std::uint32_t node = 0; node < dimension_nodes_[1]; ++node) {
-      const format::NanocubeNode& n = nodes_[node];
-      const auto mine = ranking(c, node);
-      std::uint64_t total = 0;
-      for (const format::NanocubeRankEntry& e : mine) total += e.count;
-      if (n.edge_count == 0) {
-        if (total != node_count(all, node)) return false;
-        continue;
-      }
-      for (std::uint64_t e = n.first_edge; e < n.first_edge + n.edge_count; ++e)
-        for (const format::NanocubeRankEntry& x : ranking(c, edges_[e].node))
-          expected[x.label] += x.count;
-      for (const format::NanocubeRankEntry& e : mine) {
-        if (expected[e.label] != e.count) return false;
-        expected[e.label] = 0;
-      }
-      for (std::uint64_t e = n.first_edge; e < n.first_edge + n.edge_count; ++e)
-        for (const format::NanocubeRankEntry& x : ranking(c, edges_[e].node))
-          if (std::exchange(expected[x.label], 0) != 0) return false;  // a label it lacks
-    }
-  }
-  return true;
-}
-
-std::vector<EventLabelCount> NanocubeView::topk(const EventSelection& s, std::string_view by,
-                                                std::size_t k) const {
-  std::size_t counted = 0;
-  return topk_counting(s, by, k, counted);
-}
-
-// Topkube's top-k (docs/FORMAT.md §24.3), by the cheapest of three exact ways: with no time
-// limit and no filter on another category, the covered nodes' rankings ARE the counts (added
-// label by label); where the rankings are short (few labels under each node), each node's labels
-// are counted along its label edges; otherwise the threshold algorithm walks the rankings.
-std::vector<EventLabelCount> NanocubeView::topk_counting(const EventSelection& s,
-                                                         std::string_view by, std::size_t k,
-                                                         std::size_t& counted) const {
-  counted = 0;
-  const auto c = table_.category(by);
-  if (!c) throw std::invalid_argument("no category '" + std::string(by) + "' in the event table");
-  const ResolvedSelection r = resolve_event_selection(s, table_, grid_);
-  if (r.empty || k == 0) return {};
+std::vector<std::uint32_t> NanocubeView::covered_nodes(const ResolvedSelection& r) const {
   std::vector<std::uint32_t> covered;
   cover(r, root_, 0, 0, 0, [&](std::uint32_t node, std::uint32_t, std::uint64_t, std::uint64_t) {
     covered.push_back(node);
   });
-  std::vector<std::span<const format::NanocubeRankEntry>> rankings;
-  std::size_t entries = 0;
-  for (const std::uint32_t node : covered) {
-    rankings.push_back(ranking(*c, node));
-    entries += rankings.back().size();
-  }
-  bool exact = r.b0 <= 0 && r.b1 >= std::int64_t(grid_.bin_count);
-  for (std::size_t other = 0; other < r.allowed.size(); ++other)
-    exact = exact && (other == *c || r.allowed[other].empty());
-  std::vector<std::uint64_t> counts(table_.categories[*c].label_count, 0);
-  const std::vector<char>& allowed = r.allowed[*c];
-  if (exact) {
-    for (const auto& ranked : rankings)
-      for (const format::NanocubeRankEntry& e : ranked)
-        if (allowed.empty() || allowed[e.label]) counts[e.label] += e.count;
-  } else if (entries <= 2 * k * covered.size()) {
-    counted = entries;
-    return counted_topk(r, *c, k, covered);
-  } else {
-    return threshold_topk(r, *c, k, covered, rankings, counted);
-  }
-  return labels_by_count(counts, *c, k);
+  return covered;
 }
 
-// Each covered node's labels of category c counted along its label edges.
-std::vector<EventLabelCount> NanocubeView::counted_topk(
-    const ResolvedSelection& r, std::size_t c, std::size_t k,
-    std::span<const std::uint32_t> covered) const {
-  std::vector<std::uint64_t> counts(table_.categories[c].label_count, 0);
-  for (const std::uint32_t node : covered)
-    leaves(r, 0, node, c, 0, [&](std::uint32_t series, std::uint32_t label) {
-      counts[label] += series_count(series, r.b0, r.b1);
-    });
-  return labels_by_count(counts, c, k);
-}
-
-std::vector<EventLabelCount> NanocubeView::labels_by_count(std::span<const std::uint64_t> counts,
-                                                           std::size_t c, std::size_t k) const {
-  std::vector<EventLabelCount> all;
-  for (std::uint32_t i = 0; i < counts.size(); ++i)
-    if (counts[i] != 0) all.push_back({std::string(table_.label(c, i)), counts[i]});
-  return top_labels(std::move(all), k);
-}
-
-// Fagin's threshold algorithm over the covered nodes' rankings. Walk them in step, depth by
-// depth, counting each label met exactly in every covered node (in the selection's time and
-// filters). In node j a label not met yet has at most the ranking's count at the next depth
-// (rankings count all time, a superset of any selection) and at most what the labels met leave
-// of the node's selected events; the sum over nodes bounds it, and the walk stops once k labels
-// count strictly more. Where the bound is loose (the selection holds under half of the nodes'
-// events: a short interval, a filter) or the walk would read more counts than the nodes' rankings
-// hold entries, it counts each node's labels instead: never much more than that plain count.
-std::vector<EventLabelCount> NanocubeView::threshold_topk(
-    const ResolvedSelection& r, std::size_t c, std::size_t k,
-    std::span<const std::uint32_t> covered,
-    std::span<const std::span<const format::NanocubeRankEntry>> rankings,
-    std::size_t& counted) const {
-  std::size_t deepest = 0, entries = 0;
-  for (const auto& ranked : rankings) deepest = std::max(deepest, ranked.size());
-  for (const auto& ranked : rankings) entries += ranked.size();
-  std::vector<std::uint64_t> left(covered.size());  // selected events of node j not yet placed
-  std::uint64_t selected = 0, ranked_events = 0;
-  for (std::size_t j = 0; j < covered.size(); ++j) selected += left[j] = node_count(r, covered[j]);
-  for (const auto& ranked : rankings)
-    for (const format::NanocubeRankEntry& e : ranked) ranked_events += e.count;
-  // All-time rankings bound a selection holding a small part of the nodes' events loosely: the
-  // walk would count most labels, each in every node, costlier than counting each node's own.
-  if (2 * selected < ranked_events) return counted_topk(r, c, k, covered);
-  const std::vector<char>& allowed = r.allowed[c];
-  std::vector<char> met(table_.categories[c].label_count, 0);
-  std::vector<EventLabelCount> hits;
-  std::priority_queue<std::uint64_t, std::vector<std::uint64_t>, std::greater<>> best;  // k largest
-  for (std::size_t depth = 0; depth < deepest; ++depth) {
-    for (const auto& ranked : rankings) {
-      if (depth >= ranked.size() || met[ranked[depth].label]) continue;
-      const std::uint32_t label = ranked[depth].label;
-      met[label] = 1;
-      if (!allowed.empty() && !allowed[label]) continue;
-      if ((counted + 1) * covered.size() > entries) return counted_topk(r, c, k, covered);
-      std::uint64_t n = 0;
-      for (std::size_t j = 0; j < covered.size(); ++j) {
-        const std::uint64_t in_node = label_count(r, covered[j], c, label);
-        left[j] -= std::min(left[j], in_node);
-        n += in_node;
-      }
-      ++counted;
-      if (n == 0) continue;
-      hits.push_back({std::string(table_.label(c, label)), n});
-      best.push(n);
-      if (best.size() > k) best.pop();
-    }
-    std::uint64_t bound = 0;
-    for (std::size_t j = 0; j < rankings.size(); ++j)
-      if (depth + 1 < rankings[j].size())
-        bound += std::min<std::uint64_t>(rankings[j][depth + 1].count, left[j]);
-    if (bound == 0 || (best.size() == k && best.top() > bound)) break;
-  }
-  return top_labels(std::move(hits), k);
+// Adds each of the node's labels of category c (in the selection) to counts, along its label
+// edges: top-k's plain way.
+void NanocubeView::count_labels(const ResolvedSelection& r, std::size_t c, std::uint32_t node,
+                                std::vector<std::uint64_t>& counts) const {
+  leaves(r, 0, node, c, 0, [&](std::uint32_t series, std::uint32_t label) {
+    counts[label] += series_count(series, r.b0, r.b1);
+  });
 }
 
 }  // namespace kiln

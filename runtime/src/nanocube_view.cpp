@@ -111,6 +111,66 @@ void check_rankings(const Walk& w, const NanocubeView& view,
   }
 }
 
+// Level i's lists start at level_start[i] in a node storing every level (its finest f: at
+// first_list + level_start[i] - level_start[f]); the last entry is all levels' lists.
+std::vector<std::uint64_t> block_level_starts(const Walk& w) {
+  if (!format::nanocube_blocks_valid(w.d.block_shift(), w.d.block_stride(), w.d.block_levels()))
+    w.fail(0, "invalid block levels");
+  std::vector<std::uint64_t> start(1, 0);
+  for (std::uint32_t i = 0; i < w.d.block_levels(); ++i) {
+    const std::uint64_t size =
+        format::nanocube_block_size(w.d.block_shift(), w.d.block_stride(), i);
+    start.push_back(start.back() + format::nanocube_block_count(w.d.bin_count(), size));
+  }
+  return start;
+}
+
+// Each category's indices name lists inside one range of NCBL, categories' ranges in order, so
+// each list is checked once against its category's labels. Lists are contiguous in NCBE (each
+// entry read once), every entry counts at least one event, counts non-increasing, ties by label.
+void check_block_lists(const Walk& w, const EventTableView& table, std::uint64_t spatial,
+                       std::span<const std::uint64_t> level_start,
+                       std::span<const format::NanocubeBlockIndex> index,
+                       std::span<const format::NanocubeRankList> lists,
+                       std::span<const format::NanocubeRankEntry> entries) {
+  std::uint64_t next = 0;
+  for (std::size_t i = 0; i < lists.size(); ++i) {
+    const format::NanocubeRankList& l = lists[i];
+    if (l.reserved != 0 || l.first != next || l.count > entries.size() - next)
+      w.fail(w.d.block_lists(), "block list " + std::to_string(i) + " is out of range");
+    for (std::uint64_t e = l.first; e < l.first + l.count; ++e) {
+      const format::NanocubeRankEntry& x = entries[e];
+      const bool ordered = e == l.first || x.count < entries[e - 1].count ||
+                           (x.count == entries[e - 1].count && x.label > entries[e - 1].label);
+      if (x.count == 0 || !ordered)
+        w.fail(w.d.block_entries(), "block list " + std::to_string(i) + " is not ordered");
+    }
+    next += l.count;
+  }
+  const std::uint32_t levels = w.d.block_levels();
+  std::uint64_t floor = 0;  // the previous category's lists end here
+  for (std::size_t c = 0; c < table.categories.size(); ++c) {
+    std::uint64_t lo = lists.size(), hi = floor;
+    for (std::uint64_t n = 0; n < spatial; ++n) {
+      const format::NanocubeBlockIndex& x = index[c * spatial + n];
+      if (x.reserved != 0 || x.finest > levels || (x.finest == levels && x.first_list != 0))
+        w.fail(w.d.block_index(), "block index " + std::to_string(c * spatial + n) + " is invalid");
+      if (x.finest == levels) continue;
+      const std::uint64_t need = level_start[levels] - level_start[x.finest];
+      if (x.first_list < floor || x.first_list > lists.size() || need > lists.size() - x.first_list)
+        w.fail(w.d.block_index(),
+               "block index " + std::to_string(c * spatial + n) + " names lists out of range");
+      lo = std::min(lo, x.first_list), hi = std::max(hi, x.first_list + need);
+    }
+    const std::uint64_t labels = table.categories[c].label_count;
+    for (std::uint64_t i = lo; i < hi; ++i)
+      for (std::uint64_t e = lists[i].first; e < lists[i].first + lists[i].count; ++e)
+        if (entries[e].label >= labels)
+          w.fail(w.d.block_entries(), "block list " + std::to_string(i) + " has a bad label");
+    floor = hi;
+  }
+}
+
 }  // namespace
 
 NanocubeView NanocubeView::from_blob(const Blob& blob, const StructureInfo& info) {
@@ -134,6 +194,22 @@ NanocubeView NanocubeView::from_blob(const Blob& blob, const StructureInfo& info
   check_space_tree(w, view, view.edges_);
   check_series(w, view.series_, view.series_bins_, view.series_counts_);
   check_rankings(w, view, view.rank_lists_, view.rank_entries_);
+  view.level_start_ = block_level_starts(w);
+  view.block_shift_ = d.block_shift(), view.block_stride_ = d.block_stride();
+  view.block_levels_ = d.block_levels();
+  view.block_index_ = blob.section_view<format::NanocubeBlockIndex>(d.block_index());
+  view.block_lists_ = blob.section_view<format::NanocubeRankList>(d.block_lists());
+  view.block_entries_ = blob.section_view<format::NanocubeRankEntry>(d.block_entries());
+  const std::uint64_t spatial = view.dimension_nodes_[1];
+  if (d.block_index() == kNoSection) {
+    view.block_levels_ = 0;  // an older blob: rankings over all time only
+    view.level_start_.assign(1, 0);
+  } else if (view.block_index_.size() != view.table_.categories.size() * spatial) {
+    w.fail(d.block_index(), "is not one block index per category and spatial node");
+  }
+  if (view.block_levels_ > 0)
+    check_block_lists(w, view.table_, spatial, view.level_start_, view.block_index_,
+                      view.block_lists_, view.block_entries_);
   return view;
 }
 

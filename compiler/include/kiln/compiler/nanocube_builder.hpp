@@ -16,6 +16,15 @@ struct NanocubeOptions {
   std::uint32_t max_level = 20;  ///< finest quadtree level (<= format::kNanocubeMaxLevel)
   std::int64_t time_bin = 3600;  ///< seconds per bin
   bool sharing = true;           ///< false: every content copied (same answers, bigger)
+  /// Topkube's rankings per block of time bins are stored for a spatial node and category when
+  /// the node holds at least this many events and labels (smaller ones are counted fast).
+  std::uint64_t block_min_events = 1024;
+  std::uint32_t block_min_labels = 32;
+  /// Bytes of block rankings allowed per event of the node and category: the finest levels
+  /// are dropped until the node's block rankings fit.
+  double block_bytes_per_event = 6.0;
+  std::uint32_t block_shift = 1,
+                block_stride = 2;  ///< level i: blocks of 2^(shift + stride i) bins
 };
 
 /// The flattened cube (docs/FORMAT.md, "Nanocube").
@@ -27,6 +36,10 @@ struct NanocubeData {
   std::vector<std::uint64_t> series_counts;
   std::vector<format::NanocubeRankList> rank_lists;  ///< per category, per spatial node
   std::vector<format::NanocubeRankEntry> rank_entries;
+  std::vector<format::NanocubeBlockIndex> block_index;  ///< per category, per spatial node
+  std::vector<format::NanocubeRankList> block_lists;
+  std::vector<format::NanocubeRankEntry> block_entries;
+  std::uint32_t block_shift = 0, block_stride = 1, block_levels = 0;
   std::vector<std::uint64_t> dimension_nodes;  ///< where each dimension starts, + the end
   std::uint32_t root = 0;
   std::uint64_t shared_content_links = 0, shared_child_links = 0;
@@ -37,7 +50,12 @@ struct NanocubeData {
     return nodes.size() * sizeof(nodes[0]) + edges.size() * sizeof(edges[0]) +
            series.size() * sizeof(series[0]) + series_bins.size() * 4 + series_counts.size() * 8 +
            rank_lists.size() * sizeof(rank_lists[0]) +
-           rank_entries.size() * sizeof(rank_entries[0]);
+           rank_entries.size() * sizeof(rank_entries[0]) + block_bytes();
+  }
+  std::uint64_t block_bytes() const {
+    return block_index.size() * sizeof(format::NanocubeBlockIndex) +
+           block_lists.size() * sizeof(format::NanocubeRankList) +
+           block_entries.size() * sizeof(format::NanocubeRankEntry);
   }
 };
 

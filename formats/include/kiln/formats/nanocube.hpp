@@ -19,6 +19,9 @@ inline constexpr std::uint32_t kSectionNanocubeSeriesBins = fourcc('N', 'C', 'T'
 inline constexpr std::uint32_t kSectionNanocubeSeriesCounts = fourcc('N', 'C', 'T', 'C');
 inline constexpr std::uint32_t kSectionNanocubeRankLists = fourcc('N', 'C', 'R', 'L');
 inline constexpr std::uint32_t kSectionNanocubeRankEntries = fourcc('N', 'C', 'R', 'E');
+inline constexpr std::uint32_t kSectionNanocubeBlockIndex = fourcc('N', 'C', 'B', 'I');
+inline constexpr std::uint32_t kSectionNanocubeBlockLists = fourcc('N', 'C', 'B', 'L');
+inline constexpr std::uint32_t kSectionNanocubeBlockEntries = fourcc('N', 'C', 'B', 'E');
 
 /// The deepest quadtree the format allows (cells of 2^30 per axis fit uint32 keys).
 inline constexpr std::uint32_t kNanocubeMaxLevel = 30;
@@ -78,6 +81,33 @@ struct NanocubeRankEntry {
   std::uint32_t count;
 };
 static_assert(sizeof(NanocubeRankEntry) == 8);
+
+/// Topkube's rankings over time: per category c and spatial node n (at c * spatial_nodes + n),
+/// the node's labels ranked per block of time bins. Block level i (0 .. levels - 1) has blocks of
+/// 2^(shift + stride * i) bins, block b covering bins [b * size, min((b + 1) * size, bin_count)).
+/// The node stores levels `finest` .. levels - 1 (finest = levels: none), level after level, each
+/// level's blocks in order, as NanocubeRankLists into the block entries from `first_list`.
+struct NanocubeBlockIndex {
+  std::uint64_t first_list;
+  std::uint32_t finest;
+  std::uint32_t reserved;  ///< 0
+};
+static_assert(sizeof(NanocubeBlockIndex) == 16);
+
+/// The block levels a cube may have: at most 24, sizes up to 2^32 bins.
+inline constexpr std::uint32_t kNanocubeMaxBlockLevels = 24;
+inline bool nanocube_blocks_valid(std::uint32_t shift, std::uint32_t stride, std::uint32_t levels) {
+  return levels <= kNanocubeMaxBlockLevels && stride >= 1 && stride <= 8 && shift <= 32 &&
+         (levels == 0 || shift + std::uint64_t(stride) * (levels - 1) <= 32);
+}
+/// Bins per block at level i, and blocks at that level over bin_count bins.
+inline std::uint64_t nanocube_block_size(std::uint32_t shift, std::uint32_t stride,
+                                         std::uint32_t i) {
+  return std::uint64_t(1) << (shift + stride * i);
+}
+inline std::uint64_t nanocube_block_count(std::uint32_t bin_count, std::uint64_t size) {
+  return (std::uint64_t(bin_count) + size - 1) / size;
+}
 
 /// Web-Mercator cells at `level` (x east from -180 degrees, y south from +85.0511 degrees):
 /// the cell of a longitude or latitude, clamped to the grid (NaN goes to cell 0), and a cell

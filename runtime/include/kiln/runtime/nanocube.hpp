@@ -68,8 +68,34 @@ class NanocubeView final : public EventQueries {
   /// answer it; with the threshold algorithm, labels ruled out by the rankings are never read).
   std::vector<EventLabelCount> topk_counting(const EventSelection& selection, std::string_view by,
                                              std::size_t k, std::size_t& labels_counted) const;
+  /// What one top-k did: the way taken and its work (tests and the benchmark read it).
+  struct TopkTrace {
+    enum class Path { kNone, kRankings, kCounted, kThreshold };
+    Path path = Path::kNone;         ///< kRankings: all-time rankings alone; kThreshold: the walk
+    std::size_t labels_counted = 0;  ///< labels counted exactly over the walked nodes
+    std::size_t block_lists = 0;     ///< rankings of time blocks the walk read (not all-time)
+    std::size_t walked_nodes = 0;    ///< covered nodes the walk ranked (the rest were counted)
+    std::size_t counted_nodes = 0;   ///< covered nodes whose labels were each counted
+    std::size_t counted_labels = 0;  ///< labels those nodes hold (over all time)
+  };
+  std::vector<EventLabelCount> topk_traced(const EventSelection& selection, std::string_view by,
+                                           std::size_t k, TopkTrace& trace) const;
   /// Topkube's ranking of category `c` under spatial node `node` (counts over all time).
   std::span<const format::NanocubeRankEntry> ranking(std::size_t c, std::uint32_t node) const;
+  /// Block levels (0: none) and level i's bins per block (docs/FORMAT.md §24.2).
+  std::uint32_t block_levels() const { return block_levels_; }
+  std::uint64_t block_size(std::uint32_t level) const {
+    return format::nanocube_block_size(block_shift_, block_stride_, level);
+  }
+  /// The finest block level stored for category c under spatial node `node` (block_levels():
+  /// none), and the ranking of that node's labels within block b of level i >= that.
+  std::uint32_t block_finest(std::size_t c, std::uint32_t node) const;
+  std::span<const format::NanocubeRankEntry> block_ranking(std::size_t c, std::uint32_t node,
+                                                           std::uint32_t level,
+                                                           std::uint64_t block) const;
+  /// kiln verify's check of the block rankings: each entry equals its label's events in the
+  /// block counted from the series, and the entries add up to the node's events in the block.
+  bool block_rankings_consistent() const;
   /// The deep check of the rankings (kiln verify): a leaf's ranking adds up to its events, an
   /// inner node's counts each label as its children's rankings do together.
   bool rankings_consistent() const;
@@ -88,14 +114,13 @@ class NanocubeView final : public EventQueries {
   std::uint64_t node_count(const ResolvedSelection& r, std::uint32_t node) const;
   std::uint64_t label_count(const ResolvedSelection& r, std::uint32_t node, std::size_t c,
                             std::uint32_t label) const;
-  std::vector<EventLabelCount> threshold_topk(
-      const ResolvedSelection& r, std::size_t c, std::size_t k,
-      std::span<const std::uint32_t> covered,
-      std::span<const std::span<const format::NanocubeRankEntry>> rankings,
-      std::size_t& counted) const;
-  std::vector<EventLabelCount> counted_topk(const ResolvedSelection& r, std::size_t c,
-                                            std::size_t k,
-                                            std::span<const std::uint32_t> covered) const;
+  std::vector<EventLabelCount> threshold_topk(const ResolvedSelection& r, std::size_t c,
+                                              std::size_t k, std::span<const std::uint32_t> covered,
+                                              TopkTrace& trace) const;
+  /// The largest spatial nodes inside the selection's cells (cover's nodes), in Z order.
+  std::vector<std::uint32_t> covered_nodes(const ResolvedSelection& r) const;
+  void count_labels(const ResolvedSelection& r, std::size_t c, std::uint32_t node,
+                    std::vector<std::uint64_t>& counts) const;
   std::vector<EventLabelCount> labels_by_count(std::span<const std::uint64_t> counts, std::size_t c,
                                                std::size_t k) const;
 
@@ -109,6 +134,11 @@ class NanocubeView final : public EventQueries {
   std::span<const std::uint64_t> series_counts_;
   std::span<const format::NanocubeRankList> rank_lists_;
   std::span<const format::NanocubeRankEntry> rank_entries_;
+  std::span<const format::NanocubeBlockIndex> block_index_;
+  std::span<const format::NanocubeRankList> block_lists_;
+  std::span<const format::NanocubeRankEntry> block_entries_;
+  std::uint32_t block_shift_ = 0, block_stride_ = 1, block_levels_ = 0;
+  std::vector<std::uint64_t> level_start_;  ///< lists before level i in a node storing all levels
   std::vector<std::uint64_t> dimension_nodes_;
 };
 
