@@ -366,22 +366,35 @@ float brute_spatial_cost(const Scene& scene, std::span<const PrimRef> refs,
 }
 
 TEST(SbvhPresorted, SpatialSplitIsTheBruteForceBinOptimum) {
-  for (const std::size_t n : {std::size_t(40), std::size_t(600)}) {
+  // Node sizes in each of the policy's bin tiers, and below the smallest searched.
+  for (const std::size_t n :
+       {std::size_t(5), std::size_t(40), std::size_t(600), std::size_t(4200)}) {
     const Scene scene = random_triangles(n, 9);
     const std::vector<PrimRef> refs = triangle_refs(scene);
     format::Box3f box;
     for (const auto& ref : refs) box.grow(ref.box);
     BvhBuildOptions o;
     o.builder = BvhBuilder::kSpatial;
-    for (const std::uint32_t k : {7u, 32u}) {
-      o.bins = k;
-      const SpatialSplit found = find_spatial_split(refs, box, scene, o);
-      ASSERT_TRUE(found.valid());
-      float best = std::numeric_limits<float>::infinity();
-      for (int a = 0; a < 3; ++a)
-        for (std::uint32_t b = 1; b < k; ++b)
-          best = std::min(best, brute_spatial_cost(scene, refs, box, k, a, b));
-      EXPECT_NEAR(found.cost, best, 1e-4f * best) << n << " refs, " << k << " bins";
+    for (const std::uint32_t bins : {7u, 32u}) {
+      o.bins = bins;
+      for (const int object_axis : {-1, 0, 1, 2}) {
+        const SpatialSplit found = find_spatial_split(refs, box, scene, o, object_axis);
+        if (n < kMinSpatialRefs) {
+          EXPECT_FALSE(found.valid());
+          continue;
+        }
+        ASSERT_TRUE(found.valid());
+        const std::uint32_t k = spatial_bin_count(n, bins);
+        const unsigned axes = spatial_axes(box, object_axis);
+        EXPECT_TRUE(axes >> found.axis & 1);
+        if (object_axis >= 0) EXPECT_TRUE(axes >> object_axis & 1);
+        float best = std::numeric_limits<float>::infinity();
+        for (int a = 0; a < 3; ++a)
+          if (axes >> a & 1)
+            for (std::uint32_t b = 1; b < k; ++b)
+              best = std::min(best, brute_spatial_cost(scene, refs, box, k, a, b));
+        EXPECT_NEAR(found.cost, best, 1e-4f * best) << n << " refs, " << bins << " bins";
+      }
     }
   }
 }

@@ -13,21 +13,6 @@ namespace {
 constexpr std::size_t kParallelSpatial = 32768;  // bin in chunks (in parallel) above this
 constexpr std::size_t kSpatialChunk = 8192;
 
-// Where spatial splits are searched, and with how many bins. A node of few references costs
-// most per reference to bin (its triangles are large against it and cross most of its bins)
-// and gains least; a large node costs little more with finer bins (its triangles cross one or
-// two) and a better plane there pays for its whole subtree. Measured on bunny, Lucy100k,
-// Sponza and dragon_871k (docs/BENCHMARKS.md): with no search below 8 references and twice
-// the bins from 4096 references on, the trees' SAH cost is at or below what 32 bins at every
-// node gave, for a fraction of the clipping.
-constexpr std::size_t kMinSpatialRefs = 8;
-constexpr std::size_t kFineSpatialRefs = 4096;
-
-std::uint32_t spatial_bin_count(std::size_t refs, std::uint32_t bins) {
-  const std::uint32_t k = std::max<std::uint32_t>(2, bins);
-  return refs >= kFineSpatialRefs ? 2 * k : k;
-}
-
 float coord(const format::Float3& p, int axis) {
   return axis == 0 ? p.x : axis == 1 ? p.y : p.z;
 }
@@ -180,13 +165,32 @@ void merge_bins(SpatialBins& into, const SpatialBins& from) {
 
 }  // namespace
 
+std::uint32_t spatial_bin_count(std::size_t refs, std::uint32_t bins) {
+  const std::uint32_t k = std::max<std::uint32_t>(2, bins);
+  if (refs >= kFineSpatialRefs) return 2 * k;
+  if (refs >= kCoarseSpatialRefs) return k;
+  return std::max<std::uint32_t>(2, k / 8);
+}
+
+unsigned spatial_axes(const format::Box3f& node_box, int object_axis) {
+  int longest = 0;
+  for (int a = 1; a < 3; ++a)
+    if (format::at(node_box.max, a) - format::at(node_box.min, a) >
+        format::at(node_box.max, longest) - format::at(node_box.min, longest))
+      longest = a;
+  return (1u << longest) | (object_axis >= 0 ? 1u << object_axis : 0u);
+}
+
 SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
-                                const Scene& scene, const BvhBuildOptions& options) {
+                                const Scene& scene, const BvhBuildOptions& options,
+                                int object_axis) {
   const float node_area = node_box.half_area();
   const std::uint32_t k = spatial_bin_count(refs.size(), options.bins);
   SpatialSplit best;
   if (node_area <= 0.0f || refs.size() < kMinSpatialRefs) return best;
   SpatialBins bins(node_box, k);
+  const unsigned axes = spatial_axes(node_box, object_axis);
+  for (int a = 0; a < 3; ++a) bins.valid[a] = bins.valid[a] && (axes >> a & 1);
   if (refs.size() >= kParallelSpatial) {
     // Fixed chunks (by count, not by thread), each into its own bins: the same bins on any
     // number of threads. Near the root the subtree tasks have not forked yet.

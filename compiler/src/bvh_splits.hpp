@@ -58,11 +58,28 @@ struct SpatialSplit {
   bool valid() const { return axis >= 0; }
 };
 
-/// Stich et al. 2009: spatial bins over the node box, references clipped against bin planes.
-/// Large nodes bin fixed chunks of references apart (in parallel) and merge them, so the split
-/// does not depend on the thread count.
+// Where spatial splits are searched, and with how many bins (measured on bunny, Lucy100k,
+// Sponza and dragon_871k, docs/BENCHMARKS.md). Clipping is nearly all of an SBVH build, and
+// most of it goes to small nodes, whose triangles are large against them and cross most of
+// their bins, while a better plane there gains least. So: no search below kMinSpatialRefs
+// references; bins / 8 below kCoarseSpatialRefs; `bins` up to kFineSpatialRefs; twice `bins`
+// above (a large node's triangles cross one or two bins, and a better plane there pays for its
+// whole subtree); and only on the object split's axis and the node's longest axis. Together
+// the trees' SAH cost is at or below what `bins` on all three axes at every node gave.
+inline constexpr std::size_t kMinSpatialRefs = 8;
+inline constexpr std::size_t kCoarseSpatialRefs = 512;
+inline constexpr std::size_t kFineSpatialRefs = 4096;
+std::uint32_t spatial_bin_count(std::size_t refs, std::uint32_t bins);
+/// A bit per axis searched: the object split's (-1: none) and the node's longest.
+unsigned spatial_axes(const format::Box3f& node_box, int object_axis);
+
+/// Stich et al. 2009: spatial bins over the node box, references clipped against bin planes,
+/// on spatial_axes(node_box, object_axis) with spatial_bin_count bins. Large nodes bin fixed
+/// chunks of references apart (in parallel) and merge them, so the split does not depend on
+/// the thread count.
 SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
-                                const Scene& scene, const BvhBuildOptions& options);
+                                const Scene& scene, const BvhBuildOptions& options,
+                                int object_axis);
 /// Distributes references (visited in their order on `order_axis`), unsplitting straddlers
 /// where cheaper, into children whose axis arrays stay sorted; returns the added references.
 std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
