@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "bvh_build_simd.hpp"
 #include "bvh_splits.hpp"
 
 namespace kiln {
@@ -26,40 +27,47 @@ void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimR
   for (std::size_t i = 0; i < refs.size(); ++i) out[i] = refs[keys[i].index];
 }
 
+namespace {
+
+bvh_simd::V4 lower(const PrimRef& r) {
+  return bvh_simd::set(r.box.min.x, r.box.min.y, r.box.min.z, 0.0f);
+}
+bvh_simd::V4 upper(const PrimRef& r) {
+  return bvh_simd::set(r.box.max.x, r.box.max.y, r.box.max.z, 0.0f);
+}
+
+}  // namespace
+
 ObjectSplit find_sweep_split(const SortedRefs& refs, const format::Box3f& node_box,
                              const BvhBuildOptions& o) {
   const float node_area = node_box.half_area();
   ObjectSplit best;
   const std::size_t n = refs.size();
   if (node_area <= 0.0f || n < 2) return best;
+  // Boxes grown on vectors, half areas as Box3f's (bvh_build_simd.hpp: the same bits); the
+  // winner's two boxes are grown once more at the end rather than stored at every step.
   thread_local std::vector<float> right_area;  // of the references [i, n) on the axis
-  thread_local std::vector<format::Box3f> right_box;
   right_area.resize(n);
-  right_box.resize(n);
   for (int axis = 0; axis < 3; ++axis) {
     const PrimRef* s = refs.axis[axis].data();
-    format::Box3f acc;
+    bvh_simd::VBox acc;
     for (std::size_t i = n; i-- > 1;) {
-      acc.grow(s[i].box);
-      right_box[i] = acc;
-      right_area[i] = acc.half_area();
+      acc.grow(lower(s[i]), upper(s[i]));
+      right_area[i] = bvh_simd::half_area(acc);
     }
-    format::Box3f left;
+    bvh_simd::VBox left;
     for (std::size_t i = 0; i + 1 < n; ++i) {
-      left.grow(s[i].box);
-      const float cost =
-          o.traversal_cost +
-          o.intersection_cost *
-              (left.half_area() * float(i + 1) + right_area[i + 1] * float(n - i - 1)) / node_area;
-      if (cost < best.cost) {
-        best.cost = cost;
-        best.axis = axis;
-        best.left_count = i + 1;
-        best.left_box = left;
-        best.right_box = right_box[i + 1];
-      }
+      left.grow(lower(s[i]), upper(s[i]));
+      const float cost = o.traversal_cost + o.intersection_cost *
+                                                (bvh_simd::half_area(left) * float(i + 1) +
+                                                 right_area[i + 1] * float(n - i - 1)) /
+                                                node_area;
+      if (cost < best.cost) best.cost = cost, best.axis = axis, best.left_count = i + 1;
     }
   }
+  const auto& s = refs.axis[best.axis];
+  for (std::size_t i = 0; i < best.left_count; ++i) best.left_box.grow(s[i].box);
+  for (std::size_t i = n; i-- > best.left_count;) best.right_box.grow(s[i].box);
   return best;
 }
 

@@ -249,21 +249,48 @@ Side side_of(const PrimRef& r, int axis, float pos) {
   return Side::kStraddle;
 }
 
-// One child's array on `axis`: the references that stay whole on `side`, in the parent's order
-// (still sorted), merged with the straddlers' pieces (or whole references) given to that side,
-// sorted apart: a straddler's clipped box moves its centroid.
-void child_axis(const std::vector<PrimRef>& parent, int axis, int split_axis, float pos, Side side,
-                std::span<const PrimRef> straddlers, std::vector<PrimRef>& out) {
-  thread_local std::vector<PrimRef> whole, pieces;
-  whole.clear();
-  for (const PrimRef& r : parent)
-    if (side_of(r, split_axis, pos) == side) whole.push_back(r);
-  sort_by_centroid(straddlers, axis, pieces);
-  out.resize(whole.size() + pieces.size());
-  std::merge(whole.begin(), whole.end(), pieces.begin(), pieces.end(), out.begin(),
-             [axis](const PrimRef& a, const PrimRef& b) {
-               return centroid_key(a, axis) < centroid_key(b, axis);
-             });
+// `sorted` (sorted on `axis`) merged with `pieces` (sorted apart) into `out`, each key
+// computed once.
+void merge_on_axis(std::span<const PrimRef> sorted, std::span<const PrimRef> pieces, int axis,
+                   std::vector<PrimRef>& out) {
+  out.resize(sorted.size() + pieces.size());
+  PrimRef* o = out.data();
+  std::size_t i = 0, j = 0;
+  if (!pieces.empty()) {
+    std::uint64_t piece_key = centroid_key(pieces[0], axis);
+    for (; i < sorted.size() && j < pieces.size(); ++i) {
+      const std::uint64_t key = centroid_key(sorted[i], axis);
+      while (piece_key < key) {
+        *o++ = pieces[j++];
+        if (j == pieces.size()) break;
+        piece_key = centroid_key(pieces[j], axis);
+      }
+      *o++ = sorted[i];
+    }
+  }
+  o = std::copy(sorted.begin() + std::ptrdiff_t(i), sorted.end(), o);
+  std::copy(pieces.begin() + std::ptrdiff_t(j), pieces.end(), o);
+}
+
+// The children's arrays on `axis`: the references that stay whole on a side, in the parent's
+// order (still sorted), merged with the straddlers' pieces (or whole references) given to that
+// side, sorted apart: a straddler's clipped box moves its centroid.
+void children_on_axis(const std::vector<PrimRef>& parent, int axis, int split_axis, float pos,
+                      std::span<const PrimRef> left_straddlers,
+                      std::span<const PrimRef> right_straddlers, std::vector<PrimRef>& left,
+                      std::vector<PrimRef>& right) {
+  thread_local std::vector<PrimRef> whole_left, whole_right, pieces;
+  whole_left.clear();
+  whole_right.clear();
+  for (const PrimRef& r : parent) {
+    const Side side = side_of(r, split_axis, pos);
+    if (side == Side::kLeft) whole_left.push_back(r);
+    if (side == Side::kRight) whole_right.push_back(r);
+  }
+  sort_by_centroid(left_straddlers, axis, pieces);
+  merge_on_axis(whole_left, pieces, axis, left);
+  sort_by_centroid(right_straddlers, axis, pieces);
+  merge_on_axis(whole_right, pieces, axis, right);
 }
 
 }  // namespace
@@ -337,8 +364,7 @@ std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& ref
     }
   }
   for (int a = 0; a < 3; ++a) {
-    child_axis(refs.axis[a], a, axis, pos, Side::kLeft, left, left_out.axis[a]);
-    child_axis(refs.axis[a], a, axis, pos, Side::kRight, right, right_out.axis[a]);
+    children_on_axis(refs.axis[a], a, axis, pos, left, right, left_out.axis[a], right_out.axis[a]);
   }
   return added;
 }
