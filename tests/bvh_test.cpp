@@ -299,6 +299,17 @@ TEST(SbvhPresorted, ObjectSplitKeepsEveryAxisSortedAndSplitsAtTheSweepPrefix) {
       partition_object_split(all, axis, left_count, l, r);
       expect_presorted(l);
       expect_presorted(r);
+      // The in-place form (the left child takes the parent's arrays) gives the same arrays.
+      SortedRefs l2, r2;
+      partition_object_split(SortedRefs(all), axis, left_count, l2, r2);
+      for (int a = 0; a < 3; ++a) {
+        ASSERT_EQ(l2.axis[a].size(), l.axis[a].size());
+        ASSERT_EQ(r2.axis[a].size(), r.axis[a].size());
+        EXPECT_EQ(0, std::memcmp(l2.axis[a].data(), l.axis[a].data(),
+                                 l.axis[a].size() * sizeof(PrimRef)));
+        EXPECT_EQ(0, std::memcmp(r2.axis[a].data(), r.axis[a].data(),
+                                 r.axis[a].size() * sizeof(PrimRef)));
+      }
       ASSERT_EQ(l.size(), left_count);
       ASSERT_EQ(r.size(), all.size() - left_count);
       // Brute force: the left child is the first left_count references on the split axis.

@@ -80,7 +80,7 @@ std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, SortedRefs ref
   if (!c.object.valid() && !c.spatial.valid()) {
     // All centroids coincide: nothing separates them by the SAH, so split the list in half.
     if (n <= o.max_leaf_size) return make_leaf(box, ordered);
-    partition_object_split(refs, c.order_axis, n / 2, left, right);
+    partition_object_split(std::move(refs), c.order_axis, n / 2, left, right);
   } else if (best_cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) {
     return make_leaf(box, ordered);
   } else if (c.spatial.valid() && c.spatial.cost < c.object.cost) {
@@ -95,7 +95,7 @@ std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, SortedRefs ref
     }
   }
   if (left.size() == 0 && right.size() == 0)
-    partition_object_split(refs, c.object.axis, c.object.left_count, left, right);
+    partition_object_split(std::move(refs), c.object.axis, c.object.left_count, left, right);
   const int axis = spatial ? c.spatial.axis : std::max(c.object.axis, 0);
   refs.clear();  // free before recursing
 

@@ -96,4 +96,31 @@ void partition_object_split(const SortedRefs& refs, int axis, std::size_t left_c
   }
 }
 
+void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count, SortedRefs& left,
+                            SortedRefs& right) {
+  // The left child keeps the parent's arrays (pages already touched), compacted in place: a
+  // left reference only ever moves to a lower index, so reading ahead of writing is safe.
+  auto& split = refs.axis[axis];
+  const std::size_t n = split.size();
+  const std::uint64_t pivot = centroid_key(split[left_count], axis);
+  right.axis[axis].assign(split.begin() + std::ptrdiff_t(left_count), split.end());
+  split.resize(left_count);
+  for (int a = 0; a < 3; ++a) {
+    if (a == axis) continue;
+    auto& v = refs.axis[a];
+    auto& r = right.axis[a];
+    r.resize(n - left_count);
+    PrimRef* lp = v.data();
+    PrimRef* rp = r.data();
+    for (const PrimRef& ref : v) {
+      if (centroid_key(ref, axis) < pivot)
+        *lp++ = ref;
+      else
+        *rp++ = ref;
+    }
+    v.resize(left_count);
+  }
+  left = std::move(refs);
+}
+
 }  // namespace kiln

@@ -50,6 +50,9 @@ ObjectSplit find_sweep_split(const SortedRefs& refs, const format::Box3f& node_b
 /// array staying sorted (a stable split by the side each reference takes on `axis`).
 void partition_object_split(const SortedRefs& refs, int axis, std::size_t left_count,
                             SortedRefs& left, SortedRefs& right);
+/// The same, the left child taking over `refs`'s arrays.
+void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count, SortedRefs& left,
+                            SortedRefs& right);
 
 struct SpatialSplit {
   float cost = std::numeric_limits<float>::infinity();
