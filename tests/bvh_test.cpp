@@ -1,10 +1,12 @@
 // BVH builders and traversal against brute force (every ray against every triangle, with the
 // same watertight test), on corpus meshes and generated worst cases.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
 #include <random>
 
+#include "../compiler/src/bvh_splits.hpp"
 #include "kiln/compiler/build.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/formats/bvh.hpp"
@@ -228,6 +230,214 @@ TEST(Bvh, MissingStructureIsAClearError) {
   } catch (const BlobError& e) {
     EXPECT_NE(std::string(e.what()).find("has no structure 'sbvh'"), std::string::npos);
   }
+}
+
+// --- The SBVH's presorted reference arrays and its splits against plain recomputation ---
+
+// Random triangles of mixed sizes (some long, some sharing a centroid coordinate).
+Scene random_triangles(std::size_t n, std::uint32_t seed) {
+  Scene scene;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(-50.0f, 50.0f), size(0.05f, 4.0f);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Float3 c{pos(rng), i % 5 == 0 ? 1.0f : pos(rng), pos(rng)};
+    const float s = i % 9 == 0 ? 15.0f * size(rng) : size(rng);
+    const auto base = std::uint32_t(scene.positions.size());
+    scene.positions.push_back(c);
+    scene.positions.push_back({c.x + s, c.y + 0.4f * s, c.z - 0.2f * s});
+    scene.positions.push_back({c.x - 0.3f * s, c.y + s, c.z + 0.6f * s});
+    scene.triangles.push_back({{base, base + 1, base + 2}});
+  }
+  return scene;
+}
+
+std::vector<PrimRef> triangle_refs(const Scene& scene) {
+  std::vector<PrimRef> refs(scene.triangles.size());
+  for (std::uint32_t i = 0; i < refs.size(); ++i) {
+    for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
+    refs[i].prim = i;
+  }
+  return refs;
+}
+
+SortedRefs presorted(std::span<const PrimRef> refs) {
+  SortedRefs s;
+  for (int a = 0; a < 3; ++a) sort_by_centroid(refs, a, s.axis[a]);
+  return s;
+}
+
+// Each axis array sorted by (centroid, primitive id) and all three holding the same references.
+void expect_presorted(const SortedRefs& s) {
+  for (int a = 0; a < 3; ++a) {
+    const auto& v = s.axis[a];
+    ASSERT_EQ(v.size(), s.size());
+    for (std::size_t i = 1; i < v.size(); ++i) {
+      const float c0 = v[i - 1].box.centroid(a) + 0.0f, c1 = v[i].box.centroid(a) + 0.0f;
+      ASSERT_TRUE(c0 < c1 || (c0 == c1 && v[i - 1].prim < v[i].prim))
+          << "axis " << a << " at " << i;
+    }
+  }
+  auto by_prim = [](std::vector<PrimRef> v) {
+    std::sort(v.begin(), v.end(),
+              [](const PrimRef& x, const PrimRef& y) { return x.prim < y.prim; });
+    return v;
+  };
+  const auto ref = by_prim(s.axis[0]);
+  for (int a = 1; a < 3; ++a) {
+    const auto other = by_prim(s.axis[a]);
+    ASSERT_EQ(0, std::memcmp(ref.data(), other.data(), ref.size() * sizeof(PrimRef))) << a;
+  }
+}
+
+TEST(SbvhPresorted, ObjectSplitKeepsEveryAxisSortedAndSplitsAtTheSweepPrefix) {
+  const Scene scene = random_triangles(3000, 3);
+  const SortedRefs all = presorted(triangle_refs(scene));
+  expect_presorted(all);
+  for (int axis = 0; axis < 3; ++axis) {
+    for (const std::size_t left_count : {std::size_t(1), std::size_t(1234), std::size_t(2999)}) {
+      SortedRefs l, r;
+      partition_object_split(all, axis, left_count, l, r);
+      expect_presorted(l);
+      expect_presorted(r);
+      // The in-place form (the left child takes the parent's arrays) gives the same arrays.
+      SortedRefs l2, r2;
+      partition_object_split(SortedRefs(all), axis, left_count, l2, r2);
+      for (int a = 0; a < 3; ++a) {
+        ASSERT_EQ(l2.axis[a].size(), l.axis[a].size());
+        ASSERT_EQ(r2.axis[a].size(), r.axis[a].size());
+        EXPECT_EQ(0, std::memcmp(l2.axis[a].data(), l.axis[a].data(),
+                                 l.axis[a].size() * sizeof(PrimRef)));
+        EXPECT_EQ(0, std::memcmp(r2.axis[a].data(), r.axis[a].data(),
+                                 r.axis[a].size() * sizeof(PrimRef)));
+      }
+      ASSERT_EQ(l.size(), left_count);
+      ASSERT_EQ(r.size(), all.size() - left_count);
+      // Brute force: the left child is the first left_count references on the split axis.
+      std::vector<std::uint32_t> expected, got;
+      for (std::size_t i = 0; i < left_count; ++i) expected.push_back(all.axis[axis][i].prim);
+      for (const auto& ref : l.axis[(axis + 1) % 3]) got.push_back(ref.prim);
+      std::sort(expected.begin(), expected.end());
+      std::sort(got.begin(), got.end());
+      EXPECT_EQ(got, expected);
+    }
+  }
+}
+
+TEST(SbvhPresorted, SpatialSplitChildrenStaySortedAndHoldEachTrianglesSides) {
+  const Scene scene = random_triangles(2000, 5);
+  const std::vector<PrimRef> refs = triangle_refs(scene);
+  const SortedRefs all = presorted(refs);
+  for (int axis = 0; axis < 3; ++axis) {
+    const SpatialSplit split{0.0f, axis, 3.5f};
+    SortedRefs l, r;
+    const std::size_t added = apply_spatial_split(split, all, axis, scene, l, r);
+    expect_presorted(l);
+    expect_presorted(r);
+    EXPECT_EQ(l.size() + r.size(), refs.size() + added);
+    EXPECT_GT(added, 0u);
+    // Brute force, triangle by triangle: whole on its side, or its pieces (or whole box) on
+    // the sides it crosses, each within the exact clipped part.
+    std::map<std::uint32_t, format::Box3f> left, right;
+    for (const auto& ref : l.axis[0]) left[ref.prim] = ref.box;
+    for (const auto& ref : r.axis[0]) right[ref.prim] = ref.box;
+    for (const PrimRef& ref : refs) {
+      const float lo = format::at(ref.box.min, axis), hi = format::at(ref.box.max, axis);
+      const bool in_l = left.count(ref.prim), in_r = right.count(ref.prim);
+      ASSERT_TRUE(in_l || in_r) << ref.prim;
+      if (hi <= split.position) ASSERT_TRUE(in_l && !in_r);
+      if (lo >= split.position) ASSERT_TRUE(in_r && !in_l);
+      if (in_l && in_r) {
+        format::Box3f cl, cr;
+        split_reference(ref, axis, split.position, scene, cl, cr);
+        EXPECT_EQ(0, std::memcmp(&left[ref.prim], &cl, sizeof cl)) << ref.prim;
+        EXPECT_EQ(0, std::memcmp(&right[ref.prim], &cr, sizeof cr)) << ref.prim;
+      } else {
+        const format::Box3f& b = in_l ? left[ref.prim] : right[ref.prim];
+        EXPECT_EQ(0, std::memcmp(&b, &ref.box, sizeof b)) << ref.prim;
+      }
+    }
+  }
+}
+
+// The best spatial split by brute force: every bin plane, each reference clipped at it.
+float brute_spatial_cost(const Scene& scene, std::span<const PrimRef> refs,
+                         const format::Box3f& box, std::uint32_t k, int axis, std::uint32_t b) {
+  const float lo = format::at(box.min, axis), extent = format::at(box.max, axis) - lo;
+  const float plane = lo + (extent / float(k)) * float(b);
+  format::Box3f l, r;
+  std::size_t nl = 0, nr = 0;
+  for (const PrimRef& ref : refs) {
+    format::Box3f cl, cr;
+    split_reference(ref, axis, plane, scene, cl, cr);
+    if (format::at(ref.box.min, axis) < plane) l.grow(cl), ++nl;
+    if (format::at(ref.box.max, axis) > plane) r.grow(cr), ++nr;
+  }
+  if (nl == 0 || nr == 0) return std::numeric_limits<float>::infinity();
+  return 1.0f + (l.half_area() * float(nl) + r.half_area() * float(nr)) / box.half_area();
+}
+
+TEST(SbvhPresorted, SpatialSplitIsTheBruteForceBinOptimum) {
+  // Node sizes in each of the policy's bin tiers, and below the smallest searched.
+  for (const std::size_t n :
+       {std::size_t(5), std::size_t(40), std::size_t(600), std::size_t(4200)}) {
+    const Scene scene = random_triangles(n, 9);
+    const std::vector<PrimRef> refs = triangle_refs(scene);
+    format::Box3f box;
+    for (const auto& ref : refs) box.grow(ref.box);
+    BvhBuildOptions o;
+    o.builder = BvhBuilder::kSpatial;
+    for (const std::uint32_t bins : {7u, 32u}) {
+      o.bins = bins;
+      for (const int object_axis : {-1, 0, 1, 2}) {
+        const SpatialSplit found = find_spatial_split(refs, box, scene, o, object_axis);
+        if (n < kMinSpatialRefs) {
+          EXPECT_FALSE(found.valid());
+          continue;
+        }
+        ASSERT_TRUE(found.valid());
+        const std::uint32_t k = spatial_bin_count(n, bins);
+        const unsigned axes = spatial_axes(box, object_axis);
+        EXPECT_TRUE(axes >> found.axis & 1);
+        if (object_axis >= 0) EXPECT_TRUE(axes >> object_axis & 1);
+        float best = std::numeric_limits<float>::infinity();
+        for (int a = 0; a < 3; ++a)
+          if (axes >> a & 1)
+            for (std::uint32_t b = 1; b < k; ++b)
+              best = std::min(best, brute_spatial_cost(scene, refs, box, k, a, b));
+        EXPECT_NEAR(found.cost, best, 1e-4f * best) << n << " refs, " << bins << " bins";
+      }
+    }
+  }
+}
+
+TEST(SbvhPresorted, SameTreeOnAnyThreadCountAboveTheChunkedBinningSize) {
+  // Above 32768 references a node bins its spatial splits in fixed chunks, in parallel.
+  const Scene scene = random_triangles(36000, 13);
+  std::vector<FlatBvh> built;
+  for (const unsigned threads : {1u, 2u, 8u})
+    built.push_back(build(scene, BvhBuilder::kSpatial, threads));
+  for (std::size_t i = 1; i < built.size(); ++i) {
+    ASSERT_EQ(built[i].nodes.size(), built[0].nodes.size());
+    EXPECT_EQ(0, std::memcmp(built[i].nodes.data(), built[0].nodes.data(),
+                             built[0].nodes.size() * sizeof(format::BvhNode)));
+    EXPECT_EQ(built[i].prim_ids, built[0].prim_ids);
+  }
+  EXPECT_GT(built[0].stats.duplication_factor, 1.0);  // spatial splits were taken
+  // Every triangle in some leaf whose box overlaps its own.
+  std::vector<bool> seen(scene.triangles.size());
+  for (const format::BvhNode& node : built[0].nodes) {
+    for (std::uint32_t j = 0; j < node.count; ++j) {
+      const std::uint32_t t = built[0].prim_ids[node.offset + j];
+      seen[t] = true;
+      format::Box3f tb;
+      for (const auto v : scene.triangles[t].v) tb.grow(scene.positions[v]);
+      for (int a = 0; a < 3; ++a) {
+        ASSERT_LE(node.min[a], format::at(tb.max, a));
+        ASSERT_GE(node.max[a], format::at(tb.min, a));
+      }
+    }
+  }
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), false), 0);
 }
 
 }  // namespace

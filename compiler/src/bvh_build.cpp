@@ -1,4 +1,6 @@
-// Top-down SAH construction shared by the three builders; they differ only in split finding.
+// The SBVH's top-down construction (Stich, Friedrich, Dietrich 2009) on presorted per-axis
+// reference arrays: sorted once at the root, kept sorted through every object and spatial split,
+// so the exact SAH sweep never sorts per node.
 #include <cmath>
 #include <stdexcept>
 
@@ -35,65 +37,67 @@ std::unique_ptr<BvhBuildNode> make_leaf(const format::Box3f& box, std::span<cons
   return leaf;
 }
 
-std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, std::vector<PrimRef> refs,
+// How a node splits: by the SAH sweep, a spatial split, halves (no SAH split), or not at all.
+struct Choice {
+  ObjectSplit object;
+  SpatialSplit spatial;
+  int order_axis = 0;  // the order a leaf keeps and a spatial split visits references in
+};
+
+Choice choose_split(const BuildContext& ctx, const SortedRefs& refs, const format::Box3f& box,
+                    std::size_t budget) {
+  const auto& o = ctx.options;
+  Choice c;
+  c.object = find_sweep_split(refs, box, o);
+  if (c.object.valid()) c.order_axis = c.object.axis;
+  if (budget > 0) {
+    const float overlap =
+        c.object.valid()
+            ? format::Box3f::intersection(c.object.left_box, c.object.right_box).half_area()
+            : box.half_area();
+    if (!c.object.valid() || overlap > o.sbvh_alpha * ctx.root_area)
+      c.spatial = find_spatial_split(refs.axis[c.order_axis], box, ctx.scene, o, c.object.axis);
+  }
+  return c;
+}
+
+std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, SortedRefs refs,
                                          std::uint32_t depth, std::size_t budget) {
   const auto& o = ctx.options;
-  const format::Box3f box = bounds_of(refs);
+  const format::Box3f box = bounds_of(refs.axis[0]);
   const std::size_t n = refs.size();
-  const float leaf_cost = o.intersection_cost * float(n);
   const bool must_stop = depth + 1 >= format::kBvhMaxDepth;
   if (n <= 1 || must_stop) {
     if (n > format::kBvhMaxLeafSize)
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
-    return make_leaf(box, refs);
+    return make_leaf(box, refs.axis[0]);
   }
-
-  std::vector<PrimRef> left, right;
-  ObjectSplit object;
-  if (o.builder == BvhBuilder::kBinned) {
-    object = find_binned_split(refs, box, o);
-  } else {
-    object = find_sweep_split(refs, box, o);  // sorts refs on the chosen axis
-  }
-  SpatialSplit spatial;
-  if (o.builder == BvhBuilder::kSpatial && budget > 0) {
-    const float overlap =
-        object.valid() ? format::Box3f::intersection(object.left_box, object.right_box).half_area()
-                       : box.half_area();
-    if (!object.valid() || overlap > o.sbvh_alpha * ctx.root_area) {
-      spatial = find_spatial_split(refs, box, ctx.scene, o);
-    }
-  }
-  const float best_cost = std::min(object.cost, spatial.cost);
-  if (!object.valid() && !spatial.valid()) {
+  const Choice c = choose_split(ctx, refs, box, budget);
+  const float best_cost = std::min(c.object.cost, c.spatial.cost);
+  const auto& ordered = refs.axis[c.order_axis];
+  SortedRefs left, right;
+  bool spatial = false;
+  if (!c.object.valid() && !c.spatial.valid()) {
     // All centroids coincide: nothing separates them by the SAH, so split the list in half.
-    if (n <= o.max_leaf_size) return make_leaf(box, refs);
-    left.assign(refs.begin(), refs.begin() + std::ptrdiff_t(n / 2));
-    right.assign(refs.begin() + std::ptrdiff_t(n / 2), refs.end());
-  } else if (best_cost >= leaf_cost && n <= o.max_leaf_size) {
-    return make_leaf(box, refs);
-  } else if (spatial.valid() && spatial.cost < object.cost) {
-    const std::size_t added = apply_spatial_split(spatial, refs, ctx.scene, left, right);
+    if (n <= o.max_leaf_size) return make_leaf(box, ordered);
+    partition_object_split(std::move(refs), c.order_axis, n / 2, left, right);
+  } else if (best_cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) {
+    return make_leaf(box, ordered);
+  } else if (c.spatial.valid() && c.spatial.cost < c.object.cost) {
+    const std::size_t added =
+        apply_spatial_split(c.spatial, refs, c.order_axis, ctx.scene, left, right);
     budget -= std::min(budget, added);
-    if (left.empty() || right.empty()) {  // unsplitting moved everything to one side
-      left.clear();
-      right.clear();
-      if (!object.valid()) return make_leaf(box, refs);
-      spatial = {};
-    }
-  }
-  if (left.empty() && right.empty()) {
-    if (o.builder == BvhBuilder::kBinned) {
-      apply_binned_split(object, refs, left, right);
+    if (left.size() == 0 || right.size() == 0) {  // unsplitting moved everything to one side
+      if (!c.object.valid()) return make_leaf(box, ordered);
+      left.clear(), right.clear();
     } else {
-      left.assign(refs.begin(), refs.begin() + std::ptrdiff_t(object.left_count));
-      right.assign(refs.begin() + std::ptrdiff_t(object.left_count), refs.end());
+      spatial = true;
     }
   }
-  const std::uint8_t axis = std::uint8_t(spatial.valid()  ? spatial.axis
-                                         : object.valid() ? object.axis
-                                                          : 0);
-  refs = {};  // free before recursing
+  if (left.size() == 0 && right.size() == 0)
+    partition_object_split(std::move(refs), c.object.axis, c.object.left_count, left, right);
+  const int axis = spatial ? c.spatial.axis : std::max(c.object.axis, 0);
+  refs.clear();  // free before recursing
 
   // The duplication budget is shared in proportion to size: deterministic, no global counter.
   const std::size_t total = left.size() + right.size();
@@ -101,7 +105,7 @@ std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, std::vector<Pr
   const std::size_t right_budget = budget - left_budget;
   auto node = std::make_unique<BvhBuildNode>();
   node->box = box;
-  node->axis = axis;
+  node->axis = std::uint8_t(axis);
   // Left and right subtrees are built apart and only then attached: the tree is the same
   // whether or not the right one ran on its own thread.
   fork_join(
@@ -133,13 +137,17 @@ std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildO
     for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
     refs[i].prim = i;
   }
+  if (options.builder != BvhBuilder::kSpatial)
+    throw std::invalid_argument("BVH: the tree builder is the SBVH's");
   const format::Box3f root = bounds_of(refs);
   const BuildContext ctx{scene, options, root.half_area(), fork_depth(options.threads)};
-  const std::size_t budget = options.builder == BvhBuilder::kSpatial
-                                 ? std::size_t(double(scene.triangles.size()) *
-                                               std::max(0.0, double(options.sbvh_max_duplication)))
-                                 : 0;
-  return build_node(ctx, std::move(refs), 0, budget);
+  SortedRefs sorted;  // sorted once here, kept sorted through every split
+  parallel_for(3, options.threads,
+               [&](std::size_t a) { sort_by_centroid(refs, int(a), sorted.axis[a]); });
+  refs = {};
+  const std::size_t budget = std::size_t(double(scene.triangles.size()) *
+                                         std::max(0.0, double(options.sbvh_max_duplication)));
+  return build_node(ctx, std::move(sorted), 0, budget);
 }
 
 }  // namespace kiln

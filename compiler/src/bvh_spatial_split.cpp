@@ -1,5 +1,6 @@
 // SBVH spatial splits (Stich, Friedrich, Dietrich 2009).
 #include <algorithm>
+#include <limits>
 #include <vector>
 
 #include "bvh_splits.hpp"
@@ -9,10 +10,21 @@ namespace kiln {
 
 namespace {
 
-constexpr std::size_t kParallelSpatial = 32768;  // bin the three axes apart above this
+constexpr std::size_t kParallelSpatial = 32768;  // bin in chunks (in parallel) above this
+constexpr std::size_t kSpatialChunk = 8192;
 
 float coord(const format::Float3& p, int axis) {
   return axis == 0 ? p.x : axis == 1 ? p.y : p.z;
+}
+
+// The point where the edge a-b crosses the plane axis = position (strictly between its ends).
+[[gnu::always_inline]] inline format::Float3 edge_point(const format::Float3& a,
+                                                        const format::Float3& b, float pa, float pb,
+                                                        int axis, float position) {
+  const float s = std::clamp((position - pa) / (pb - pa), 0.0f, 1.0f);
+  format::Float3 p{a.x + (b.x - a.x) * s, a.y + (b.y - a.y) * s, a.z + (b.z - a.z) * s};
+  format::at(p, axis) = position;
+  return p;
 }
 
 // split_reference on a triangle's corners already loaded: the spatial binning clips one
@@ -31,9 +43,7 @@ float coord(const format::Float3& p, int axis) {
     if (pa <= position) left.grow(a);
     if (pa >= position) right.grow(a);
     if ((pa < position && pb > position) || (pb < position && pa > position)) {
-      const float s = std::clamp((position - pa) / (pb - pa), 0.0f, 1.0f);
-      format::Float3 p{a.x + (b.x - a.x) * s, a.y + (b.y - a.y) * s, a.z + (b.z - a.z) * s};
-      format::at(p, axis) = position;
+      const format::Float3 p = edge_point(a, b, pa, pb, axis, position);
       left.grow(p);
       right.grow(p);
     }
@@ -86,52 +96,114 @@ struct SpatialBins {
   }
   float plane(int a, std::uint32_t b) const { return origin[a] + width[a] * float(b); }
 
-  // Clips the reference at every bin plane it crosses on axis a, growing each bin by its piece.
+  // Grows every bin that the reference crosses on axis a by the box of its triangle's part in
+  // that bin's slab (within the reference's box). Each plane's cut through the triangle is
+  // computed once and serves the bins on both sides; the slab boxes are exact, as the sides
+  // apply_spatial_split makes, where clipping the rest at each plane in turn (as Stich et al.
+  // and Embree do) gives the intersection of two half-space boxes, larger in general.
   void add(const PrimRef& r, const format::Float3 (&v)[3], int a) {
     const std::size_t base = std::size_t(a) * k;
     const std::uint32_t first = bin_of(a, format::at(r.box.min, a));
     const std::uint32_t last = std::max(first, bin_of(a, format::at(r.box.max, a)));
-    format::Box3f rest = r.box;
-    for (std::uint32_t b = first; b < last; ++b) {
-      format::Box3f l, rr;
-      split_corners(v, rest, a, plane(a, b + 1), l, rr);
-      box[base + b].grow(l);
-      rest = rr;
-    }
-    box[base + last].grow(rest);
     enter[base + first] += 1;
     exit[base + last] += 1;
+    if (first == last) {
+      box[base + first].grow(r.box);
+      return;
+    }
+    const float c[3] = {coord(v[0], a), coord(v[1], a), coord(v[2], a)};
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    format::Box3f cut_lo;  // the triangle's cut by the bin's lower plane
+    float lo = -kInf;
+    for (std::uint32_t b = first;; ++b) {
+      const float hi = b < last ? plane(a, b + 1) : kInf;
+      format::Box3f piece = cut_lo, cut_hi;
+      for (int i = 0; i < 3; ++i)
+        if (c[i] >= lo && c[i] <= hi) piece.grow(v[i]);
+      if (b < last) {
+        for (int i = 0; i < 3; ++i) {
+          const int j = i == 2 ? 0 : i + 1;
+          if ((c[i] < hi && c[j] > hi) || (c[j] < hi && c[i] > hi))
+            cut_hi.grow(edge_point(v[i], v[j], c[i], c[j], a, hi));
+        }
+        piece.grow(cut_hi);
+      }
+      format::at(piece.min, a) = std::max(format::at(piece.min, a), lo);
+      format::at(piece.max, a) = std::min(format::at(piece.max, a), hi);
+      piece = format::Box3f::intersection(piece, r.box);
+      if (!piece.empty()) box[base + b].grow(piece);
+      if (b == last) break;
+      cut_lo = cut_hi;
+      lo = hi;
+    }
   }
 };
 
 }  // namespace
 
+namespace {
+
+// Bins the references of [begin, end) on every axis with extent, reference by reference (its
+// corners loaded once).
+void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
+  for (const auto& r : refs) {
+    format::Float3 v[3];
+    load_corners(r, scene, v);
+    for (int a = 0; a < 3; ++a)
+      if (bins.valid[a]) bins.add(r, v, a);
+  }
+}
+
+// Bin boxes grow by min/max and counts add, so merging chunks in any order gives the same bins.
+void merge_bins(SpatialBins& into, const SpatialBins& from) {
+  for (std::size_t i = 0; i < into.box.size(); ++i) {
+    into.box[i].grow(from.box[i]);
+    into.enter[i] += from.enter[i];
+    into.exit[i] += from.exit[i];
+  }
+}
+
+}  // namespace
+
+std::uint32_t spatial_bin_count(std::size_t refs, std::uint32_t bins) {
+  const std::uint32_t k = std::max<std::uint32_t>(2, bins);
+  if (refs >= kFineSpatialRefs) return 2 * k;
+  if (refs >= kCoarseSpatialRefs) return k;
+  return std::max<std::uint32_t>(2, k / 8);
+}
+
+unsigned spatial_axes(const format::Box3f& node_box, int object_axis) {
+  int longest = 0;
+  for (int a = 1; a < 3; ++a)
+    if (format::at(node_box.max, a) - format::at(node_box.min, a) >
+        format::at(node_box.max, longest) - format::at(node_box.min, longest))
+      longest = a;
+  return (1u << longest) | (object_axis >= 0 ? 1u << object_axis : 0u);
+}
+
 SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
-                                const Scene& scene, const BvhBuildOptions& options) {
+                                const Scene& scene, const BvhBuildOptions& options,
+                                int object_axis) {
   const float node_area = node_box.half_area();
-  const std::uint32_t k = std::max<std::uint32_t>(2, options.bins);
+  const std::uint32_t k = spatial_bin_count(refs.size(), options.bins);
   SpatialSplit best;
-  if (node_area <= 0.0f) return best;
-  // Reference by reference (its corners loaded once), each axis's bins in reference order as
-  // before: the same boxes, the same split. A large node (near the root, where the subtree
-  // tasks have not forked yet) bins its three axes on their own threads, each into its own bins.
+  if (node_area <= 0.0f || refs.size() < kMinSpatialRefs) return best;
   SpatialBins bins(node_box, k);
-  if (refs.size() >= kParallelSpatial && resolve_thread_count(options.threads) > 1) {
-    parallel_for(3, options.threads, [&](std::size_t a) {
-      if (!bins.valid[a]) return;
-      for (const auto& r : refs) {
-        format::Float3 v[3];
-        load_corners(r, scene, v);
-        bins.add(r, v, int(a));
-      }
+  const unsigned axes = spatial_axes(node_box, object_axis);
+  for (int a = 0; a < 3; ++a) bins.valid[a] = bins.valid[a] && (axes >> a & 1);
+  if (refs.size() >= kParallelSpatial) {
+    // Fixed chunks (by count, not by thread), each into its own bins: the same bins on any
+    // number of threads. Near the root the subtree tasks have not forked yet.
+    const std::size_t chunks = (refs.size() + kSpatialChunk - 1) / kSpatialChunk;
+    std::vector<SpatialBins> part(chunks, SpatialBins(node_box, k));
+    parallel_for(chunks, options.threads, [&](std::size_t c) {
+      const std::size_t begin = c * kSpatialChunk;
+      bin_references(refs.subspan(begin, std::min(kSpatialChunk, refs.size() - begin)), scene,
+                     part[c]);
     });
+    for (const auto& p : part) merge_bins(bins, p);
   } else {
-    for (const auto& r : refs) {
-      format::Float3 v[3];
-      load_corners(r, scene, v);
-      for (int a = 0; a < 3; ++a)
-        if (bins.valid[a]) bins.add(r, v, a);
-    }
+    bin_references(refs, scene, bins);
   }
   std::vector<format::Box3f> right_box(k);
   std::vector<std::size_t> right_counts(k);
@@ -167,26 +239,85 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box
   return best;
 }
 
-std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimRef> refs,
-                                const Scene& scene, std::vector<PrimRef>& left,
-                                std::vector<PrimRef>& right) {
+namespace {
+
+enum class Side : std::uint8_t { kLeft, kRight, kStraddle };
+
+Side side_of(const PrimRef& r, int axis, float pos) {
+  if (format::at(r.box.max, axis) <= pos) return Side::kLeft;
+  if (format::at(r.box.min, axis) >= pos) return Side::kRight;
+  return Side::kStraddle;
+}
+
+// `sorted` (sorted on `axis`) merged with `pieces` (sorted apart) into `out`, each key
+// computed once.
+void merge_on_axis(std::span<const PrimRef> sorted, std::span<const PrimRef> pieces, int axis,
+                   std::vector<PrimRef>& out) {
+  out.resize(sorted.size() + pieces.size());
+  PrimRef* o = out.data();
+  std::size_t i = 0, j = 0;
+  if (!pieces.empty()) {
+    std::uint64_t piece_key = centroid_key(pieces[0], axis);
+    for (; i < sorted.size() && j < pieces.size(); ++i) {
+      const std::uint64_t key = centroid_key(sorted[i], axis);
+      while (piece_key < key) {
+        *o++ = pieces[j++];
+        if (j == pieces.size()) break;
+        piece_key = centroid_key(pieces[j], axis);
+      }
+      *o++ = sorted[i];
+    }
+  }
+  o = std::copy(sorted.begin() + std::ptrdiff_t(i), sorted.end(), o);
+  std::copy(pieces.begin() + std::ptrdiff_t(j), pieces.end(), o);
+}
+
+// The children's arrays on `axis`: the references that stay whole on a side, in the parent's
+// order (still sorted), merged with the straddlers' pieces (or whole references) given to that
+// side, sorted apart: a straddler's clipped box moves its centroid.
+void children_on_axis(const std::vector<PrimRef>& parent, int axis, int split_axis, float pos,
+                      std::span<const PrimRef> left_straddlers,
+                      std::span<const PrimRef> right_straddlers, std::vector<PrimRef>& left,
+                      std::vector<PrimRef>& right) {
+  thread_local std::vector<PrimRef> whole_left, whole_right, pieces;
+  whole_left.clear();
+  whole_right.clear();
+  for (const PrimRef& r : parent) {
+    const Side side = side_of(r, split_axis, pos);
+    if (side == Side::kLeft) whole_left.push_back(r);
+    if (side == Side::kRight) whole_right.push_back(r);
+  }
+  sort_by_centroid(left_straddlers, axis, pieces);
+  merge_on_axis(whole_left, pieces, axis, left);
+  sort_by_centroid(right_straddlers, axis, pieces);
+  merge_on_axis(whole_right, pieces, axis, right);
+}
+
+}  // namespace
+
+std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
+                                const Scene& scene, SortedRefs& left_out, SortedRefs& right_out) {
   const int axis = split.axis;
   const float pos = split.position;
   format::Box3f left_box, right_box;
   std::vector<const PrimRef*> straddling;
-  for (const auto& r : refs) {
-    if (format::at(r.box.max, axis) <= pos) {
-      left.push_back(r);
-      left_box.grow(r.box);
-    } else if (format::at(r.box.min, axis) >= pos) {
-      right.push_back(r);
-      right_box.grow(r.box);
-    } else {
-      straddling.push_back(&r);
+  std::size_t left_whole = 0, right_whole = 0;
+  for (const auto& r : refs.axis[order_axis]) {
+    switch (side_of(r, axis, pos)) {
+      case Side::kLeft:
+        left_box.grow(r.box), ++left_whole;
+        break;
+      case Side::kRight:
+        right_box.grow(r.box), ++right_whole;
+        break;
+      case Side::kStraddle:
+        straddling.push_back(&r);
     }
   }
-  std::size_t left_count = left.size() + straddling.size();
-  std::size_t right_count = right.size() + straddling.size();
+  // Straddlers in the parent's order, as they were decided before the arrays were kept sorted.
+  std::vector<PrimRef> left, right;
+  std::size_t left_count = left_whole + straddling.size();
+  std::size_t right_count = right_whole + straddling.size();
   std::size_t added = 0;
   for (const PrimRef* r : straddling) {
     format::Box3f l, rr;
@@ -231,6 +362,9 @@ std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimR
       right_box = split_r;
       added += 1;
     }
+  }
+  for (int a = 0; a < 3; ++a) {
+    children_on_axis(refs.axis[a], a, axis, pos, left, right, left_out.axis[a], right_out.axis[a]);
   }
   return added;
 }

@@ -1,7 +1,8 @@
-// Split finding for the BVH builders. Costs are SAH costs relative to the node's half area,
-// in units where the leaf cost of n references is n * intersection_cost.
+// Split finding for the SBVH builder (bvh_build.cpp). Costs are SAH costs relative to the node's
+// half area, in units where the leaf cost of n references is n * intersection_cost.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 #include <limits>
 #include <span>
@@ -11,28 +12,47 @@
 
 namespace kiln {
 
+/// A reference's place on an axis: its centroid's bits made to sort as unsigned integers (-0 as
+/// +0), then its primitive id. A node holds each primitive at most once (the pieces of a split
+/// reference go to different children), so the key orders a node's references totally.
+inline std::uint64_t centroid_key(const PrimRef& r, int axis) {
+  const std::uint32_t bits = std::bit_cast<std::uint32_t>(r.box.centroid(axis) + 0.0f);
+  const std::uint32_t ordered = (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;
+  return (std::uint64_t(ordered) << 32) | r.prim;
+}
+
+/// A node's references, once per axis, each sorted by centroid_key on its axis. The arrays are
+/// sorted once at the root and kept sorted through every partition (no sort per node).
+struct SortedRefs {
+  std::vector<PrimRef> axis[3];
+  std::size_t size() const { return axis[0].size(); }
+  void clear() {
+    for (auto& a : axis) a = {};
+  }
+};
+
+/// Sorts `refs` by centroid_key on `axis` into `out`.
+void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimRef>& out);
+
 struct ObjectSplit {
   float cost = std::numeric_limits<float>::infinity();
   int axis = -1;
-  // Binned: references whose centroid bin is <= bin go left. Sweep: the first `left_count`
-  // references of the refs sorted on `axis` go left.
-  std::uint32_t bin = 0;
-  float bin_scale = 0, bin_origin = 0;
-  std::size_t left_count = 0;
+  std::size_t left_count = 0;  // the first left_count references sorted on `axis` go left
   format::Box3f left_box, right_box;
   bool valid() const { return axis >= 0; }
 };
 
-// Wald 2007: centroid bins on all three axes.
-ObjectSplit find_binned_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
-                              const BvhBuildOptions& options);
-// Exact SAH over sorted centroids on all three axes. Leaves `refs` sorted on the chosen axis
-// (stable, ties by primitive id), so the split is a prefix.
-ObjectSplit find_sweep_split(std::vector<PrimRef>& refs, const format::Box3f& node_box,
+/// Exact SAH over the sorted centroids on all three axes (the first axis and the first position
+/// win ties).
+ObjectSplit find_sweep_split(const SortedRefs& refs, const format::Box3f& node_box,
                              const BvhBuildOptions& options);
-// Partitions by a binned split, keeping relative order.
-void apply_binned_split(const ObjectSplit& split, std::vector<PrimRef>& refs,
-                        std::vector<PrimRef>& left, std::vector<PrimRef>& right);
+/// Splits `refs` into the first `left_count` references on `axis` and the rest, every axis's
+/// array staying sorted (a stable split by the side each reference takes on `axis`).
+void partition_object_split(const SortedRefs& refs, int axis, std::size_t left_count,
+                            SortedRefs& left, SortedRefs& right);
+/// The same, the left child taking over `refs`'s arrays.
+void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count, SortedRefs& left,
+                            SortedRefs& right);
 
 struct SpatialSplit {
   float cost = std::numeric_limits<float>::infinity();
@@ -41,15 +61,34 @@ struct SpatialSplit {
   bool valid() const { return axis >= 0; }
 };
 
-// Stich et al. 2009: spatial bins over the node box, references clipped against bin planes.
-SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
-                                const Scene& scene, const BvhBuildOptions& options);
-// Distributes references, unsplitting straddlers where cheaper; returns the added references.
-std::size_t apply_spatial_split(const SpatialSplit& split, std::span<const PrimRef> refs,
-                                const Scene& scene, std::vector<PrimRef>& left,
-                                std::vector<PrimRef>& right);
+// Where spatial splits are searched, and with how many bins (measured on bunny, Lucy100k,
+// Sponza and dragon_871k, docs/BENCHMARKS.md). Clipping is nearly all of an SBVH build, and
+// most of it goes to small nodes, whose triangles are large against them and cross most of
+// their bins, while a better plane there gains least. So: no search below kMinSpatialRefs
+// references; bins / 8 below kCoarseSpatialRefs; `bins` up to kFineSpatialRefs; twice `bins`
+// above (a large node's triangles cross one or two bins, and a better plane there pays for its
+// whole subtree); and only on the object split's axis and the node's longest axis. Together
+// the trees' SAH cost is at or below what `bins` on all three axes at every node gave.
+inline constexpr std::size_t kMinSpatialRefs = 8;
+inline constexpr std::size_t kCoarseSpatialRefs = 512;
+inline constexpr std::size_t kFineSpatialRefs = 4096;
+std::uint32_t spatial_bin_count(std::size_t refs, std::uint32_t bins);
+/// A bit per axis searched: the object split's (-1: none) and the node's longest.
+unsigned spatial_axes(const format::Box3f& node_box, int object_axis);
 
-// Splits a reference's triangle (clipped to its box) by the plane axis = position.
+/// Stich et al. 2009: spatial bins over the node box, references clipped against bin planes,
+/// on spatial_axes(node_box, object_axis) with spatial_bin_count bins. Large nodes bin fixed
+/// chunks of references apart (in parallel) and merge them, so the split does not depend on
+/// the thread count.
+SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
+                                const Scene& scene, const BvhBuildOptions& options,
+                                int object_axis);
+/// Distributes references (visited in their order on `order_axis`), unsplitting straddlers
+/// where cheaper, into children whose axis arrays stay sorted; returns the added references.
+std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
+                                const Scene& scene, SortedRefs& left, SortedRefs& right);
+
+/// Splits a reference's triangle (clipped to its box) by the plane axis = position.
 void split_reference(const PrimRef& ref, int axis, float position, const Scene& scene,
                      format::Box3f& left, format::Box3f& right);
 
