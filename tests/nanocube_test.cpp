@@ -550,5 +550,41 @@ TEST(Nanocube, ForgedBlockRankingsAreRefusedOrSafe) {
   EXPECT_EQ(refused, tried);
 }
 
+// All-time rankings may share a range (a node with one child) but not overlap: lists forged to
+// name shifted windows of one long list (which, read one by one, would cost lists x entries at
+// open) are refused.
+TEST(Nanocube, OverlappingRankingsAreRefused) {
+  const EventTable table = generated_table(1500, 22);
+  const auto blob = cube_blob(table, "max-level=8,time-bin=1h");
+  const AlignedBuffer original = test::aligned_copy(blob);
+  const Blob clean = Blob::open_memory(original.bytes());
+  std::uint32_t lists_section = 0;
+  for (std::uint32_t s = 1; s < clean.sections().size(); ++s)
+    if (clean.sections()[s].kind == format::kSectionNanocubeRankLists) lists_section = s;
+  ASSERT_NE(lists_section, 0u);
+  const auto lists = clean.section_view<format::NanocubeRankList>(lists_section);
+  std::size_t longest = 0;
+  for (std::size_t i = 0; i < lists.size(); ++i)
+    if (lists[i].count > lists[longest].count) longest = i;
+  ASSERT_GE(lists[longest].count, 3u);
+  ASSERT_GE(lists.size(), 2u);
+  // Another list made to start one entry inside the longest one.
+  format::NanocubeRankList forged = lists[longest];
+  forged.first += 1, forged.count -= 1;
+  const std::size_t victim = longest == 0 ? 1 : 0;
+  const AlignedBuffer bytes =
+      test::forged_copy(blob, lists_section, victim * sizeof(format::NanocubeRankList), forged);
+  EXPECT_THROW(open_structure(Blob::open_memory(bytes.bytes()), "nanocube"), BlobError);
+  // The same range as the longest one is a shared list, not an overlap: no refusal for that.
+  const AlignedBuffer shared = test::forged_copy(
+      blob, lists_section, victim * sizeof(format::NanocubeRankList), lists[longest]);
+  try {
+    const Blob b = Blob::open_memory(shared.bytes());
+    open_structure(b, "nanocube");
+  } catch (const BlobError& e) {
+    EXPECT_EQ(std::string(e.what()).find("overlaps"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace kiln

@@ -1,4 +1,5 @@
 // The nanocube view's open: every index checked once, so queries index freely.
+#include <algorithm>
 #include <string>
 
 #include "kiln/runtime/blob.hpp"
@@ -85,8 +86,23 @@ void check_series(const Walk& w, std::span<const format::NanocubeSeries> series,
   }
 }
 
+// The entries [first, first + count) ordered (counts non-increasing, ties by label) with every
+// label below `labels`.
+bool ranking_ordered(std::span<const format::NanocubeRankEntry> entries, std::uint64_t first,
+                     std::uint64_t count, std::uint64_t labels) {
+  for (std::uint64_t e = first; e < first + count; ++e) {
+    const format::NanocubeRankEntry& x = entries[e];
+    const bool ordered = e == first || x.count < entries[e - 1].count ||
+                         (x.count == entries[e - 1].count && x.label > entries[e - 1].label);
+    if (x.label >= labels || !ordered) return false;
+  }
+  return true;
+}
+
 // One ranking per category and spatial node, inside the entries, labels in range, counts
 // non-increasing with ties by label (a forged ranking can make top-k wrong, never unsafe).
+// Lists may name the same range (a node with one child shares its child's), but distinct
+// non-empty ranges must not overlap, so each entry is read once whatever the bytes say.
 void check_rankings(const Walk& w, const NanocubeView& view,
                     std::span<const format::NanocubeRankList> lists,
                     std::span<const format::NanocubeRankEntry> entries) {
@@ -96,18 +112,29 @@ void check_rankings(const Walk& w, const NanocubeView& view,
     w.fail(w.d.rank_lists(), "has " + std::to_string(lists.size()) +
                                  " rankings, not one per "
                                  "category and spatial node");
+  std::vector<std::uint64_t> order;
   for (std::size_t i = 0; i < lists.size(); ++i) {
     const format::NanocubeRankList& l = lists[i];
-    const std::uint64_t labels = categories[i / spatial].label_count;
     if (l.reserved != 0 || l.first > entries.size() || l.count > entries.size() - l.first)
       w.fail(w.d.rank_lists(), "ranking " + std::to_string(i) + " is out of range");
-    for (std::uint64_t e = l.first; e < l.first + l.count; ++e) {
-      const format::NanocubeRankEntry& x = entries[e];
-      const bool ordered = e == l.first || x.count < entries[e - 1].count ||
-                           (x.count == entries[e - 1].count && x.label > entries[e - 1].label);
-      if (x.label >= labels || !ordered)
-        w.fail(w.d.rank_entries(), "ranking " + std::to_string(i) + " is not ordered");
-    }
+    if (l.count != 0) order.push_back(i);
+  }
+  auto range = [&](std::uint64_t i) { return std::pair(lists[i].first, lists[i].count); };
+  std::sort(order.begin(), order.end(),
+            [&](std::uint64_t a, std::uint64_t b) { return range(a) < range(b); });
+  std::uint64_t end = 0;  // of the previous distinct range
+  for (std::size_t k = 0; k < order.size();) {
+    const std::uint64_t i = order[k];
+    std::uint64_t labels = categories[i / spatial].label_count;
+    std::size_t same = k + 1;
+    for (; same < order.size() && range(order[same]) == range(i); ++same)
+      labels = std::min<std::uint64_t>(labels, categories[order[same] / spatial].label_count);
+    if (lists[i].first < end)
+      w.fail(w.d.rank_lists(), "ranking " + std::to_string(i) + " overlaps another");
+    if (!ranking_ordered(entries, lists[i].first, lists[i].count, labels))
+      w.fail(w.d.rank_entries(), "ranking " + std::to_string(i) + " is not ordered");
+    end = lists[i].first + lists[i].count;
+    k = same;
   }
 }
 
