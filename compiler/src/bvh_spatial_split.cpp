@@ -163,6 +163,43 @@ void merge_bins(SpatialBins& into, const SpatialBins& from) {
   }
 }
 
+// The SAH sweep over one axis's bins; a cheaper plane replaces `best` (first axis, first plane
+// win ties).
+void best_plane_on_axis(const SpatialBins& bins, int axis, float node_area,
+                        const BvhBuildOptions& options, SpatialSplit& best) {
+  const std::uint32_t k = bins.k;
+  thread_local std::vector<format::Box3f> right_box;
+  thread_local std::vector<std::size_t> right_counts;
+  right_box.resize(k);
+  right_counts.resize(k);
+  const std::size_t base = std::size_t(axis) * k;
+  format::Box3f acc;
+  std::size_t right_count = 0;
+  for (std::uint32_t b = k; b-- > 1;) {
+    acc.grow(bins.box[base + b]);
+    right_box[b] = acc;
+    right_count += bins.exit[base + b];
+    right_counts[b] = right_count;
+  }
+  format::Box3f left;
+  std::size_t left_count = 0;
+  for (std::uint32_t b = 0; b + 1 < k; ++b) {
+    left.grow(bins.box[base + b]);
+    left_count += bins.enter[base + b];
+    const std::size_t rc = right_counts[b + 1];
+    if (left_count == 0 || rc == 0) continue;
+    const float cost = options.traversal_cost + options.intersection_cost *
+                                                    (left.half_area() * float(left_count) +
+                                                     right_box[b + 1].half_area() * float(rc)) /
+                                                    node_area;
+    if (cost < best.cost) {
+      best.cost = cost;
+      best.axis = axis;
+      best.position = bins.plane(axis, b + 1);
+    }
+  }
+}
+
 }  // namespace
 
 std::uint32_t spatial_bin_count(std::size_t refs, std::uint32_t bins) {
@@ -205,37 +242,8 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box
   } else {
     bin_references(refs, scene, bins);
   }
-  std::vector<format::Box3f> right_box(k);
-  std::vector<std::size_t> right_counts(k);
-  for (int axis = 0; axis < 3; ++axis) {
-    if (!bins.valid[axis]) continue;
-    const std::size_t base = std::size_t(axis) * k;
-    format::Box3f acc;
-    std::size_t right_count = 0;
-    for (std::uint32_t b = k; b-- > 1;) {
-      acc.grow(bins.box[base + b]);
-      right_box[b] = acc;
-      right_count += bins.exit[base + b];
-      right_counts[b] = right_count;
-    }
-    format::Box3f left;
-    std::size_t left_count = 0;
-    for (std::uint32_t b = 0; b + 1 < k; ++b) {
-      left.grow(bins.box[base + b]);
-      left_count += bins.enter[base + b];
-      const std::size_t rc = right_counts[b + 1];
-      if (left_count == 0 || rc == 0) continue;
-      const float cost = options.traversal_cost + options.intersection_cost *
-                                                      (left.half_area() * float(left_count) +
-                                                       right_box[b + 1].half_area() * float(rc)) /
-                                                      node_area;
-      if (cost < best.cost) {
-        best.cost = cost;
-        best.axis = axis;
-        best.position = bins.plane(axis, b + 1);
-      }
-    }
-  }
+  for (int axis = 0; axis < 3; ++axis)
+    if (bins.valid[axis]) best_plane_on_axis(bins, axis, node_area, options, best);
   return best;
 }
 
