@@ -394,22 +394,22 @@ TEST(Voxelizer, FastPathsMatchPredicateOnHugeTrianglesInSubCubes) {
 TEST(Voxelizer, LeavesByteIdenticalAcrossThreadsAndCubes) {
   KILN_REQUIRE_CORPUS();
   const Scene scene = import_scene({test::mesh_path("classic/spot.obj")}, 2);
-  const VoxelGrid grid = fit_voxel_grid(scene.bounds, 512);
+  const VoxelGrid grid = fit_voxel_grid(scene.bounds, 256);
   const std::vector<std::uint32_t> all = all_triangles(scene);
-  const VoxelLeaves one = voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 512}, all, 1);
+  const VoxelLeaves one = voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 256}, all, 1);
   for (const unsigned threads : {2u, 8u})
-    expect_leaves_equal(voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 512}, all, threads), one,
+    expect_leaves_equal(voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 256}, all, threads), one,
                         std::to_string(threads) + " threads");
-  // Sub-cubes smaller than a brick (4, 16) and larger (256), with triangles_reaching.
-  for (const std::uint32_t side : {4u, 16u, 256u}) {
+  // Sub-cubes smaller than a brick (4, 16) and as large (128), with triangles_reaching.
+  for (const std::uint32_t side : {4u, 16u, 128u}) {
     VoxelLeaves joined;
-    const std::uint32_t per_axis = 512 / side;
+    const std::uint32_t per_axis = 256 / side;
     std::uint64_t cubes_done = 0;
     for (std::uint64_t c = 0; c < std::uint64_t(per_axis) * per_axis * per_axis; ++c) {
       const VoxelCube cube{{format::compact_bits(c) * side, format::compact_bits(c >> 1) * side,
                             format::compact_bits(c >> 2) * side},
                            side};
-      if (side == 4 && (c % 997) != 0) continue;  // a sample of the 2M small cubes
+      if (side == 4 && (c % 211) != 0) continue;  // a sample of the 262k small cubes
       ++cubes_done;
       const VoxelLeaves l =
           voxelize_surface_leaves(scene, grid, cube, triangles_reaching(scene, grid, cube), 2);
