@@ -337,10 +337,11 @@ int main(int argc, char** argv) {
           kiln::bench::parse_number_option(arg, "rays", g_settings.rays) ||
           kiln::bench::parse_number_option(arg, "repeats", g_speed.repeats))
         continue;
-      if (arg == "--speed" || arg == "--normals" || arg == "--no-before") {
-        (arg == "--speed"     ? g_speed.on
-         : arg == "--normals" ? g_speed.normals
-                              : g_speed.skip_before) = true;
+      if (arg == "--speed" || arg == "--normals" || arg == "--no-before" || arg == "--no-codes") {
+        (arg == "--speed"       ? g_speed.on
+         : arg == "--normals"   ? g_speed.normals
+         : arg == "--no-before" ? g_speed.skip_before
+                                : g_speed.skip_codes) = true;
         continue;
       }
     } catch (const std::exception&) {

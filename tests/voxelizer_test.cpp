@@ -351,25 +351,65 @@ TEST(Voxelizer, FastPathsMatchReferenceOnWorstCases) {
                                  "fitted at " + std::to_string(n));
 }
 
+// Huge triangles on grids up to 131072^3 (the margins grow with the triangle's extent): one
+// sub-cube through each path against every voxel of the cube under the predicate.
+TEST(Voxelizer, FastPathsMatchPredicateOnHugeTrianglesInSubCubes) {
+  std::mt19937 rng(20);
+  for (const std::uint32_t n : {4096u, 131072u}) {
+    const VoxelGrid grid = unit_grid(n);
+    const VoxelCube cube{{n / 2 - 32, n / 4, n / 2}, 32};
+    std::vector<std::array<Float3, 3>> triangles;
+    std::uniform_int_distribution<std::uint32_t> any(0, n), near(0, 64);
+    for (int i = 0; i < 40; ++i) {
+      // Two far corners and one near the cube (integer or half coordinates: boundary cases).
+      Float3 p[3];
+      for (int j = 0; j < 2; ++j) p[j] = {float(any(rng)), float(any(rng)), float(any(rng))};
+      p[2] = {float(cube.origin[0] - 16 + near(rng)) + 0.5f * float(rng() & 1),
+              float(cube.origin[1] - 16 + near(rng)), float(cube.origin[2] - 16 + near(rng))};
+      triangles.push_back({p[0], p[1], p[2]});
+    }
+    triangles.push_back({{{0, 0, float(cube.origin[2] + 3)},
+                          {float(n), 0, float(cube.origin[2] + 3)},
+                          {0, float(n), float(cube.origin[2] + 3)}}});  // on a voxel face
+    const Scene scene = triangles_scene(triangles);
+    std::vector<std::uint64_t> want;
+    for (const auto& tri : scene.triangles) {
+      const GridTriangle t = to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
+                                     scene.positions[tri.v[2]]);
+      for (std::uint32_t z = cube.origin[2]; z < cube.origin[2] + cube.side; ++z)
+        for (std::uint32_t y = cube.origin[1]; y < cube.origin[1] + cube.side; ++y)
+          for (std::uint32_t x = cube.origin[0]; x < cube.origin[0] + cube.side; ++x)
+            if (triangle_touches_voxel(t, x, y, z)) want.push_back(format::morton_code(x, y, z));
+    }
+    std::sort(want.begin(), want.end());
+    want.erase(std::unique(want.begin(), want.end()), want.end());
+    ASSERT_FALSE(want.empty());
+    const std::vector<std::uint32_t> all = all_triangles(scene);
+    expect_leaves_equal(voxelize_surface_leaves(scene, grid, cube, all, 2), leaves_of(want),
+                        "huge at " + std::to_string(n));
+    EXPECT_EQ(voxelize_surface_cube(scene, grid, cube, all, true, 2).codes, want);
+  }
+}
+
 TEST(Voxelizer, LeavesByteIdenticalAcrossThreadsAndCubes) {
   KILN_REQUIRE_CORPUS();
   const Scene scene = import_scene({test::mesh_path("classic/spot.obj")}, 2);
-  const VoxelGrid grid = fit_voxel_grid(scene.bounds, 512);
+  const VoxelGrid grid = fit_voxel_grid(scene.bounds, 256);
   const std::vector<std::uint32_t> all = all_triangles(scene);
-  const VoxelLeaves one = voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 512}, all, 1);
+  const VoxelLeaves one = voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 256}, all, 1);
   for (const unsigned threads : {2u, 8u})
-    expect_leaves_equal(voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 512}, all, threads), one,
+    expect_leaves_equal(voxelize_surface_leaves(scene, grid, {{0, 0, 0}, 256}, all, threads), one,
                         std::to_string(threads) + " threads");
-  // Sub-cubes smaller than a brick (4, 16) and larger (256), with triangles_reaching.
-  for (const std::uint32_t side : {4u, 16u, 256u}) {
+  // Sub-cubes smaller than a brick (4, 16) and as large (128), with triangles_reaching.
+  for (const std::uint32_t side : {4u, 16u, 128u}) {
     VoxelLeaves joined;
-    const std::uint32_t per_axis = 512 / side;
+    const std::uint32_t per_axis = 256 / side;
     std::uint64_t cubes_done = 0;
     for (std::uint64_t c = 0; c < std::uint64_t(per_axis) * per_axis * per_axis; ++c) {
       const VoxelCube cube{{format::compact_bits(c) * side, format::compact_bits(c >> 1) * side,
                             format::compact_bits(c >> 2) * side},
                            side};
-      if (side == 4 && (c % 97) != 0) continue;  // a sample of the 2M small cubes
+      if (side == 4 && (c % 211) != 0) continue;  // a sample of the 262k small cubes
       ++cubes_done;
       const VoxelLeaves l =
           voxelize_surface_leaves(scene, grid, cube, triangles_reaching(scene, grid, cube), 2);

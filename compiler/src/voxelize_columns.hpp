@@ -16,7 +16,8 @@
 // `m` inside every test is set, one farther than `m` outside some test is skipped, and the rest
 // ("maybe") are decided by triangle_touches_voxel itself. So the output equals the predicate's
 // voxel set exactly, and only voxels within ~1e-12 voxel of a boundary (or all voxels of a
-// degenerate triangle) cost the full test.
+// degenerate triangle) cost the full test. Corners must lie within 2^40 grid units of the
+// origin (always so on a grid fitted to the scene); a triangle beyond that is skipped.
 #pragma once
 
 #include <algorithm>
@@ -91,6 +92,7 @@ class TriangleColumns {
 
  private:
   void add_test(const std::array<double, 3>& axis, double margin);
+  void fill_v_table(std::int64_t v0, std::int64_t v1);
   void add_interval(double b_lo, double b_hi, double k, double q1, double q2, double margin,
                     int level);
 
@@ -124,6 +126,16 @@ inline void narrow(const SlabInterval* tests, int count, double cu, double cv, d
   }
 }
 
+// The a-interval of the tests that depend on cv only, per local v index in [v0, v1].
+inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
+  v_table_.resize(2 * std::size_t(v1 - v0 + 1));
+  for (std::int64_t iv = v0; iv <= v1; ++iv) {
+    double* t = &v_table_[2 * std::size_t(iv - v0)];
+    t[0] = -INFINITY, t[1] = INFINITY;
+    narrow(tests_[4], count_[4], 0, double(iv) + 0.5, t[0], t[1]);
+  }
+}
+
 template <class Run, class Voxel>
 void TriangleColumns::walk(const VoxelRange& clip, Run run, Voxel voxel) {
   VoxelRange r;
@@ -138,12 +150,7 @@ void TriangleColumns::walk(const VoxelRange& clip, Run run, Voxel voxel) {
   narrow(tests_[0], count_[0], 0, 0, lo, hi);
   centre_range(lo, hi, r.lo[u], r.hi[u], u0, u1);
   const double u_sure_lo = lo + inset, u_sure_hi = hi - inset;
-  v_table_.resize(2 * std::size_t(r.hi[v] - r.lo[v] + 1));
-  for (std::int64_t iv = r.lo[v]; iv <= r.hi[v]; ++iv) {
-    double* t = &v_table_[2 * std::size_t(iv - r.lo[v])];
-    t[0] = -INFINITY, t[1] = INFINITY;
-    narrow(tests_[4], count_[4], 0, double(iv) + 0.5, t[0], t[1]);
-  }
+  fill_v_table(r.lo[v], r.hi[v]);
   std::int64_t c[3];
   auto exact = [&](std::int64_t from, std::int64_t to) {
     for (std::int64_t ia = from; ia <= to; ++ia) {
