@@ -486,7 +486,7 @@ std::vector<TempBlock> build_by_cubes(Context& ctx, std::uint32_t resolution, un
     holds[i] = build_fragment(ctx, candidates[i], fragments[i]);
     candidates[i] = {};
     const std::size_t n = ++done;
-    if (progress && (n % 64 == 0 || n == candidates.size()))
+    if (progress && n * 100 / candidates.size() != (n - 1) * 100 / candidates.size())
       std::fprintf(stderr, "\resvo: %zu/%zu cubes of %u^3", n, candidates.size(),
                    candidates.size() == 0 ? 0 : resolution >> ctx.load_level);
   });
