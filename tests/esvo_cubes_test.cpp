@@ -37,7 +37,8 @@ FlatEsvo build(const Scene& scene, std::uint32_t resolution, std::uint32_t cube_
 
 template <class T>
 bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
 }
 
 void expect_identical(const FlatEsvo& whole, const FlatEsvo& cubes, const std::string& what) {
