@@ -1,6 +1,8 @@
 // The ESVO as the compiler registers it: "esvo", its options, and its contribution to a blob:
 // words, page headers, block infos, normal attachment, and EsvoDesc with per-level statistics and
 // the bytes-per-voxel split.
+#include <unistd.h>
+
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
@@ -43,6 +45,7 @@ std::vector<StructureOption> esvo_options() {
        false, parse_contour_error},
       {"no-contours", "--no-contours", "false",
        "--accel esvo: plain cubes, subdivided to the finest level", true, parse_switch()},
+      memory_budget_option(),
   };
 }
 
@@ -67,6 +70,8 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
   options.contours = !request.switch_option("no-contours");
   options.contour_error = request.double_option("contour-error");
   options.threads = threads;
+  options.memory_budget = memory_budget_bytes(request.text_option("memory-budget"));
+  options.progress = isatty(STDERR_FILENO) != 0;  // a progress line only for a person watching
   const double bound = esvo_error_bound(options);
   auto storage = std::make_shared<FlatEsvo>(build_esvo(scene, options));
   const FlatEsvo& e = *storage;

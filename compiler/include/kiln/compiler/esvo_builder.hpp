@@ -22,6 +22,13 @@ struct EsvoBuildOptions {
   // sqrt(2 + (r + 1)^2) <= contour_error (r = 0 at sqrt(3); r = 1 at the default).
   double contour_error = 2.45;
   unsigned threads = 0;  // never changes the result
+  // Bytes the build may hold at once (0: default_memory_budget()); sizes the cubes voxelized one
+  // at a time, so peak memory follows the ESVO's own size. Never changes the result.
+  std::uint64_t memory_budget = 0;
+  // The side of those cubes (a power of two; at least 64, or the resolution for the whole grid at
+  // once); 0: from the budget. Never changes the result (tests compare the two).
+  std::uint32_t cube_side = 0;
+  bool progress = false;  // a line on stderr as cubes finish
 };
 
 // The bound the build guarantees for these options: sqrt(2 + (reach + 1)^2) finest voxels.
