@@ -57,6 +57,18 @@ struct Split {
   unsigned threads;
 };
 
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kSanitized = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kSanitized = true;
+#else
+constexpr bool kSanitized = false;
+#endif
+#else
+constexpr bool kSanitized = false;
+#endif
+
 // The whole grid against cubes of each `splits` side (at least 64, below the resolution).
 void check_mesh(const Scene& scene, std::uint32_t resolution, bool contours,
                 std::initializer_list<Split> splits, const std::string& name) {
@@ -95,17 +107,6 @@ TEST(EsvoCubes, CubeByCubeKeepsColours) {
   check_mesh(spot, 256, true, {{64, 2}}, "spot");
 }
 
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-#else
-constexpr bool kSanitized = false;
-#endif
 
 // The largest cube side and the whole grid, once, at 1024^3 (where the top levels hold blocks).
 TEST(EsvoCubes, CubeByCubeAt1024) {
