@@ -23,8 +23,8 @@ StructureOption voxel_resolution_option(std::uint32_t max) {
   return {"resolution",
           "--resolution",
           "512",
-          "Voxel grid side (finest level) of the voxel structures: a power of two, 8.." +
-              std::to_string(max),
+          "Voxel grid side (finest level) of the voxel structures: a power of two, 8..16384 "
+          "(dag: 8..131072, built out of core)",
           false,
           parse};
 }
