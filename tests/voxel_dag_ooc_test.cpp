@@ -50,8 +50,10 @@ Scene slivers() {
                    {0.5f, 0.5f, 0},
                    {0.5f, 0.5f, 1},
                    {0.50001f, 0.5f, 1},
-                   {1, 1, 1}},
-                  {{{0, 1, 2}}, {{3, 4, 5}}, {{6, 6, 6}}});
+                   {1, 1, 1},
+                   {0.99999f, 1, 1},
+                   {1, 0.99999f, 1}},
+                  {{{0, 1, 2}}, {{3, 4, 5}}, {{6, 7, 8}}});
 }
 
 // The DAG words by the format's definition alone (docs/FORMAT.md), with ordered maps: nodes
