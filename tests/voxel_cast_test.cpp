@@ -245,7 +245,7 @@ TEST(VoxelCast, CommandLineBuildDumpTrace) {
     wrong += std::memcmp(&from_file, &expected, sizeof expected) != 0;
   }
   EXPECT_EQ(wrong, 0u);
-  for (const char* bad : {"100", "0", "4", "32768"}) {
+  for (const char* bad : {"100", "0", "4", "262144"}) {
     const auto result =
         run_kiln("build " + quoted(mesh_path("classic/teapot.obj")) + " --accel dag --resolution " +
                  bad + " -o " + quoted(dir.file("x.kiln")));

@@ -375,12 +375,13 @@ TEST(Voxelizer, GeneratedWorstCases) {
     for (const std::uint32_t n : {8u, 16u, 32u, 64u})
       expect_matches_brute_force(flat, n, Sweep::kWholeGrid, "flat square");
   }
-  // The largest resolution: 16384^3 (128 bricks per axis, 42-bit codes) on a long sliver.
+  // The largest whole-grid resolution: 16384^3 (128 bricks per axis, 42-bit codes) on a long
+  // sliver.
   {
     const Scene sliver = triangles_scene({{{{0, 0, 0}, {1, 0, 0}, {1, 1e-4f, 0}}}});
-    const Voxels v =
-        expect_matches_brute_force(sliver, format::kVoxelMaxResolution, Sweep::kBoxPlus2, "sliver");
-    EXPECT_GE(v.codes.size(), std::size_t(format::kVoxelMaxResolution));
+    const Voxels v = expect_matches_brute_force(sliver, format::kVoxelInCoreMaxResolution,
+                                                Sweep::kBoxPlus2, "sliver");
+    EXPECT_GE(v.codes.size(), std::size_t(format::kVoxelInCoreMaxResolution));
   }
 }
 

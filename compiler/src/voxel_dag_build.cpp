@@ -2,81 +2,154 @@
 #include <array>
 #include <bit>
 #include <stdexcept>
-#include <unordered_map>
+#include <string>
 
 #include "kiln/compiler/voxel_dag_builder.hpp"
-#include "voxel_node_signature.hpp"
+#include "kiln/formats/voxel_grid.hpp"
+#include "voxel_dag_reducer.hpp"
 
 namespace kiln {
 
-namespace {
-
-using Signature = VoxelNodeSignature;
-using SignatureHash = VoxelNodeSignatureHash;
-
-// One level of the plain octree, in Morton order: each node's key and its DAG id.
-struct Level {
-  std::vector<std::uint64_t> keys;
-  std::vector<std::uint32_t> ids;
-};
-
-// Leaves: 64-bit masks of 4x4x4 blocks, merged by value. Returns the unique masks in order of
-// first occurrence; `below` gets every leaf's key and mask id, `dag` the leaf level's stats.
-std::vector<std::uint64_t> merge_leaves(const VoxelLeaves& leaves, std::uint32_t leaf_level,
-                                        Level& below, FlatVoxelDag& dag) {
-  std::vector<std::uint64_t> leaf_masks;
-  std::unordered_map<std::uint64_t, std::uint32_t> ids;
-  for (std::size_t i = 0; i < leaves.keys.size(); ++i) {
-    const std::uint64_t mask = leaves.masks[i];
-    const auto [it, fresh] = ids.emplace(mask, std::uint32_t(leaf_masks.size()));
-    if (fresh) leaf_masks.push_back(mask);
-    below.keys.push_back(leaves.keys[i]);
-    below.ids.push_back(it->second);
+template <class Value, class Hash>
+std::uint32_t UniqueValues<Value, Hash>::insert(const Value& value) {
+  if (2 * (values_.size() + 1) > slots_.size()) grow();
+  const std::size_t mask = slots_.size() - 1;
+  for (std::size_t slot = Hash{}(value)&mask;; slot = (slot + 1) & mask) {
+    const std::uint32_t id = slots_[slot];
+    if (id == 0) {
+      if (values_.size() >= 0xFFFFFFFEull)
+        throw std::length_error("voxel DAG: more than 2^32 nodes on one level");
+      values_.push_back(value);
+      slots_[slot] = std::uint32_t(values_.size());
+      return std::uint32_t(values_.size() - 1);
+    }
+    if (values_[id - 1] == value) return id - 1;
   }
-  auto& s = dag.level_stats[leaf_level];
-  s.svo_nodes = below.keys.size();
-  s.dag_nodes = leaf_masks.size();
-  s.bytes = 8 * leaf_masks.size();
-  dag.svo_bytes += 8 * below.keys.size();
-  return leaf_masks;
 }
 
-// One interior level from the level `below` it: siblings (same key >> 3) form a signature, and
-// equal signatures merge. Appends the new unique signatures to `unique` (ids index it) and adds
-// the plain octree's bytes for this level to `svo_bytes`.
-Level merge_level(const Level& below, std::vector<Signature>& unique, std::uint64_t& svo_bytes) {
+template <class Value, class Hash>
+void UniqueValues<Value, Hash>::grow() {
+  std::vector<std::uint32_t> slots(std::max<std::size_t>(64, 2 * slots_.size()), 0);
+  const std::size_t mask = slots.size() - 1;
+  for (std::size_t id = 0; id < values_.size(); ++id) {
+    std::size_t slot = Hash{}(values_[id]) & mask;
+    while (slots[slot] != 0) slot = (slot + 1) & mask;
+    slots[slot] = std::uint32_t(id + 1);
+  }
+  slots_.swap(slots);
+}
+
+VoxelDagReducer::VoxelDagReducer(std::uint32_t resolution) {
+  if (resolution < 8 || (resolution & (resolution - 1)) != 0)
+    throw std::invalid_argument("voxel DAG resolution " + std::to_string(resolution) +
+                                " is not a power of two >= 8");
+  levels_ = std::uint32_t(std::bit_width(resolution) - 1);
+  leaf_level_ = levels_ - 2;
+  nodes_.resize(leaf_level_);
+  stats_.levels = levels_;
+  stats_.level_stats.resize(leaf_level_ + 1);
+}
+
+std::uint32_t VoxelDagReducer::level_of_side(std::uint32_t side) const {
+  return levels_ - std::uint32_t(std::bit_width(side) - 1);
+}
+
+// Words may only be addressed by 32-bit pointers: refuse as soon as the unique nodes pass that,
+// not after the whole build.
+void VoxelDagReducer::count_words(std::uint64_t words) {
+  words_ += words;
+  if (words_ > 0xFFFFFFFFull)
+    throw std::length_error(
+        "voxel DAG exceeds 2^32 words (16 GiB), the limit of its 32-bit child pointers");
+}
+
+// Leaves: 64-bit masks of 4x4x4 blocks, merged by value.
+VoxelDagReducer::Level VoxelDagReducer::merge_leaves(const VoxelLeaves& leaves) {
+  Level below;
+  below.keys = leaves.keys;
+  below.ids.reserve(leaves.keys.size());
+  for (const std::uint64_t mask : leaves.masks) {
+    const std::size_t before = leaves_.values().size();
+    below.ids.push_back(leaves_.insert(mask));
+    if (leaves_.values().size() != before) count_words(2);
+  }
+  auto& s = stats_.level_stats[leaf_level_];
+  s.svo_nodes += leaves.keys.size();
+  stats_.svo_bytes += 8 * leaves.keys.size();
+  stats_.voxel_count += leaves.voxel_count;
+  return below;
+}
+
+std::uint32_t VoxelDagReducer::insert_node(std::uint32_t level, const VoxelNodeSignature& s) {
+  const std::size_t before = nodes_[level].values().size();
+  const std::uint32_t id = nodes_[level].insert(s);
+  if (nodes_[level].values().size() != before) count_words(1 + std::popcount(s.v[0]));
+  stats_.level_stats[level].svo_nodes += 1;
+  stats_.svo_bytes += 4 * (1 + std::popcount(s.v[0]));
+  return id;
+}
+
+std::uint32_t VoxelDagReducer::add_node(std::uint32_t level, const std::uint32_t (&children)[8]) {
+  VoxelNodeSignature s;
+  s.v.fill(~0u);
+  s.v[0] = 0;
+  for (int octant = 0; octant < 8; ++octant)
+    if (children[octant] != kEmpty) s.v[0] |= 1u << octant, s.v[1 + octant] = children[octant];
+  return s.v[0] == 0 ? kEmpty : insert_node(level, s);
+}
+
+// One interior level from the level below it: siblings (same key >> 3) form a signature.
+VoxelDagReducer::Level VoxelDagReducer::merge_level(std::uint32_t level, const Level& below) {
   Level current;
-  std::unordered_map<Signature, std::uint32_t, SignatureHash> ids;
   for (std::size_t i = 0; i < below.keys.size();) {
     const std::uint64_t key = below.keys[i] >> 3;
-    Signature sig;
-    sig.v.fill(~0u);
-    sig.v[0] = 0;
-    for (; i < below.keys.size() && below.keys[i] >> 3 == key; ++i) {
-      const auto octant = below.keys[i] & 7;
-      sig.v[0] |= 1u << octant;
-      sig.v[1 + octant] = below.ids[i];
-    }
-    svo_bytes += 4 * (1 + std::popcount(sig.v[0]));
-    const auto [it, fresh] = ids.emplace(sig, std::uint32_t(unique.size()));
-    if (fresh) unique.push_back(sig);
+    std::uint32_t children[8];
+    std::fill(std::begin(children), std::end(children), kEmpty);
+    for (; i < below.keys.size() && below.keys[i] >> 3 == key; ++i)
+      children[below.keys[i] & 7] = below.ids[i];
     current.keys.push_back(key);
-    current.ids.push_back(it->second);
+    current.ids.push_back(add_node(level, children));
   }
   return current;
 }
 
+std::uint32_t VoxelDagReducer::add_cube(const VoxelLeaves& leaves, const VoxelCube& cube) {
+  if (leaves.keys.empty()) return kEmpty;
+  const std::uint32_t top = level_of_side(cube.side);
+  // Every leaf key must lie in the cube: its key at the cube's level is the cube's.
+  const std::uint64_t cube_key =
+      format::morton_code(cube.origin[0], cube.origin[1], cube.origin[2]) >> 3 * (levels_ - top);
+  const auto outside = [&](std::uint64_t key) {
+    return key >> 3 * (leaf_level_ - top) != cube_key;
+  };
+  if (outside(leaves.keys.front()) || outside(leaves.keys.back()) ||
+      !std::is_sorted(leaves.keys.begin(), leaves.keys.end()))
+    throw std::invalid_argument("voxel codes lie outside the grid");
+  Level below = merge_leaves(leaves);
+  for (std::uint32_t level = leaf_level_; level-- > top;) below = merge_level(level, below);
+  return below.ids.front();
+}
+
+std::uint64_t VoxelDagReducer::bytes() const {
+  std::uint64_t total = leaves_.bytes();
+  for (const auto& level : nodes_) total += level.bytes();
+  return total;
+}
+
+namespace {
+
 // Layout: levels top down, then the leaf masks; pointers are absolute word indices. Fills
 // `dag.words`, the first words and byte counts.
-void lay_out(const std::vector<std::vector<Signature>>& unique,
+void lay_out(const std::vector<const std::vector<VoxelNodeSignature>*>& unique,
              const std::vector<std::uint64_t>& leaf_masks, FlatVoxelDag& dag) {
   const auto leaf_level = std::uint32_t(unique.size());
-  std::vector<std::vector<std::uint64_t>> offsets(leaf_level);  // word of each node in its level
+  std::vector<std::vector<std::uint32_t>> offsets(leaf_level);  // word of each node in its level
   std::uint64_t word = 0;
   for (std::uint32_t level = 0; level < leaf_level; ++level) {
     dag.level_stats[level].first_word = word;
-    for (const Signature& s : unique[level]) {
-      offsets[level].push_back(word);
+    offsets[level].reserve(unique[level]->size());
+    for (const VoxelNodeSignature& s : *unique[level]) {
+      offsets[level].push_back(std::uint32_t(word));
       word += 1 + std::popcount(s.v[0]);
     }
     dag.level_stats[level].bytes = 4 * (word - dag.level_stats[level].first_word);
@@ -87,7 +160,7 @@ void lay_out(const std::vector<std::vector<Signature>>& unique,
   if (word > 0xFFFFFFFFull) throw std::length_error("voxel DAG exceeds 2^32 words");
   dag.words.reserve(word);
   for (std::uint32_t level = 0; level < leaf_level; ++level)
-    for (const Signature& s : unique[level]) {
+    for (const VoxelNodeSignature& s : *unique[level]) {
       dag.words.push_back(s.v[0]);
       for (int octant = 0; octant < 8; ++octant) {
         if ((s.v[0] >> octant & 1) == 0) continue;
@@ -106,31 +179,29 @@ void lay_out(const std::vector<std::vector<Signature>>& unique,
 
 }  // namespace
 
+FlatVoxelDag VoxelDagReducer::finish(std::uint32_t root) {
+  if (root == kEmpty) throw std::invalid_argument("a voxel DAG needs at least one voxel");
+  FlatVoxelDag dag = std::move(stats_);
+  std::vector<const std::vector<VoxelNodeSignature>*> unique;
+  for (std::uint32_t level = 0; level < leaf_level_; ++level) {
+    unique.push_back(&nodes_[level].values());
+    dag.level_stats[level].dag_nodes = nodes_[level].values().size();
+  }
+  auto& leaf = dag.level_stats[leaf_level_];
+  leaf.dag_nodes = leaves_.values().size();
+  leaf.bytes = 8 * leaf.dag_nodes;
+  lay_out(unique, leaves_.values(), dag);
+  return dag;
+}
+
 FlatVoxelDag build_voxel_dag(std::span<const std::uint64_t> codes, std::uint32_t resolution) {
   return build_voxel_dag(leaves_of(codes), resolution);
 }
 
 FlatVoxelDag build_voxel_dag(const VoxelLeaves& leaves, std::uint32_t resolution) {
   if (leaves.keys.empty()) throw std::invalid_argument("a voxel DAG needs at least one voxel");
-  FlatVoxelDag dag;
-  dag.levels = std::uint32_t(std::bit_width(resolution) - 1);
-  dag.voxel_count = leaves.voxel_count;
-  const std::uint32_t leaf_level = dag.levels - 2;
-  dag.level_stats.resize(leaf_level + 1);
-
-  Level below;
-  const std::vector<std::uint64_t> leaf_masks = merge_leaves(leaves, leaf_level, below, dag);
-  // Interior levels, bottom up.
-  std::vector<std::vector<Signature>> unique(leaf_level);
-  for (std::uint32_t level = leaf_level; level-- > 0;) {
-    below = merge_level(below, unique[level], dag.svo_bytes);
-    dag.level_stats[level].svo_nodes = below.keys.size();
-    dag.level_stats[level].dag_nodes = unique[level].size();
-  }
-  if (below.keys.size() != 1 || below.keys[0] != 0)
-    throw std::invalid_argument("voxel codes lie outside the grid");
-  lay_out(unique, leaf_masks, dag);
-  return dag;
+  VoxelDagReducer reducer(resolution);
+  return reducer.finish(reducer.add_cube(leaves, VoxelCube{{0, 0, 0}, resolution}));
 }
 
 std::vector<std::uint64_t> expand_voxel_dag(std::span<const std::uint32_t> words,

@@ -1,7 +1,11 @@
 // The voxel DAG as the compiler registers it: "dag", its options, and its contribution to a
 // blob: the DAG words, optionally the voxels' Morton codes and normals (the attachment),
 // VoxelDagDesc with per-level statistics.
+#include <unistd.h>
+
+#include <chrono>
 #include <cstdio>
+#include <stdexcept>
 
 #include "kiln/compiler/structure_builder.hpp"
 #include "kiln/compiler/voxel_dag_builder.hpp"
@@ -18,8 +22,18 @@ extern const StructureBuilder kVoxelDagBuilder;
 namespace {
 
 std::vector<StructureOption> voxel_dag_options() {
+  StructureOption cube{"cube-side",
+                       "",
+                       "0",
+                       "--accel dag: sub-cube side of the out-of-core build (a power of two; 0: "
+                       "from --memory-budget); never changes the output",
+                       false,
+                       parse_uint_in(0, format::kVoxelMaxResolution)};
+  cube.enters_output = false;
   return {
-      voxel_resolution_option(),
+      voxel_resolution_option(format::kVoxelMaxResolution),
+      memory_budget_option(),
+      cube,
       {"normals", "--voxel-normals", "false",
        "--accel dag: attach each voxel's averaged triangle normal", true, parse_switch()},
       {"solid", "--solid", "false",
@@ -66,19 +80,67 @@ auto describe_with(const DagStorage& storage, bool normals, bool solid,
   };
 }
 
+// "dag: cube 12/512, 31 % of voxels, ETA 1m20s" on one line of a terminal, rewritten in place
+// at most 4 times a second once the build has run for a second (as kiln build's own line).
+std::function<void(std::uint64_t, std::uint64_t, double)> terminal_progress() {
+  if (!isatty(STDERR_FILENO)) return {};
+  using Clock = std::chrono::steady_clock;
+  auto last = std::make_shared<Clock::time_point>(Clock::now());
+  return [start = Clock::now(), last](std::uint64_t done, std::uint64_t total, double share) {
+    const auto now = Clock::now();
+    const bool end = done == total;
+    if (now - start < std::chrono::seconds(1) ||
+        (!end && now - *last < std::chrono::milliseconds(250)))
+      return;
+    *last = now;
+    const double elapsed = std::chrono::duration<double>(now - start).count();
+    const double eta = share > 0 ? elapsed * (1 - share) / share : 0;
+    std::fprintf(stderr, "\r\033[Kdag: cube %llu/%llu, %.0f %% of voxels, ETA %dm%02ds%s",
+                 (unsigned long long)done, (unsigned long long)total, 100 * share, int(eta / 60),
+                 int(eta) % 60, end ? "\n" : "");
+    std::fflush(stderr);
+  };
+}
+
+// The surface DAG cube by cube (voxel_dag_builder.hpp): one code path at every resolution; with a
+// budget that holds the whole grid it is one cube.
+FlatVoxelDag surface_dag(const Scene& scene, const VoxelGrid& grid, const StructureRequest& request,
+                         unsigned threads) {
+  OutOfCoreDagOptions ooc;
+  const std::string& budget = request.text_option("memory-budget");
+  ooc.memory_budget = memory_budget_bytes(budget);
+  ooc.cube_side = request.uint_option("cube-side");
+  ooc.threads = threads;
+  ooc.progress = terminal_progress();
+  return build_voxel_dag_out_of_core(scene, grid, ooc);
+}
+
 BuiltStructure build(const Scene& scene, const StructureRequest& request, unsigned threads) {
   VoxelizeOptions options;
   options.resolution = request.uint_option("resolution");
   options.normals = request.switch_option("normals");
   options.solid = request.switch_option("solid");
   options.threads = threads;
+  // Normals and the solid fill need every surface voxel at once.
+  if ((options.normals || options.solid) && options.resolution > format::kVoxelInCoreMaxResolution)
+    throw std::invalid_argument(
+        "--accel dag: --solid and --voxel-normals work in core, up to "
+        "--resolution " +
+        std::to_string(format::kVoxelInCoreMaxResolution));
   auto storage = std::make_shared<DagStorage>();
-  storage->voxels = voxelize_surface(scene, options);
-  storage->dag = options.solid ? build_voxel_dag(solid_leaves(scene, storage->voxels.grid,
-                                                              storage->voxels.codes, threads),
-                                                 options.resolution)
-                               : build_voxel_dag(storage->voxels.codes, options.resolution);
-  const std::uint64_t surface_voxels = storage->voxels.codes.size();
+  std::uint64_t surface_voxels = 0;
+  if (options.normals || options.solid) {
+    storage->voxels = voxelize_surface(scene, options);
+    surface_voxels = storage->voxels.codes.size();
+    storage->dag = options.solid ? build_voxel_dag(solid_leaves(scene, storage->voxels.grid,
+                                                                storage->voxels.codes, threads),
+                                                   options.resolution)
+                                 : build_voxel_dag(storage->voxels.codes, options.resolution);
+  } else {
+    storage->voxels.grid = fit_voxel_grid(scene.bounds, options.resolution);
+    storage->dag = surface_dag(scene, storage->voxels.grid, request, threads);
+    surface_voxels = storage->dag.voxel_count;
+  }
   if (!options.normals) std::vector<std::uint64_t>().swap(storage->voxels.codes);
   BuiltStructure built;
   built.sections = {raw_section(format::kSectionDagWords, storage->dag.words)};

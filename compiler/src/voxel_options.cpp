@@ -12,22 +12,23 @@
 
 namespace kiln {
 
-StructureOption voxel_resolution_option() {
-  auto parse = [](std::string_view text) {
+StructureOption voxel_resolution_option(std::uint32_t max) {
+  auto parse = [max](std::string_view text) {
     std::uint32_t n = 0;
     const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), n);
     if (text.empty() || error == std::errc::invalid_argument || end != text.data() + text.size())
       throw std::invalid_argument("not an integer");
-    if (error != std::errc() || !format::is_valid_voxel_resolution(n))
+    if (error != std::errc() || !format::is_valid_voxel_resolution(n, max))
       throw std::invalid_argument("must be a power of two in " +
                                   std::to_string(format::kVoxelMinResolution) + ".." +
-                                  std::to_string(format::kVoxelMaxResolution));
+                                  std::to_string(max));
     return std::to_string(n);
   };
   return {"resolution",
           "--resolution",
           "512",
-          "Voxel grid side (finest level) of the voxel structures: a power of two, 8..16384",
+          "Voxel grid side (finest level) of the voxel structures: a power of two, 8..16384 "
+          "(dag: 8..131072, built out of core)",
           false,
           parse};
 }
@@ -67,14 +68,15 @@ StructureOption memory_budget_option() {
     if (text == "auto") return std::string("auto");
     return std::to_string(parse_memory_size(text));
   };
-  StructureOption option{"memory-budget",
-                         "--memory-budget",
-                         "auto",
-                         "Bytes a voxel build may hold at once, e.g. 8G or 512M (K, M, G, T: "
-                         "powers of 1024); auto: half the memory, at most 8G. Never changes "
-                         "the output",
-                         false,
-                         parse};
+  StructureOption option{
+      "memory-budget",
+      "--memory-budget",
+      "auto",
+      "--accel dag, esvo: bytes the build may hold at once, e.g. 8G or 512M (K, M, G, T: "
+      "powers of 1024); auto: half the memory, at most 8G. Never changes "
+      "the output",
+      false,
+      parse};
   option.enters_output = false;
   return option;
 }

@@ -6,21 +6,19 @@
 #include <string_view>
 
 #include "kiln/compiler/structure_builder.hpp"
+#include "kiln/formats/voxel_grid.hpp"
 
 namespace kiln {
 
 /// `resolution` (global flag --resolution): the voxel grid's side at the finest level, a power
-/// of two in 8..16384; default 512.
-StructureOption voxel_resolution_option();
+/// of two in 8..max (the kind's limit: kVoxelInCoreMaxResolution = 16384 for the kinds that
+/// voxelize the whole grid at once); default 512.
+StructureOption voxel_resolution_option(std::uint32_t max = format::kVoxelInCoreMaxResolution);
 
 /// Parses a memory size: a whole number of bytes with an optional suffix K, M, G or T (powers of
 /// 1024, case-insensitive, an optional trailing B or iB). Throws std::invalid_argument with a
 /// one-line reason for anything else, zero, or a size past 2^64.
 std::uint64_t parse_memory_size(std::string_view text);
-
-/// The budget when none is given: half the physical memory, at most 8 GiB (1 GiB when the
-/// machine does not say).
-std::uint64_t default_memory_budget();
 
 /// `memory-budget` (global flag --memory-budget SIZE, e.g. 8G): bytes a voxel build may hold at
 /// once; "auto" (the default) is default_memory_budget(). Never changes the blob. Canonical text:

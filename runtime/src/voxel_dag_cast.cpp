@@ -33,7 +33,8 @@ VoxelHit VoxelDagView::cast(const Ray& ray, Cost* cost) const {
   const std::uint32_t leaf_level = levels_ - 2;
   // A node pushes at most its eight children (a line meets four octants; eight when it grazes
   // the centre), and only the last pushed is expanded: at most 7 waiting per level.
-  Cell stack[8 * 16];
+  Cell stack[8 * 18];  // 17 levels at format::kVoxelMaxResolution
+  static_assert(format::kVoxelMaxResolution <= (1u << 17));
   std::uint32_t top = 0;
   stack[top++] = {0, 0, 0, 0, 0};
   Candidate order[8];

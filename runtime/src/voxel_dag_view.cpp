@@ -17,7 +17,9 @@ VoxelDagView::VoxelDagView(std::span<const std::uint32_t> words, const VoxelGrid
                            std::span<const std::uint32_t> normals, const std::string& name)
     : words_(words), frame_(frame), codes_(codes), normals_(normals) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
-  if (const std::string problem = grid_frame_problem(frame); !problem.empty()) fail(problem);
+  if (const std::string problem = grid_frame_problem(frame, format::kVoxelMaxResolution);
+      !problem.empty())
+    fail(problem);
   const std::uint32_t n = frame.resolution;
   levels_ = std::uint32_t(std::bit_width(n) - 1);
   const std::uint32_t leaf_level = levels_ - 2;

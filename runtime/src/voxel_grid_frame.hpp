@@ -23,8 +23,10 @@ VoxelGridFrame grid_frame_of(const Desc& d) {
 
 // Empty when the frame is usable: a power-of-two resolution in range, a finite positive voxel,
 // and a grid whose corners are finite floats (queries and casts work in float world space).
-inline std::string grid_frame_problem(const VoxelGridFrame& frame) {
-  if (!format::is_valid_voxel_resolution(frame.resolution))
+// `max_resolution`: the kind's own limit (its casts' stacks are sized for it).
+inline std::string grid_frame_problem(
+    const VoxelGridFrame& frame, std::uint32_t max_resolution = format::kVoxelInCoreMaxResolution) {
+  if (!format::is_valid_voxel_resolution(frame.resolution, max_resolution))
     return "resolution " + std::to_string(frame.resolution) + " is not a power of two in range";
   if (!(frame.voxel_size > 0) || !std::isfinite(frame.voxel_size)) return "bad voxel size";
   const double extent = frame.voxel_size * frame.resolution;

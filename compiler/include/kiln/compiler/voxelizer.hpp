@@ -64,6 +64,10 @@ struct Voxels {
 // [kVoxelMinResolution, kVoxelMaxResolution].
 Voxels voxelize_surface(const Scene& scene, const VoxelizeOptions& options);
 
+/// The voxel builders' memory budget when none is given (--memory-budget auto): half the
+/// physical memory, at most 8 GiB (1 GiB when the machine does not say).
+std::uint64_t default_memory_budget();
+
 /// A cube of grid cells, [origin, origin + side) on each axis: side a power of two >= 4 and
 /// <= the resolution, each origin a multiple of side. Out-of-core builds work cube by cube.
 struct VoxelCube {

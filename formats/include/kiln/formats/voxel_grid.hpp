@@ -8,12 +8,19 @@
 namespace kiln::format {
 
 inline constexpr std::uint32_t kVoxelMinResolution = 8;
-inline constexpr std::uint32_t kVoxelMaxResolution = 16384;
+/// The largest grid a voxel format describes: 17 levels, 51-bit Morton codes, coordinates that
+/// floats hold exactly (casts work in float grid space). The voxel DAG, built out of core, goes
+/// there; the kinds that voxelize the whole grid at once stop at kVoxelInCoreMaxResolution.
+inline constexpr std::uint32_t kVoxelMaxResolution = 131072;
+/// The largest grid of the structures built in core (ESVO, SSVDAG, the DAG with --solid or
+/// --voxel-normals), and of voxelize_surface: their memory follows the surface voxels.
+inline constexpr std::uint32_t kVoxelInCoreMaxResolution = 16384;
 
-/// Whether `n` voxels per side is a usable grid: a power of two in [kVoxelMinResolution,
-/// kVoxelMaxResolution].
-inline bool is_valid_voxel_resolution(std::uint32_t n) {
-  return (n & (n - 1)) == 0 && n >= kVoxelMinResolution && n <= kVoxelMaxResolution;
+/// Whether `n` voxels per side is a usable grid: a power of two in [kVoxelMinResolution, max];
+/// `max` is the kind's own limit (kVoxelInCoreMaxResolution unless the kind says otherwise).
+inline bool is_valid_voxel_resolution(std::uint32_t n,
+                                      std::uint32_t max = kVoxelInCoreMaxResolution) {
+  return (n & (n - 1)) == 0 && n >= kVoxelMinResolution && n <= max && n <= kVoxelMaxResolution;
 }
 
 // Morton code of a voxel: bit 3i holds bit i of x, 3i+1 of y, 3i+2 of z.
