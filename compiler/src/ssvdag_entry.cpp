@@ -2,11 +2,15 @@
 // its contribution to a blob: the node words, the leaf masks and SsvdagDesc with per-level
 // statistics beside the DAG's.
 #include <cstdio>
+#include <stdexcept>
+#include <string>
 
 #include "kiln/compiler/ssvdag_builder.hpp"
 #include "kiln/compiler/structure_builder.hpp"
+#include "kiln/compiler/voxel_dag_builder.hpp"
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/formats/ssvdag.hpp"
+#include "kiln/formats/voxel_grid.hpp"
 #include "kiln/runtime/blob.hpp"
 #include "kiln/schema/manifest_generated.h"
 #include "voxel_options.hpp"
@@ -20,6 +24,7 @@ namespace {
 std::vector<StructureOption> ssvdag_options() {
   return {
       voxel_resolution_option(),
+      memory_budget_option(),
       {"solid", "--solid", "false",
        "--accel ssvdag: fill the inside too (closed meshes), as --accel dag does", true,
        parse_switch()},
@@ -69,14 +74,22 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
   options.solid = request.switch_option("solid");
   options.threads = threads;
   auto storage = std::make_shared<SsvdagStorage>();
-  {
-    // The voxelizer and the leaves are the DAG's; only the reduction differs.
+  if (options.solid) {
+    // The solid fill needs every surface voxel at once.
     Voxels voxels = voxelize_surface(scene, options);
     storage->grid = voxels.grid;
-    storage->ssvdag = options.solid
-                          ? build_ssvdag(solid_leaves(scene, voxels.grid, voxels.codes, threads),
-                                         options.resolution, threads)
-                          : build_ssvdag(voxels.codes, options.resolution, threads);
+    storage->ssvdag = build_ssvdag(solid_leaves(scene, voxels.grid, voxels.codes, threads),
+                                   options.resolution, threads);
+  } else {
+    // The DAG's out-of-core build under the budget, then its unique nodes reduced by symmetry.
+    if (!format::is_valid_voxel_resolution(options.resolution))
+      throw std::invalid_argument("--resolution " + std::to_string(options.resolution) +
+                                  " is outside the SSVDAG's range");
+    storage->grid = fit_voxel_grid(scene.bounds, options.resolution);
+    OutOfCoreDagOptions ooc;
+    ooc.memory_budget = memory_budget_bytes(request.text_option("memory-budget"));
+    ooc.threads = threads;
+    storage->ssvdag = build_ssvdag(build_voxel_dag_out_of_core(scene, storage->grid, ooc), threads);
   }
   BuiltStructure built;
   built.sections = {raw_section(format::kSectionSsvdagNodes, storage->ssvdag.words),
