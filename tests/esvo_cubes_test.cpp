@@ -57,18 +57,6 @@ struct Split {
   unsigned threads;
 };
 
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-#else
-constexpr bool kSanitized = false;
-#endif
-
 // The whole grid against cubes of each `splits` side (at least 64, below the resolution).
 void check_mesh(const Scene& scene, std::uint32_t resolution, bool contours,
                 std::initializer_list<Split> splits, const std::string& name) {
@@ -88,7 +76,7 @@ TEST(EsvoCubes, CubeByCubeIsByteIdenticalToTheWholeGrid) {
   check_mesh(bunny, 128, true, {{64, 1}, {64, 2}}, "bunny");
   // Cubes above, at and below the block level (level 4).
   check_mesh(bunny, 256, true, {{64, 1}, {64, 2}, {128, 2}}, "bunny");
-  if (kSanitized) return;  // the paths above cover the code; the rest is for scale (CI time)
+  if (test::kSanitized) return;  // the paths above cover the code; the rest is for scale (CI time)
   check_mesh(bunny, 512, true, {{64, 2}, {256, 2}}, "bunny");
   check_mesh(bunny, 256, false, {{64, 2}}, "bunny");
   const Scene dragon = import_scene({mesh_path("stanford/dragon_100k.obj.zst")}, 2);
@@ -107,11 +95,11 @@ TEST(EsvoCubes, CubeByCubeKeepsColours) {
   check_mesh(spot, 256, true, {{64, 2}}, "spot");
 }
 
-
 // The largest cube side and the whole grid, once, at 1024^3 (where the top levels hold blocks).
 TEST(EsvoCubes, CubeByCubeAt1024) {
   KILN_REQUIRE_CORPUS();
-  if (kSanitized) GTEST_SKIP() << "the same paths run at 512^3 above; skipped for time under ASan";
+  if (test::kSanitized)
+    GTEST_SKIP() << "the same paths run at 512^3 above; skipped for time under ASan";
   const Scene bunny = import_scene({mesh_path("stanford/stanford-bunny.obj.zst")}, 2);
   const FlatEsvo whole = build(bunny, 1024, 1024, true, 2);
   expect_identical(whole, build(bunny, 1024, 128, true, 2), "bunny 1024^3, cubes of 128^3");
@@ -141,7 +129,8 @@ long long cli_peak_bytes(const std::vector<std::string>& arguments) {
 // within the budget plus a stated slack over the process baseline (import and the output).
 TEST(EsvoCubes, SmallBudgetBoundsThePeak) {
   KILN_REQUIRE_CORPUS();
-  if (kSanitized) GTEST_SKIP() << "resident sizes under AddressSanitizer are its own: skipped";
+  if (test::kSanitized)
+    GTEST_SKIP() << "resident sizes under AddressSanitizer are its own: skipped";
   TempDir dir;
   const std::string mesh = mesh_path("stanford/stanford-bunny.obj.zst");
   const auto peak = [&](const std::string& resolution, const std::string& budget) {

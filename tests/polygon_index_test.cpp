@@ -32,12 +32,6 @@ namespace {
 using format::Box2d;
 using format::Double2;
 
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-
 // The shared data beside the project (as in CI), whatever directory the test runs in.
 const std::string kGeo = KILN_MESH_DIR "/../geo/";
 
@@ -405,8 +399,8 @@ TEST_P(SharedLayers, RandomAndBoundaryPointsAgreeWithBruteForce) {
   const PolygonLayer layer = load_layer(kGeo + GetParam());
   const FlatPolygonIndex index = build_polygon_index(view_of(layer), {});
   const PolygonIndexView view = open_view(layer, index);
-  auto points = random_points(layer.bounds, kSanitized ? 5000 : 100000, 5);
-  const auto boundary = boundary_points(layer, kSanitized ? 97 : 7);
+  auto points = random_points(layer.bounds, test::kSanitized ? 5000 : 100000, 5);
+  const auto boundary = boundary_points(layer, test::kSanitized ? 97 : 7);
   points.insert(points.end(), boundary.begin(), boundary.end());
   expect_agrees(layer, view, points, GetParam());
 }
@@ -462,7 +456,7 @@ TEST(PolygonIndex, SharedCountyBordersGoToExactlyOneSide) {
       ++overlapping;
       continue;
     }
-    if (++shared % (kSanitized ? 16 : 1)) continue;
+    if (++shared % (test::kSanitized ? 16 : 1)) continue;
     for (const Double2 p :
          {e.a, e.b, Double2{0.5 * e.a.x + 0.5 * e.b.x, 0.5 * e.a.y + 0.5 * e.b.y}}) {
       view.locate_all(p, all);

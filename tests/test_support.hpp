@@ -17,6 +17,19 @@ struct Scene;
 
 namespace kiln::test {
 
+/// Built with AddressSanitizer: resident sizes mean nothing and tests at scale are cut.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kSanitized = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kSanitized = true;
+#else
+constexpr bool kSanitized = false;
+#endif
+#else
+constexpr bool kSanitized = false;
+#endif
+
 // compile_blob of `scene` with the one structure `spec` asks for ("KIND[:key=value,...]", as
 // `--accel` takes it).
 std::vector<std::byte> blob_with(const Scene& scene, std::string_view spec, unsigned threads,

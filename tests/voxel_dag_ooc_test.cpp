@@ -284,25 +284,13 @@ long peak_rss_kib(const std::string& arguments) {
   return std::stol(test::read_text(out));
 }
 
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-#else
-constexpr bool kSanitized = false;
-#endif
-
 // The bunny at 1024^3 (3.6 M surface voxels; in core the build peaks near 90 MiB) under a
 // 24 MiB budget stays under the budget plus 24 MiB of slack (the process itself: code, the
 // imported mesh, the blob being written: about 28 MiB whatever the budget), and writes the same
 // file as the default build, which holds the whole grid at once.
 TEST(VoxelDagOutOfCore, PeakMemoryFollowsTheBudget) {
   KILN_REQUIRE_CORPUS();
-  if (kSanitized) GTEST_SKIP() << "resident sizes mean nothing under AddressSanitizer";
+  if (test::kSanitized) GTEST_SKIP() << "resident sizes mean nothing under AddressSanitizer";
   test::TempDir dir;
   const std::string mesh = test::mesh_path("stanford/stanford-bunny.obj.zst");
   if (access("/usr/bin/python3", X_OK) != 0) GTEST_SKIP() << "/usr/bin/python3 is absent";
