@@ -344,8 +344,12 @@ TEST(SbvhPresorted, SpatialSplitChildrenStaySortedAndHoldEachTrianglesSides) {
       const float lo = format::at(ref.box.min, axis), hi = format::at(ref.box.max, axis);
       const bool in_l = left.count(ref.prim), in_r = right.count(ref.prim);
       ASSERT_TRUE(in_l || in_r) << ref.prim;
-      if (hi <= split.position) ASSERT_TRUE(in_l && !in_r);
-      if (lo >= split.position) ASSERT_TRUE(in_r && !in_l);
+      if (hi <= split.position) {
+        ASSERT_TRUE(in_l && !in_r);
+      }
+      if (lo >= split.position) {
+        ASSERT_TRUE(in_r && !in_l);
+      }
       if (in_l && in_r) {
         format::Box3f cl, cr;
         split_reference(ref, axis, split.position, scene, cl, cr);

@@ -179,7 +179,9 @@ TEST(Nanocube, TopkubeRankingsPruneAndAgreeWithTheScan) {
   std::uint64_t total = 0;
   for (std::size_t i = 0; i < ranked.size(); ++i) {
     EXPECT_EQ(ranked[i].count, counts[ranked[i].label]);
-    if (i > 0) EXPECT_GE(ranked[i - 1].count, ranked[i].count);
+    if (i > 0) {
+      EXPECT_GE(ranked[i - 1].count, ranked[i].count);
+    }
     total += ranked[i].count;
   }
   EXPECT_EQ(total, table.rows());
