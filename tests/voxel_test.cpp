@@ -26,6 +26,7 @@
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/formats/voxel_dag.hpp"
 #include "test_support.hpp"
+#include "voxel_fixtures.hpp"
 
 namespace kiln {
 namespace {
@@ -33,6 +34,9 @@ namespace {
 using format::Double3;
 using format::Float3;
 using Tri = std::array<Float3, 3>;
+using test::brute_force_hits;
+using test::grid_triangle;
+using test::Sweep;
 
 Scene corpus(const std::string& mesh) {
   return import_scene({test::mesh_path(mesh)}, 2);
@@ -53,53 +57,10 @@ Scene triangles_scene(const std::vector<Tri>& triangles) {
   return scene;
 }
 
-GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::size_t i) {
-  const auto& tri = scene.triangles[i];
-  return to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
-                 scene.positions[tri.v[2]]);
-}
-
 std::string voxel_name(std::uint64_t code) {
   return "(" + std::to_string(format::compact_bits(code)) + ", " +
          std::to_string(format::compact_bits(code >> 1)) + ", " +
          std::to_string(format::compact_bits(code >> 2)) + ")";
-}
-
-// Which voxels the brute force visits per triangle. kWholeGrid: all N^3 voxels. kBoxPlus2: the
-// voxels whose index lies in [floor(min) - 2, floor(max) + 2] of the triangle's grid-space
-// bounding box on every axis, clipped to the grid (to stay fast at 64^3 .. 16384^3). A voxel
-// outside that range is two voxels or more away from the triangle's box, so the box-axis tests
-// alone reject it: both sweeps give the same set (checked on corpus meshes at 16^3). Neither uses
-// the voxelizer's brick binning, candidate range or column walk.
-enum class Sweep { kWholeGrid, kBoxPlus2 };
-
-// Every (voxel code, triangle) pair with triangle_touches_voxel, sorted.
-std::vector<std::pair<std::uint64_t, std::uint32_t>> brute_force_hits(const Scene& scene,
-                                                                      const VoxelGrid& grid,
-                                                                      Sweep sweep) {
-  const std::int64_t n = grid.resolution;
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
-  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
-    const GridTriangle t = grid_triangle(scene, grid, i);
-    std::int64_t lo[3] = {0, 0, 0}, hi[3] = {n - 1, n - 1, n - 1};
-    if (sweep == Sweep::kBoxPlus2)
-      for (int a = 0; a < 3; ++a) {
-        const double mn =
-            std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-        const double mx =
-            std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-        lo[a] = std::max<std::int64_t>(0, std::int64_t(std::floor(mn)) - 2);
-        hi[a] = std::min<std::int64_t>(n - 1, std::int64_t(std::floor(mx)) + 2);
-      }
-    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
-      for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
-        for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
-          if (triangle_touches_voxel(t, std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)))
-            hits.emplace_back(
-                format::morton_code(std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)), i);
-  }
-  std::sort(hits.begin(), hits.end());
-  return hits;
 }
 
 std::vector<std::uint64_t> codes_of(const std::vector<std::pair<std::uint64_t, std::uint32_t>>& h) {

@@ -10,6 +10,7 @@
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/formats/voxel_grid.hpp"
 #include "test_support.hpp"
+#include "voxel_fixtures.hpp"
 
 namespace kiln {
 namespace {
@@ -189,29 +190,7 @@ TEST(Voxelizer, NormalsAreDeterministicAndUnit) {
 // box-axis tests reject every other voxel) against triangle_touches_voxel, as (code, triangle)
 // pairs sorted, and the normals summed per voxel in that order as the voxelizer documents.
 Voxels reference_voxels(const Scene& scene, const VoxelGrid& grid, bool normals) {
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
-  const auto n = std::int64_t(grid.resolution);
-  for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
-    const auto& tri = scene.triangles[i];
-    const GridTriangle t = to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
-                                   scene.positions[tri.v[2]]);
-    std::int64_t lo[3], hi[3];
-    for (int a = 0; a < 3; ++a) {
-      const double mn =
-          std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-      const double mx =
-          std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-      lo[a] = std::max<std::int64_t>(0, std::int64_t(std::floor(mn)) - 2);
-      hi[a] = std::min<std::int64_t>(n - 1, std::int64_t(std::floor(mx)) + 2);
-    }
-    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
-      for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
-        for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
-          if (triangle_touches_voxel(t, std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)))
-            hits.emplace_back(
-                format::morton_code(std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)), i);
-  }
-  std::sort(hits.begin(), hits.end());
+  const auto hits = test::brute_force_hits(scene, grid, test::Sweep::kBoxPlus2);
   Voxels out;
   out.grid = grid;
   for (std::size_t k = 0; k < hits.size();) {
