@@ -205,18 +205,13 @@ void rasterize_bits(const Scene& scene, const VoxelGrid& grid,
       });
 }
 
-struct BrickLeaves {
-  std::vector<std::uint64_t> keys, masks;
-  std::uint64_t voxel_count = 0;
-};
-
-BrickLeaves voxelize_brick_leaves(const Scene& scene, const VoxelGrid& grid,
+VoxelLeaves voxelize_brick_leaves(const Scene& scene, const VoxelGrid& grid,
                                   std::span<const std::uint32_t> triangles, const Brick& brick,
                                   std::uint32_t side) {
   BitsLease lease(side);
   BrickBits& bits = lease.bits();
   rasterize_bits(scene, grid, triangles, brick, bits);
-  BrickLeaves out;
+  VoxelLeaves out;
   bits.for_each_leaf([&](std::size_t w, std::uint64_t mask) {
     out.keys.push_back(brick.first_key + w);
     out.masks.push_back(mask);
@@ -231,7 +226,7 @@ struct BrickOutput {
 };
 
 // Codes from leaves, ascending.
-void append_codes(const BrickLeaves& leaves, std::vector<std::uint64_t>& codes) {
+void append_codes(const VoxelLeaves& leaves, std::vector<std::uint64_t>& codes) {
   codes.reserve(codes.size() + leaves.voxel_count);
   for (std::size_t k = 0; k < leaves.keys.size(); ++k)
     for (std::uint64_t m = leaves.masks[k]; m != 0; m &= m - 1)
@@ -429,7 +424,7 @@ VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
   if (!is_valid_cube(grid, cube)) throw std::invalid_argument("voxel cube outside the grid");
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
   std::vector<std::vector<std::uint32_t>> bins = bin_triangles(scene, grid, cube, triangles, brick);
-  std::vector<BrickLeaves> bricks(bins.size());
+  std::vector<VoxelLeaves> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
     if (bins[b].empty()) return;
     bricks[b] = voxelize_brick_leaves(scene, grid, bins[b], brick_of(cube, brick, b), brick);
