@@ -176,6 +176,53 @@ TEST(Ssvdag, CastsEqualTheDagHits) {
   }
 }
 
+// At 131,072^3 (17 levels) the SSVDAG reduced from the out-of-core DAG of the slivers casts as
+// the DAG does: rays at points of the slivers and down voxel columns hit the same voxel at the
+// same t, and occupancy agrees around each hit.
+TEST(Ssvdag, CastsEqualTheDagAt131072) {
+  const Scene scene = slivers();
+  const std::uint32_t n = format::kVoxelMaxResolution;
+  const VoxelGrid grid = fit_voxel_grid(scene.bounds, n);
+  OutOfCoreDagOptions options;
+  options.cube_side = 4096;
+  options.threads = 2;
+  const FlatVoxelDag flat = build_voxel_dag_out_of_core(scene, grid, options);
+  const VoxelDagView dag(flat.words, frame_of(grid), level_first_words(flat), flat.leaf_first_word,
+                         {}, {});
+  const FlatSsvdag s = build_ssvdag(flat, 2);
+  const SsvdagView ssvdag(s.words, s.leaves, frame_of(grid), ssvdag_level_first_words(s),
+                          s.root_mirror);
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> unit(0, 1), sym(-1, 1);
+  std::size_t hits = 0;
+  for (int i = 0; i < 3000; ++i) {
+    // A point on a random sliver, seen from a random origin around the unit cube.
+    const auto& t = scene.triangles[i % scene.triangles.size()];
+    float a = unit(rng), b = unit(rng);
+    if (a + b > 1) a = 1 - a, b = 1 - b;
+    const format::Double3 p0 = format::to_d(scene.positions[t.v[0]]),
+                          p1 = format::to_d(scene.positions[t.v[1]]),
+                          p2 = format::to_d(scene.positions[t.v[2]]);
+    const format::Double3 target = p0 + (p1 - p0) * a + (p2 - p0) * b;
+    const Float3 origin{0.5f + 1.5f * sym(rng), 0.5f + 1.5f * sym(rng), 0.5f + 1.5f * sym(rng)};
+    const Ray ray{origin, 0.0f, format::to_f(target - format::to_d(origin)), INFINITY};
+    const VoxelHit expected = dag.intersect(ray), got = ssvdag.intersect(ray);
+    ASSERT_EQ(got.hit(), expected.hit()) << "ray " << i;
+    if (!expected.hit()) continue;
+    ++hits;
+    ASSERT_EQ(got.x, expected.x) << "ray " << i;
+    ASSERT_EQ(got.y, expected.y) << "ray " << i;
+    ASSERT_EQ(got.z, expected.z) << "ray " << i;
+    ASSERT_EQ(got.t, expected.t) << "ray " << i;
+    for (std::uint32_t dz = 0; dz < 3; ++dz) {
+      const std::uint32_t z = std::min(n - 1, expected.z + dz);
+      ASSERT_EQ(ssvdag.occupied(expected.x, expected.y, z),
+                dag.occupied(expected.x, expected.y, z));
+    }
+  }
+  EXPECT_GT(hits, 1000u);
+}
+
 // Random voxels in one octant of the grid and their mirror image in another: the DAG keeps both
 // subtrees, the SSVDAG one with a mirror pointer, for each of the seven mirrors.
 TEST(Ssvdag, MergesMirroredSubtrees) {

@@ -19,41 +19,17 @@
 #include "kiln/formats/voxel_grid.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
 #include "test_support.hpp"
+#include "voxel_fixtures.hpp"
 
 namespace kiln {
 namespace {
 
 using format::Float3;
-
-Scene scene_of(std::vector<Float3> positions, std::vector<format::Triangle> triangles) {
-  Scene scene;
-  scene.positions = std::move(positions);
-  scene.triangles = std::move(triangles);
-  scene.triangle_mesh.assign(scene.triangles.size(), 0);
-  scene.input_triangle_count = scene.triangles.size();
-  scene.bounds = bounds_of(scene.positions);
-  scene.sources.push_back({"generated", 0, 0});
-  scene.meshes.push_back({"generated", 0, 0, scene.triangles.size(), 0, scene.positions.size()});
-  return scene;
-}
+using test::scene_of;
+using test::slivers;
 
 Scene generated(const bench::GeneratedMesh& mesh) {
   return scene_of(mesh.positions, mesh.triangles);
-}
-
-// Long thin slivers along x and z (a diagonal one would make today's voxelizer test its whole
-// bounding box): few voxels at any resolution, the grid [0, 1]^3.
-Scene slivers() {
-  return scene_of({{0, 0, 0},
-                   {1, 0, 0},
-                   {1, 0.00001f, 0},
-                   {0.5f, 0.5f, 0},
-                   {0.5f, 0.5f, 1},
-                   {0.50001f, 0.5f, 1},
-                   {1, 1, 1},
-                   {0.99999f, 1, 1},
-                   {1, 0.99999f, 1}},
-                  {{{0, 1, 2}}, {{3, 4, 5}}, {{6, 7, 8}}});
 }
 
 // The DAG words by the format's definition alone (docs/FORMAT.md), with ordered maps: nodes
@@ -314,8 +290,15 @@ TEST(VoxelDagOutOfCore, CommandLineRefusesWhatStaysInCore) {
   const auto esvo = test::run_kiln("build /dev/null --accel esvo --resolution 32768" + out);
   EXPECT_NE(esvo.exit_code, 0);
   EXPECT_NE(esvo.err.find("8..16384"), std::string::npos) << esvo.err;
-  const auto solid = test::run_kiln("build /dev/null --accel dag --solid --resolution 32768" + out);
-  EXPECT_NE(solid.exit_code, 0);
+  // --solid needs every surface voxel at once (one triangle: the input is not what fails).
+  const std::string triangle = dir.file("triangle.obj");
+  test::write_text(triangle, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  for (const char* kind : {"dag", "ssvdag"}) {
+    const auto solid = test::run_kiln("build " + test::quoted(triangle) + " --accel " + kind +
+                                      " --solid --resolution 32768" + out);
+    EXPECT_NE(solid.exit_code, 0) << kind;
+    EXPECT_NE(solid.err.find("up to --resolution 16384"), std::string::npos) << solid.err;
+  }
   const auto budget = test::run_kiln("build /dev/null --accel dag --memory-budget 12Q" + out);
   EXPECT_NE(budget.exit_code, 0);
   EXPECT_NE(budget.err.find("unknown unit"), std::string::npos) << budget.err;

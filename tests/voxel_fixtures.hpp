@@ -1,4 +1,5 @@
-// What the voxel tests share: a DAG built in memory with its view, and a one-structure blob.
+// What the voxel tests share: small scenes, a DAG built in memory with its view, brute-force
+// references, and a one-structure blob.
 #pragma once
 
 #include <algorithm>
@@ -9,12 +10,42 @@
 #include <vector>
 
 #include "kiln/compiler/build.hpp"
+#include "kiln/compiler/scene.hpp"
 #include "kiln/compiler/voxel_dag_builder.hpp"
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/runtime/voxel_dag.hpp"
 #include "test_support.hpp"
 
 namespace kiln::test {
+
+// A scene of the given triangles (one generated mesh).
+inline Scene scene_of(std::vector<format::Float3> positions,
+                      std::vector<format::Triangle> triangles) {
+  Scene scene;
+  scene.positions = std::move(positions);
+  scene.triangles = std::move(triangles);
+  scene.triangle_mesh.assign(scene.triangles.size(), 0);
+  scene.input_triangle_count = scene.triangles.size();
+  scene.bounds = bounds_of(scene.positions);
+  scene.sources.push_back({"generated", 0, 0});
+  scene.meshes.push_back({"generated", 0, 0, scene.triangles.size(), 0, scene.positions.size()});
+  return scene;
+}
+
+// Long thin slivers along x and z (a diagonal one would make today's voxelizer test its whole
+// bounding box): few voxels at any resolution, the grid [0, 1]^3.
+inline Scene slivers() {
+  return scene_of({{0, 0, 0},
+                   {1, 0, 0},
+                   {1, 0.00001f, 0},
+                   {0.5f, 0.5f, 0},
+                   {0.5f, 0.5f, 1},
+                   {0.50001f, 0.5f, 1},
+                   {1, 1, 1},
+                   {0.99999f, 1, 1},
+                   {1, 0.99999f, 1}},
+                  {{{0, 1, 2}}, {{3, 4, 5}}, {{6, 7, 8}}});
+}
 
 // A triangle of the scene in grid units.
 inline GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::size_t i) {

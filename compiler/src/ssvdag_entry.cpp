@@ -23,7 +23,7 @@ namespace {
 
 std::vector<StructureOption> ssvdag_options() {
   return {
-      voxel_resolution_option(),
+      voxel_resolution_option(format::kVoxelMaxResolution),
       memory_budget_option(),
       {"solid", "--solid", "false",
        "--accel ssvdag: fill the inside too (closed meshes), as --accel dag does", true,
@@ -74,6 +74,9 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
   options.solid = request.switch_option("solid");
   options.threads = threads;
   auto storage = std::make_shared<SsvdagStorage>();
+  if (options.solid && options.resolution > format::kVoxelInCoreMaxResolution)
+    throw std::invalid_argument("--accel ssvdag: --solid works in core, up to --resolution " +
+                                std::to_string(format::kVoxelInCoreMaxResolution));
   if (options.solid) {
     // The solid fill needs every surface voxel at once.
     Voxels voxels = voxelize_surface(scene, options);
@@ -82,13 +85,14 @@ BuiltStructure build(const Scene& scene, const StructureRequest& request, unsign
                                    options.resolution, threads);
   } else {
     // The DAG's out-of-core build under the budget, then its unique nodes reduced by symmetry.
-    if (!format::is_valid_voxel_resolution(options.resolution))
+    if (!format::is_valid_voxel_resolution(options.resolution, format::kVoxelMaxResolution))
       throw std::invalid_argument("--resolution " + std::to_string(options.resolution) +
                                   " is outside the SSVDAG's range");
     storage->grid = fit_voxel_grid(scene.bounds, options.resolution);
     OutOfCoreDagOptions ooc;
     ooc.memory_budget = memory_budget_bytes(request.text_option("memory-budget"));
     ooc.threads = threads;
+    ooc.progress = terminal_progress();
     storage->ssvdag = build_ssvdag(build_voxel_dag_out_of_core(scene, storage->grid, ooc), threads);
   }
   BuiltStructure built;

@@ -1,9 +1,7 @@
 // The voxel DAG as the compiler registers it: "dag", its options, and its contribution to a
 // blob: the DAG words, optionally the voxels' Morton codes and normals (the attachment),
 // VoxelDagDesc with per-level statistics.
-#include <unistd.h>
 
-#include <chrono>
 #include <cstdio>
 #include <stdexcept>
 
@@ -77,28 +75,6 @@ auto describe_with(const DagStorage& storage, bool normals, bool solid,
         leaf_first, voxel_count, &level_tables, svo_bytes, dag_bytes, bits_per_voxel, solid,
         surface_voxels);
     return std::pair{std::uint8_t(schema::StructureDesc::VoxelDagDesc), desc.o};
-  };
-}
-
-// "dag: cube 12/512, 31 % of voxels, ETA 1m20s" on one line of a terminal, rewritten in place
-// at most 4 times a second once the build has run for a second (as kiln build's own line).
-std::function<void(std::uint64_t, std::uint64_t, double)> terminal_progress() {
-  if (!isatty(STDERR_FILENO)) return {};
-  using Clock = std::chrono::steady_clock;
-  auto last = std::make_shared<Clock::time_point>(Clock::now());
-  return [start = Clock::now(), last](std::uint64_t done, std::uint64_t total, double share) {
-    const auto now = Clock::now();
-    const bool end = done == total;
-    if (now - start < std::chrono::seconds(1) ||
-        (!end && now - *last < std::chrono::milliseconds(250)))
-      return;
-    *last = now;
-    const double elapsed = std::chrono::duration<double>(now - start).count();
-    const double eta = share > 0 ? elapsed * (1 - share) / share : 0;
-    std::fprintf(stderr, "\r\033[Kdag: cube %llu/%llu, %.0f %% of voxels, ETA %dm%02ds%s",
-                 (unsigned long long)done, (unsigned long long)total, 100 * share, int(eta / 60),
-                 int(eta) % 60, end ? "\n" : "");
-    std::fflush(stderr);
   };
 }
 

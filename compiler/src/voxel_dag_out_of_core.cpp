@@ -5,14 +5,25 @@
 // 4x4x4 leaves and reduced to its node through the shared per-level tables; a split cube's node
 // is made from its octants' nodes on the way back up. Every level's nodes are therefore met in
 // Morton order, which is what makes the ids, and so the words, independent of the cut.
+//
+// With more than one thread the cubes are voxelized one ahead on a thread of their own: the
+// reduction is sequential (ids follow the order of arrival), so it overlaps the next cube's
+// voxelization instead of leaving the other cores idle. Both threads walk the same octree (the
+// cut is a pure function of the cube and its triangles), so they meet the same cubes in order.
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "kiln/compiler/voxel_dag_builder.hpp"
+#include "kiln/runtime/parallel.hpp"
 #include "voxel_dag_reducer.hpp"
 
 namespace kiln {
@@ -69,6 +80,51 @@ bool reaches(const TriangleReach& r, const VoxelCube& cube) {
   return true;
 }
 
+// One voxelized cube at a time, handed from the thread that voxelizes the walk's cubes to the
+// one that reduces them. The producer waits until its cube is taken before voxelizing the next,
+// so at most two cubes (the one being reduced, the one being voxelized) are held at once.
+class CubeMailbox {
+ public:
+  // Producer: hands `leaves` over and waits until taken; false when the consumer gave up.
+  bool put(VoxelLeaves leaves) {
+    std::unique_lock lock(mutex_);
+    slot_ = std::move(leaves);
+    changed_.notify_all();
+    changed_.wait(lock, [&] { return !slot_ || cancelled_; });
+    return !cancelled_;
+  }
+  void fail(std::exception_ptr error) {
+    std::lock_guard lock(mutex_);
+    error_ = error;
+    changed_.notify_all();
+  }
+  // Consumer: the next cube's leaves; rethrows what the producer threw.
+  VoxelLeaves take() {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return slot_ || error_; });
+    if (!slot_) std::rethrow_exception(error_);
+    VoxelLeaves leaves = std::move(*slot_);
+    slot_.reset();
+    changed_.notify_all();
+    return leaves;
+  }
+  void cancel() {
+    std::lock_guard lock(mutex_);
+    cancelled_ = true;
+    changed_.notify_all();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::optional<VoxelLeaves> slot_;
+  std::exception_ptr error_;
+  bool cancelled_ = false;
+};
+
+// Thrown through the producer's walk when the consumer stopped (it failed).
+struct WalkCancelled {};
+
 class CubeWalk {
  public:
   CubeWalk(const Scene& scene, const VoxelGrid& grid, const OutOfCoreDagOptions& options)
@@ -83,10 +139,16 @@ class CubeWalk {
   FlatVoxelDag run(OutOfCoreDagStats* stats);
 
  private:
+  // What a walk does at each cube that is not split: plan it (count and weigh), voxelize it and
+  // hand it to the mailbox, or reduce it (voxelizing it here, or taking it from the mailbox).
+  enum class Pass { kPlan, kProduce, kReduce };
+
   double estimate(const VoxelCube& cube, std::span<const std::uint32_t> triangles) const;
   bool split(const VoxelCube& cube, std::span<const std::uint32_t> triangles) const;
-  std::uint32_t walk(const VoxelCube& cube, std::span<const std::uint32_t> triangles);
-  std::uint32_t leaf_cube(const VoxelCube& cube, std::span<const std::uint32_t> triangles);
+  std::uint32_t walk(Pass pass, const VoxelCube& cube, std::span<const std::uint32_t> triangles);
+  std::uint32_t leaf_cube(Pass pass, const VoxelCube& cube,
+                          std::span<const std::uint32_t> triangles);
+  std::uint32_t reduce_all(std::span<const std::uint32_t> all);
 
   const Scene& scene_;
   const VoxelGrid& grid_;
@@ -94,8 +156,8 @@ class CubeWalk {
   VoxelDagReducer reducer_;
   std::vector<TriangleReach> reach_;
   std::uint64_t budget_ = 0;
-  bool planning_ = false;
-  std::vector<double> planned_;  // estimated voxels per cube, from the planning pass
+  CubeMailbox* mailbox_ = nullptr;  // set while a producer thread voxelizes ahead
+  std::vector<double> planned_;     // estimated voxels per cube, from the planning pass
   double planned_total_ = 0, done_weight_ = 0;
   OutOfCoreDagStats stats_;
 };
@@ -124,14 +186,21 @@ bool CubeWalk::split(const VoxelCube& cube, std::span<const std::uint32_t> trian
   return bytes > double(budget_) / 4;
 }
 
-std::uint32_t CubeWalk::leaf_cube(const VoxelCube& cube, std::span<const std::uint32_t> triangles) {
+std::uint32_t CubeWalk::leaf_cube(Pass pass, const VoxelCube& cube,
+                                  std::span<const std::uint32_t> triangles) {
+  if (pass == Pass::kProduce) {
+    if (!mailbox_->put(voxelize_surface_leaves(scene_, grid_, cube, triangles, options_.threads)))
+      throw WalkCancelled{};
+    return VoxelDagReducer::kEmpty;
+  }
   const double weight = options_.progress ? estimate(cube, triangles) : 0;
-  if (planning_) {
+  if (pass == Pass::kPlan) {
     planned_.push_back(weight), planned_total_ += weight;
     return VoxelDagReducer::kEmpty;
   }
   const VoxelLeaves leaves =
-      voxelize_surface_leaves(scene_, grid_, cube, triangles, options_.threads);
+      mailbox_ ? mailbox_->take()
+               : voxelize_surface_leaves(scene_, grid_, cube, triangles, options_.threads);
   const std::uint32_t id = reducer_.add_cube(leaves, cube);
   stats_.cubes += 1;
   stats_.smallest_side = stats_.cubes == 1 ? cube.side : std::min(stats_.smallest_side, cube.side);
@@ -147,8 +216,9 @@ std::uint32_t CubeWalk::leaf_cube(const VoxelCube& cube, std::span<const std::ui
 
 // The cube's node id (kEmpty when nothing is set); octants in Morton order, each with the
 // triangles of `triangles` that reach it, held only while it is walked.
-std::uint32_t CubeWalk::walk(const VoxelCube& cube, std::span<const std::uint32_t> triangles) {
-  if (!split(cube, triangles)) return leaf_cube(cube, triangles);
+std::uint32_t CubeWalk::walk(Pass pass, const VoxelCube& cube,
+                             std::span<const std::uint32_t> triangles) {
+  if (!split(cube, triangles)) return leaf_cube(pass, cube, triangles);
   const std::uint32_t half = cube.side / 2;
   std::uint32_t children[8];
   std::vector<std::uint32_t> inside;
@@ -160,10 +230,10 @@ std::uint32_t CubeWalk::walk(const VoxelCube& cube, std::span<const std::uint32_
     inside.clear();
     for (const std::uint32_t i : triangles)
       if (reaches(reach_[i], child)) inside.push_back(i);
-    children[octant] = inside.empty() ? VoxelDagReducer::kEmpty : walk(child, inside);
+    children[octant] = inside.empty() ? VoxelDagReducer::kEmpty : walk(pass, child, inside);
   }
   std::vector<std::uint32_t>().swap(inside);
-  if (planning_) return VoxelDagReducer::kEmpty;
+  if (pass != Pass::kReduce) return VoxelDagReducer::kEmpty;
   return reducer_.add_node(reducer_.level_of_side(cube.side), children);
 }
 
@@ -176,15 +246,39 @@ FlatVoxelDag CubeWalk::run(OutOfCoreDagStats* stats) {
   std::vector<std::uint32_t> all;
   for (std::uint32_t i = 0; i < reach_.size(); ++i)
     if (reaches(reach_[i], VoxelCube{{0, 0, 0}, n})) all.push_back(i);
-  if (options_.progress) {
-    planning_ = true;
-    walk(VoxelCube{{0, 0, 0}, n}, all);
-    planning_ = false;
-  }
-  const std::uint32_t root = all.empty() ? VoxelDagReducer::kEmpty : walk({{0, 0, 0}, n}, all);
+  if (options_.progress) walk(Pass::kPlan, VoxelCube{{0, 0, 0}, n}, all);
+  const std::uint32_t root = all.empty() ? VoxelDagReducer::kEmpty : reduce_all(all);
   std::vector<std::uint32_t>().swap(all);
   if (stats) *stats = stats_;
   return reducer_.finish(root);
+}
+
+// The root's id: the walk reducing every cube, voxelized here with one thread, else one ahead
+// on a producer thread (the voxelizer still using every thread for its bricks).
+std::uint32_t CubeWalk::reduce_all(std::span<const std::uint32_t> all) {
+  const VoxelCube root{{0, 0, 0}, grid_.resolution};
+  if (resolve_thread_count(options_.threads) < 2) return walk(Pass::kReduce, root, all);
+  CubeMailbox mailbox;
+  mailbox_ = &mailbox;  // read by both walks; reset only once the producer has joined
+  std::thread producer([&] {
+    try {
+      walk(Pass::kProduce, root, all);
+    } catch (const WalkCancelled&) {
+    } catch (...) {
+      mailbox.fail(std::current_exception());
+    }
+  });
+  try {
+    const std::uint32_t id = walk(Pass::kReduce, root, all);
+    producer.join();
+    mailbox_ = nullptr;
+    return id;
+  } catch (...) {
+    mailbox.cancel();
+    producer.join();
+    mailbox_ = nullptr;
+    throw;
+  }
 }
 
 }  // namespace

@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <chrono>
+#include <cstdio>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -28,7 +31,7 @@ StructureOption voxel_resolution_option(std::uint32_t max) {
           "--resolution",
           "512",
           "Voxel grid side (finest level) of the voxel structures: a power of two, 8..16384 "
-          "(dag: 8..131072, built out of core)",
+          "(dag and ssvdag: 8..131072, built out of core)",
           false,
           parse};
 }
@@ -83,6 +86,28 @@ StructureOption memory_budget_option() {
 
 std::uint64_t memory_budget_bytes(const std::string& canonical) {
   return canonical == "auto" ? default_memory_budget() : parse_memory_size(canonical);
+}
+
+// "dag: cube 12/512, 31 % of voxels, ETA 1m20s" on one line of a terminal, rewritten in place
+// at most 4 times a second once the build has run for a second (as kiln build's own line).
+std::function<void(std::uint64_t, std::uint64_t, double)> terminal_progress() {
+  if (!isatty(STDERR_FILENO)) return {};
+  using Clock = std::chrono::steady_clock;
+  auto last = std::make_shared<Clock::time_point>(Clock::now());
+  return [start = Clock::now(), last](std::uint64_t done, std::uint64_t total, double share) {
+    const auto now = Clock::now();
+    const bool end = done == total;
+    if (now - start < std::chrono::seconds(1) ||
+        (!end && now - *last < std::chrono::milliseconds(250)))
+      return;
+    *last = now;
+    const double elapsed = std::chrono::duration<double>(now - start).count();
+    const double eta = share > 0 ? elapsed * (1 - share) / share : 0;
+    std::fprintf(stderr, "\r\033[Kdag: cube %llu/%llu, %.0f %% of voxels, ETA %dm%02ds%s",
+                 (unsigned long long)done, (unsigned long long)total, 100 * share, int(eta / 60),
+                 int(eta) % 60, end ? "\n" : "");
+    std::fflush(stderr);
+  };
 }
 
 }  // namespace kiln

@@ -28,7 +28,7 @@ VoxelHit SsvdagView::cast(const Ray& ray, Cost* cost) const {
   if (!enter(r, 0, 0, 0, frame_.resolution, t_root, axis_root)) return hit;
   const std::uint32_t leaf_level = levels_ - 2;
   // As the DAG's: at most 7 cells waiting per level, one expanded.
-  Cell stack[8 * 16];
+  Cell stack[8 * 18];  // 17 levels at format::kVoxelMaxResolution
   std::uint32_t top = 0;
   stack[top++] = {0, 0, 0, 0, 0, root_mirror_};
   Candidate order[8];

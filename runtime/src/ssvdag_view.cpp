@@ -40,7 +40,9 @@ SsvdagView::SsvdagView(std::span<const std::uint16_t> words, std::span<const std
                        const std::string& name)
     : words_(words), leaves_(leaves), frame_(frame), root_mirror_(root_mirror) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
-  if (const std::string problem = grid_frame_problem(frame); !problem.empty()) fail(problem);
+  if (const std::string problem = grid_frame_problem(frame, format::kVoxelMaxResolution);
+      !problem.empty())
+    fail(problem);
   levels_ = std::uint32_t(std::bit_width(frame.resolution) - 1);
   const std::uint32_t leaf_level = levels_ - 2;
   if (level_first_words.size() != leaf_level || leaf_level + 1 > first_.size())
