@@ -105,83 +105,101 @@ constexpr NibbleMasks make_nibble_masks() {
 }
 inline constexpr NibbleMasks kNibbleMasks = make_nibble_masks();
 
-// A triangle's voxels in the (at most 3x3x3) leaves its small window reaches, gathered before
-// they are reported so that each leaf is written once.
+// The small-window walk: at most kSmallWindow voxels along every axis, so at most kWindowLeaves
+// 4x4x4 leaves (the window may start anywhere in a leaf).
+constexpr int kSmallWindow = 13;
+constexpr int kWindowLeaves = (kSmallWindow + 3 + 3) / 4;
+static_assert(kWindowLeaves * kWindowLeaves * kWindowLeaves <= 64, "one bit per leaf");
+
+// A triangle's voxels in the (at most kWindowLeaves^3) leaves its small window reaches, gathered
+// before they are reported so that each leaf is written once. One per TriangleColumns: report
+// clears the words it used, so the next triangle starts empty without clearing them all.
 class WindowLeaves {
  public:
-  explicit WindowLeaves(const std::int64_t first[3]) {
+  void start(const std::int64_t first[3]) {
     for (int k = 0; k < 3; ++k) base_[k] = first[k] >> 2;
   }
-  // The voxels (g[u], g[v], g[a] + k) for the bits k of `bits` (g global).
+  // The voxels (g[u], g[v], g[a] + k) for the bits k of `bits` (g global, within the window).
   void add(const std::int64_t g[3], int a, int u, int v, unsigned bits) {
-    const int stride[3] = {1, 3, 9};
+    constexpr int n = kWindowLeaves, stride[3] = {1, n, n * n};
     const int slot = int((g[u] >> 2) - base_[u]) * stride[u] +
                      int((g[v] >> 2) - base_[v]) * stride[v] +
                      int((g[a] >> 2) - base_[a]) * stride[a];
     const unsigned shift = kSpread4[g[u] & 3] << u | kSpread4[g[v] & 3] << v;
     const unsigned m = bits << (g[a] & 3);
-    for (int l = 0; l < 3; ++l) {
+    for (int l = 0; l < n; ++l) {
       const unsigned nibble = m >> (4 * l) & 15;
       words_[slot + l * stride[a]] |= kNibbleMasks.masks[a][nibble] << shift;
-      used_ |= unsigned(nibble != 0) << (slot + l * stride[a]);
+      used_ |= std::uint64_t(nibble != 0) << (slot + l * stride[a]);
     }
   }
-  // leaf(g, bits) for every leaf with voxels (g: its first voxel, global).
+  // leaf(g, bits) for every leaf with voxels (g: its first voxel, global), then empty again.
   template <class Leaf>
-  void report(Leaf leaf) const {
-    for (unsigned b = used_; b != 0; b &= b - 1) {
+  void report(Leaf leaf) {
+    constexpr int n = kWindowLeaves;
+    for (std::uint64_t b = used_; b != 0; b &= b - 1) {
       const int slot = std::countr_zero(b);
-      const std::int64_t g[3] = {(base_[0] + slot % 3) * 4, (base_[1] + slot / 3 % 3) * 4,
-                                 (base_[2] + slot / 9) * 4};
+      const std::int64_t g[3] = {(base_[0] + slot % n) * 4, (base_[1] + slot / n % n) * 4,
+                                 (base_[2] + slot / (n * n)) * 4};
       leaf(g, words_[slot]);
+      words_[slot] = 0;
     }
+    used_ = 0;
   }
 
  private:
-  std::int64_t base_[3];
-  std::uint64_t words_[27] = {};
-  unsigned used_ = 0;
+  std::int64_t base_[3] = {0, 0, 0};
+  std::uint64_t words_[kWindowLeaves * kWindowLeaves * kWindowLeaves] = {};
+  std::uint64_t used_ = 0;
 };
 
-// Local centres j + 0.5 of the indices lo..hi (at most kSmallWindow of them), and the bits of
-// those indices.
-constexpr int kSmallWindow = 8;
+// Local centres j + 0.5 of the indices lo..hi (at most kSmallWindow of them; pairs of them for
+// SSE2), and the bits of those indices.
 struct WindowAxis {
-  double c[kSmallWindow];
+  double c[(kSmallWindow + 1) / 2 * 2];
   int pairs;
   unsigned valid;
 };
 inline WindowAxis window_axis(std::int64_t lo, std::int64_t hi) {
   WindowAxis w;
-  for (int k = 0; k < kSmallWindow; ++k) w.c[k] = double(lo + k) + 0.5;
+  const double first = double(lo) + 0.5;
+  for (int k = 0; k < (kSmallWindow + 1) / 2 * 2; ++k) w.c[k] = first + k;
   w.pairs = int(hi - lo + 2) / 2;
   w.valid = (2u << (hi - lo)) - 1;
   return w;
 }
 
-// Bits k of the window's centres within [lo, hi] (maybe) and within [lo + inset, hi - inset]
-// (sure). The comparisons are exact.
-inline void centres_within(const WindowAxis& w, double lo, double hi, double inset, unsigned& maybe,
-                           unsigned& sure) {
-  const double s_lo = lo + inset, s_hi = hi - inset;
-  maybe = 0, sure = 0;
+// Bits k of the window's centres within [lo, hi]. The comparisons are exact.
+inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
+  unsigned bits = 0;
 #if defined(__SSE2__)
   const __m128d l = _mm_set1_pd(lo), h = _mm_set1_pd(hi);
-  const __m128d sl = _mm_set1_pd(s_lo), sh = _mm_set1_pd(s_hi);
   for (int k = 0; k < w.pairs; ++k) {
     const __m128d x = _mm_loadu_pd(w.c + 2 * k);
-    maybe |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, l), _mm_cmple_pd(x, h))))
-             << (2 * k);
-    sure |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, sl), _mm_cmple_pd(x, sh))))
+    bits |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, l), _mm_cmple_pd(x, h))))
             << (2 * k);
   }
 #else
-  for (int k = 0; k < 2 * w.pairs; ++k) {
-    maybe |= unsigned(w.c[k] >= lo && w.c[k] <= hi) << k;
-    sure |= unsigned(w.c[k] >= s_lo && w.c[k] <= s_hi) << k;
-  }
+  for (int k = 0; k < 2 * w.pairs; ++k) bits |= unsigned(w.c[k] >= lo && w.c[k] <= hi) << k;
 #endif
-  maybe &= w.valid, sure &= w.valid;
+  return bits & w.valid;
+}
+
+// centres_in [lo, hi] (maybe) and [lo + inset, hi - inset] (sure). The sure interval lies in the
+// maybe interval and the centres ascend, so when the first and last maybe centres are sure (by
+// far the common case), every maybe centre is.
+inline void centres_within(const WindowAxis& w, double lo, double hi, double inset, unsigned& maybe,
+                           unsigned& sure) {
+  maybe = centres_in(w, lo, hi);
+  if (maybe == 0) {
+    sure = 0;
+    return;
+  }
+  const double s_lo = lo + inset, s_hi = hi - inset;
+  if (w.c[std::countr_zero(maybe)] >= s_lo && w.c[31 - std::countl_zero(maybe)] <= s_hi)
+    sure = maybe;
+  else
+    sure = centres_in(w, s_lo, s_hi);
 }
 
 class TriangleColumns {
@@ -255,8 +273,9 @@ class TriangleColumns {
   int count_[5] = {0, 0, 0, 0, 0};
   // walk_small evaluates kSmallCount[level] tests per level, whatever count_ says: setup pads
   // the levels with tests that pass everything (small_ is false when a level holds more).
-  static constexpr int kSmallCount[5] = {3, 3, 1, 3, 3};
+  static constexpr int kSmallCount[5] = {1, 3, 1, 4, 3};
   bool small_ = false;
+  WindowLeaves window_leaves_;
   std::vector<double> v_table_;  // per v index of the walk: lo_m, hi_m of [4]
 };
 
@@ -284,7 +303,8 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
     narrow(tests_[4], kSmallCount[4], 0, wv.c[kv], a_lo_v[kv], a_hi_v[kv]);
   }
   std::int64_t c[3] = {r.lo[0] + origin_[0], r.lo[1] + origin_[1], r.lo[2] + origin_[2]};
-  WindowLeaves leaves(c);
+  WindowLeaves& leaves = window_leaves_;
+  leaves.start(c);
   for (unsigned bu = u_maybe; bu != 0; bu &= bu - 1) {
     const int ku = std::countr_zero(bu);
     const double cu = wu.c[ku];
