@@ -19,6 +19,9 @@
 // 4u(|bound| + (|qu| + |qv|)M + 1), covered by the 16u(...) term. Underflow only adds absolute
 // errors far below u (M >= 2). In grid units the margin is ~1e-12 voxel for ordinary triangles;
 // it grows only for slivers and degenerate triangles, whose voxels then go to the exact test.
+// Edge axes have an exact zero component, so their projections are formed from the two others
+// (the same value up to the sign of a zero); the divisions run two at a time on SSE2, which
+// rounds as the scalar code does.
 #include "voxelize_columns.hpp"
 
 #include <limits>
