@@ -254,6 +254,9 @@ class TriangleColumns {
   // masks of the window's centres along a (comparisons, no conversions; no v table).
   template <class Leaf, class Voxel>
   void walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel);
+  // The column walk over the local range r (runs along a, rounded to indices per column).
+  template <class Run, class Voxel>
+  void walk_columns(const VoxelRange& r, Run run, Voxel voxel);
   template <int level>
   void level_bits(double cu, double cv, const WindowAxis& w, unsigned& maybe,
                   unsigned& sure) const {
@@ -351,7 +354,13 @@ void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel vox
   if (is_empty(r)) return;
   if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
       r.hi[2] - r.lo[2] < kSmallWindow)
-    return walk_small(r, leaf, voxel);
+    walk_small(r, leaf, voxel);
+  else
+    walk_columns(r, run, voxel);
+}
+
+template <class Run, class Voxel>
+void TriangleColumns::walk_columns(const VoxelRange& r, Run run, Voxel voxel) {
   const int a = a_, u = u_, v = v_;
   const double inset = sure_inset_;
   double lo = -INFINITY, hi = INFINITY;
