@@ -330,6 +330,31 @@ TEST(Voxelizer, FastPathsMatchReferenceOnWorstCases) {
                                  "fitted at " + std::to_string(n));
 }
 
+// Small triangles with corners on a 1/8-voxel lattice (as quantized meshes such as Draco's give:
+// many edges parallel to a grid plane), 1 to 9 voxels wide, at every offset from the 4x4x4
+// leaves, some across the 128^3 bricks: the window walk, its merged tests and its leaf masks.
+TEST(Voxelizer, FastPathsMatchReferenceOnSmallQuantizedTriangles) {
+  std::mt19937 rng(871);
+  std::uniform_int_distribution<int> corner(0, 8 * 240), size(-8 * 9, 8 * 9);
+  std::vector<std::array<Float3, 3>> triangles;
+  for (int i = 0; i < 1500; ++i) {
+    Float3 p[3];
+    p[0] = {float(corner(rng)) / 8, float(corner(rng)) / 8, float(corner(rng)) / 8};
+    if (i % 3 == 0)  // across a brick boundary
+      format::at(p[0], int(rng() % 3)) = 128 + float(size(rng)) / 32;
+    for (int j = 1; j < 3; ++j)
+      p[j] = {p[0].x + float(size(rng) * (i % 4 + 1) / 4) / 8,
+              p[0].y + float(size(rng) * (i % 4 + 1) / 4) / 8,
+              p[0].z + float(size(rng) * (i % 4 + 1) / 4) / 8};
+    if (i % 5 == 0) p[2].z = p[1].z = p[0].z;          // in a plane z = const
+    if (i % 7 == 0) p[1].x = p[0].x, p[2].y = p[0].y;  // edges parallel to grid planes
+    for (auto& q : p)
+      for (int a = 0; a < 3; ++a) format::at(q, a) = std::clamp(format::at(q, a), 0.0f, 256.0f);
+    triangles.push_back({p[0], p[1], p[2]});
+  }
+  expect_paths_match_reference(grid_unit_scene(triangles), unit_grid(256), "small quantized");
+}
+
 // Huge triangles on grids up to 131072^3 (the margins grow with the triangle's extent): one
 // sub-cube through each path against every voxel of the cube under the predicate.
 TEST(Voxelizer, FastPathsMatchPredicateOnHugeTrianglesInSubCubes) {

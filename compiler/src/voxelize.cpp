@@ -83,6 +83,12 @@ class BrickBits {
     words_[i >> 6] |= std::uint64_t{1} << (i & 63);
     summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
   }
+  // The leaf whose first voxel is p (local) gets `mask` (Morton order within the leaf).
+  void set_leaf(const std::uint32_t p[3], std::uint64_t mask) {
+    const std::uint32_t w = index(p[0], p[1], p[2]) >> 6;
+    words_[w] |= mask;
+    summary_[w >> 6] |= std::uint64_t{1} << (w & 63);
+  }
   // Voxels (x, y, z) with coordinate `a` from p[a] to last (local), a 4x4x4 leaf at a time: the
   // run's bits within a leaf come from a table, shifted to the column's place.
   void set_run(std::uint32_t p[3], int a, std::uint32_t last) {
@@ -154,11 +160,13 @@ Brick brick_of(const VoxelCube& cube, std::uint32_t brick, std::size_t b) {
 }
 
 // Calls on_run(triangle, local p, a, last) for runs of voxels along axis a (brick-local, p[a] to
-// last) and on_voxel(triangle, x, y, z) for single voxels (brick-local), covering every voxel of
-// `brick` each triangle touches once, triangle by triangle in the given order.
-template <class OnRun, class OnVoxel>
+// last), on_leaf(triangle, local p, bits) for the voxels of the 4x4x4 leaf whose first voxel is
+// p (bits in Morton order within the leaf), and on_voxel(triangle, x, y, z) for single voxels
+// (brick-local), covering every voxel of `brick` each triangle touches once, triangle by triangle
+// in the given order.
+template <class OnRun, class OnLeaf, class OnVoxel>
 void rasterize(const Scene& scene, const VoxelGrid& grid, std::span<const std::uint32_t> triangles,
-               const Brick& brick, OnRun on_run, OnVoxel on_voxel) {
+               const Brick& brick, OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
   TriangleColumns columns;
   const std::int64_t* o = brick.clip.lo;
   for (const std::uint32_t i : triangles) {
@@ -169,6 +177,11 @@ void rasterize(const Scene& scene, const VoxelGrid& grid, std::span<const std::u
           std::uint32_t p[3] = {std::uint32_t(c[0] - o[0]), std::uint32_t(c[1] - o[1]),
                                 std::uint32_t(c[2] - o[2])};
           on_run(i, p, a, std::uint32_t(last - o[a]));
+        },
+        [&](const std::int64_t* g, std::uint64_t bits) {
+          const std::uint32_t p[3] = {std::uint32_t(g[0] - o[0]), std::uint32_t(g[1] - o[1]),
+                                      std::uint32_t(g[2] - o[2])};
+          on_leaf(i, p, bits);
         },
         [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
           on_voxel(i, std::uint32_t(x - o[0]), std::uint32_t(y - o[1]), std::uint32_t(z - o[2]));
@@ -189,6 +202,11 @@ void rasterize_voxels(const Scene& scene, const VoxelGrid& grid,
           on_voxel(t, BrickBits::index(p[0], p[1], p[2]));
         }
       },
+      [&](std::uint32_t t, const std::uint32_t* p, std::uint64_t bits) {
+        const std::uint32_t first = BrickBits::index(p[0], p[1], p[2]);
+        for (; bits != 0; bits &= bits - 1)
+          on_voxel(t, first + std::uint32_t(std::countr_zero(bits)));
+      },
       [&](std::uint32_t t, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
         on_voxel(t, BrickBits::index(x, y, z));
       });
@@ -200,6 +218,7 @@ void rasterize_bits(const Scene& scene, const VoxelGrid& grid,
   rasterize(
       scene, grid, triangles, brick,
       [&](std::uint32_t, std::uint32_t* p, int a, std::uint32_t last) { bits.set_run(p, a, last); },
+      [&](std::uint32_t, const std::uint32_t* p, std::uint64_t mask) { bits.set_leaf(p, mask); },
       [&](std::uint32_t, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
         bits.set(BrickBits::index(x, y, z));
       });

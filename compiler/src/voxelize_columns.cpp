@@ -19,9 +19,16 @@
 // 4u(|bound| + (|qu| + |qv|)M + 1), covered by the 16u(...) term. Underflow only adds absolute
 // errors far below u (M >= 2). In grid units the margin is ~1e-12 voxel for ordinary triangles;
 // it grows only for slivers and degenerate triangles, whose voxels then go to the exact test.
+// Edge axes have an exact zero component, so their projections are formed from the two others
+// (the same value up to the sign of a zero); the divisions run two at a time on SSE2, which
+// rounds as the scalar code does.
 #include "voxelize_columns.hpp"
 
 #include <limits>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace kiln::voxelize_detail {
 
@@ -31,13 +38,6 @@ constexpr double kRoundoff = 0x1p-53;
 
 double component(const std::array<double, 3>& v, int i) {
   return v[std::size_t(i)];
-}
-
-// cross(unit axis i, e), component by component as the predicate forms it.
-std::array<double, 3> cross_unit(int i, const std::array<double, 3>& e) {
-  if (i == 0) return {0, -e[2], e[1]};
-  if (i == 1) return {e[2], 0, -e[0]};
-  return {-e[1], e[0], 0};
 }
 
 }  // namespace
@@ -56,8 +56,9 @@ VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip) {
   return r;
 }
 
-bool TriangleColumns::setup(const GridTriangle& t) {
-  t_ = t;
+// The corners relative to an integer origin, the candidate range and the extent M; false when
+// the triangle lies outside any grid or its range is empty.
+bool TriangleColumns::place(const GridTriangle& t) {
   for (int k = 0; k < 3; ++k) {
     const double v[3] = {format::at(t.v[0], k), format::at(t.v[1], k), format::at(t.v[2], k)};
     for (const double x : v)
@@ -79,6 +80,12 @@ bool TriangleColumns::setup(const GridTriangle& t) {
     }
   }
   extent_ = extent + 2;
+  return true;
+}
+
+bool TriangleColumns::setup(const GridTriangle& t) {
+  t_ = t;
+  if (!place(t)) return false;
   std::array<double, 3> e[3];
   for (int j = 0; j < 3; ++j)
     for (std::size_t k = 0; k < 3; ++k) e[j][k] = p_[(j + 1) % 3][k] - p_[j][k];
@@ -94,11 +101,11 @@ bool TriangleColumns::setup(const GridTriangle& t) {
   u_ = (a_ + 1) % 3, v_ = (a_ + 2) % 3;
   std::fill(std::begin(count_), std::end(count_), 0);
   sure_inset_ = 0;
-  uncertain_all_ = empty_ = false;
+  uncertain_all_ = empty_ = has_plane_ = false;
   const double m = extent_;
-  add_test(n, 2048 * kRoundoff * m * m * m);
-  has_plane_ = count_[2] == 1;
-  if (has_plane_) plane_ = tests_[2][0];
+  PendingTests pending;
+  add_test(n, 2048 * kRoundoff * m * m * m, pending);
+  const bool plane_first = pending.count == 1 && pending.level[0] == 2;
   for (int j = 0; j < 3; ++j)
     for (int i = 0; i < 3; ++i) {
       // An edge parallel to axis i gives the exact zero axis, which never separates.
@@ -106,61 +113,141 @@ bool TriangleColumns::setup(const GridTriangle& t) {
       if (format::at(t.v[(j + 1) % 3], p) == format::at(t.v[j], p) &&
           format::at(t.v[(j + 1) % 3], q) == format::at(t.v[j], q))
         continue;
-      add_test(cross_unit(i, e[j]), 256 * kRoundoff * m * m);
+      add_edge_test(i, e[j], 256 * kRoundoff * m * m, pending);
     }
-  // Split the column tests by what they depend on (see tests_).
-  int general = 0;
-  for (int k = 0; k < count_[2]; ++k) {
-    const SlabInterval& s = tests_[2][k];
-    const int level = s.qv == 0 ? 3 : s.qu == 0 ? 4 : 2;
-    if (level == 2)
-      tests_[2][general++] = s;
-    else
-      tests_[level][count_[level]++] = s;
+  commit_tests(pending, plane_first);
+  small_ = true;
+  for (int level = 0; level < 5; ++level) {
+    small_ = small_ && count_[level] <= kSmallCount[level];
+    for (int k = count_[level]; k < kSmallCount[level]; ++k)
+      tests_[level][k] = {-INFINITY, INFINITY, 0, 0};  // passes every centre
   }
-  count_[2] = general;
   return !empty_;
 }
 
 // The test "c . axis in [min_j p_j . axis - r, max_j p_j . axis + r]", filed at the finest level
 // whose axis component is non-zero (a: per column, v: per row, u: per triangle).
-void TriangleColumns::add_test(const std::array<double, 3>& axis, double margin) {
+void TriangleColumns::add_test(const std::array<double, 3>& axis, double margin,
+                               PendingTests& pending) {
   double lo = INFINITY, hi = -INFINITY;
   for (int j = 0; j < 3; ++j) {
     const double p = p_[j][0] * axis[0] + p_[j][1] * axis[1] + p_[j][2] * axis[2];
     lo = std::min(lo, p), hi = std::max(hi, p);
   }
   const double r = 0.5 * (std::fabs(axis[0]) + std::fabs(axis[1]) + std::fabs(axis[2]));
-  lo -= r, hi += r;
+  file_test(axis, lo - r, hi + r, margin, pending);
+}
+
+// add_test on the edge axis cross(unit i, e), whose component along i is exactly zero: each
+// corner's projection is two products (add_test's sum less its zero term, the same value up to
+// the sign of a zero).
+void TriangleColumns::add_edge_test(int i, const std::array<double, 3>& e, double margin,
+                                    PendingTests& pending) {
+  const auto p = std::size_t(i + 1) % 3, q = std::size_t(i + 2) % 3;
+  std::array<double, 3> axis = {0, 0, 0};
+  axis[p] = -e[q], axis[q] = e[p];
+  double lo = INFINITY, hi = -INFINITY;
+  for (int j = 0; j < 3; ++j) {
+    const double d = p_[j][p] * axis[p] + p_[j][q] * axis[q];
+    lo = std::min(lo, d), hi = std::max(hi, d);
+  }
+  const double r = 0.5 * (std::fabs(axis[p]) + std::fabs(axis[q]));
+  file_test(axis, lo - r, hi + r, margin, pending);
+}
+
+void TriangleColumns::file_test(const std::array<double, 3>& axis, double lo, double hi,
+                                double margin, PendingTests& pending) {
   const double ka = component(axis, a_), ku = component(axis, u_), kv = component(axis, v_);
   if (ka != 0)
-    add_interval(lo, hi, ka, ku, kv, margin, 2);
+    pending.add(lo, hi, ka, ku, kv, margin, 2);
   else if (kv != 0)
-    add_interval(lo, hi, kv, ku, 0, margin, 1);
+    pending.add(lo, hi, kv, ku, 0, margin, 1);
   else if (ku != 0)
-    add_interval(lo, hi, ku, 0, 0, margin, 0);
+    pending.add(lo, hi, ku, 0, 0, margin, 0);
   else if (0 < lo - margin || 0 > hi + margin)
     empty_ = true;  // separates every voxel
   else if (!(lo + margin <= 0 && 0 <= hi - margin))
     uncertain_all_ = true;
 }
 
-void TriangleColumns::add_interval(double b_lo, double b_hi, double k, double q1, double q2,
-                                   double margin, int level) {
-  // A reciprocal instead of four divisions: one more rounding each, within the 16u term.
-  const double inv = 1 / k;
-  const double lo = (k > 0 ? b_lo : b_hi) * inv, hi = (k > 0 ? b_hi : b_lo) * inv;
-  const double qu = -q1 * inv, qv = -q2 * inv;
-  const double m = margin * std::fabs(inv) + 16 * kRoundoff *
-                                                 (std::max(std::fabs(lo), std::fabs(hi)) +
-                                                  (std::fabs(qu) + std::fabs(qv)) * extent_ + 1);
-  // NaN or infinity anywhere makes the sum non-finite (lo, hi, |qu|, |qv| <= m / (16u)).
-  if (!(std::fabs(m) < INFINITY)) {
-    uncertain_all_ = true;  // no usable bound: the exact test decides every voxel
-    return;
+// Each pending test as an interval along its level's axis: "k x + q1 cu + q2 cv in [lo, hi]"
+// divided by k, widened by its margin. One loop of fixed length over all of them (it vectorizes;
+// unused entries divide by 1), then each is filed (see tests_).
+// The pending tests k[i] (the level's axis component) as intervals along that axis with their
+// margins m[i]: "k x + q1 cu + q2 cv in [lo, hi]" divided by k. A reciprocal instead of four
+// divisions: one more rounding each, within the 16u term. Entries i and i + 1 at once on SSE2.
+void TriangleColumns::divide_tests(const PendingTests& p, int i, SlabInterval* out,
+                                   double* m) const {
+#if defined(__SSE2__)
+  const __m128d k = _mm_loadu_pd(p.k + i), inv = _mm_div_pd(_mm_set1_pd(1), k);
+  const __m128d sign = _mm_set1_pd(-0.0);
+  const __m128d a = _mm_mul_pd(_mm_loadu_pd(p.lo + i), inv);
+  const __m128d b = _mm_mul_pd(_mm_loadu_pd(p.hi + i), inv);
+  const __m128d lo = _mm_min_pd(a, b), hi = _mm_max_pd(a, b);  // a or b, by the sign of k
+  const __m128d qu = _mm_xor_pd(_mm_mul_pd(_mm_loadu_pd(p.q1 + i), inv), sign);
+  const __m128d qv = _mm_xor_pd(_mm_mul_pd(_mm_loadu_pd(p.q2 + i), inv), sign);
+  auto abs = [&](__m128d x) { return _mm_andnot_pd(sign, x); };
+  const __m128d spread =
+      _mm_add_pd(_mm_add_pd(_mm_max_pd(abs(lo), abs(hi)),
+                            _mm_mul_pd(_mm_add_pd(abs(qu), abs(qv)), _mm_set1_pd(extent_))),
+                 _mm_set1_pd(1));
+  const __m128d margin = _mm_add_pd(_mm_mul_pd(_mm_loadu_pd(p.margin + i), abs(inv)),
+                                    _mm_mul_pd(_mm_set1_pd(16 * kRoundoff), spread));
+  double l[2], h[2], u[2], v[2];
+  _mm_storeu_pd(l, _mm_sub_pd(lo, margin)), _mm_storeu_pd(h, _mm_add_pd(hi, margin));
+  _mm_storeu_pd(u, qu), _mm_storeu_pd(v, qv), _mm_storeu_pd(m + i, margin);
+  out[i] = {l[0], h[0], u[0], v[0]}, out[i + 1] = {l[1], h[1], u[1], v[1]};
+#else
+  for (int j = i; j < i + 2; ++j) {
+    const double inv = 1 / p.k[j], a = p.lo[j] * inv, b = p.hi[j] * inv;
+    const double lo = std::min(a, b), hi = std::max(a, b);  // a or b, by the sign of k
+    const double qu = -(p.q1[j] * inv), qv = -(p.q2[j] * inv);
+    m[j] = p.margin[j] * std::fabs(inv) + 16 * kRoundoff *
+                                              (std::max(std::fabs(lo), std::fabs(hi)) +
+                                               (std::fabs(qu) + std::fabs(qv)) * extent_ + 1);
+    out[j] = {lo - m[j], hi + m[j], qu, qv};
   }
-  tests_[level][count_[level]++] = {lo - m, hi + m, qu, qv};
-  sure_inset_ = std::max(sure_inset_, 2 * m);
+#endif
+}
+
+// Each pending test divided (divide_tests) and filed (file_interval).
+void TriangleColumns::commit_tests(PendingTests& p, bool plane_first) {
+  if (p.count % 2 != 0)  // a harmless last entry for the pairs
+    p.lo[p.count] = p.hi[p.count] = p.q1[p.count] = p.q2[p.count] = p.margin[p.count] = 0,
+    p.k[p.count] = 1;
+  SlabInterval s[PendingTests::kMax + 1];
+  double m[PendingTests::kMax + 1];
+  for (int i = 0; i < p.count; i += 2) divide_tests(p, i, s, m);
+  int constant[5] = {-1, -1, -1, -1, -1};
+  for (int i = 0; i < p.count; ++i) {
+    // NaN or infinity anywhere makes the margin non-finite (lo, hi, |qu|, |qv| <= m / (16u);
+    // a NaN bound needs an infinite reciprocal, and the margin has margin * |inv|).
+    if (!(std::fabs(m[i]) < INFINITY)) {
+      uncertain_all_ = true;  // no usable bound: the exact test decides every voxel
+      continue;
+    }
+    if (i == 0 && plane_first) has_plane_ = true, plane_ = s[0];
+    file_interval(s[i], p.level[i], constant);
+    sure_inset_ = std::max(sure_inset_, 2 * m[i]);
+  }
+}
+
+// Files `s` by what it depends on (see tests_). Tests that do not depend on the column at all
+// (qu = qv = 0: an edge parallel to a grid plane, common on quantized meshes) become one per
+// level (constant[level]: its index): the largest lower and smallest upper bound, exactly what
+// evaluating them one by one gives (adding w = +-0 changes no bound).
+void TriangleColumns::file_interval(const SlabInterval& s, int level, int* constant) {
+  if (level == 2) level = s.qv == 0 ? 3 : s.qu == 0 ? 4 : 2;
+  SlabInterval* tests = tests_[level];
+  if (s.qu == 0 && s.qv == 0) {
+    if (constant[level] >= 0) {
+      SlabInterval& c = tests[constant[level]];
+      c.lo_m = std::max(c.lo_m, s.lo_m), c.hi_m = std::min(c.hi_m, s.hi_m);
+      return;
+    }
+    constant[level] = count_[level];
+  }
+  tests[count_[level]++] = s;
 }
 
 void TriangleColumns::reach_along_a(std::int64_t u0, std::int64_t u1, std::int64_t v0,
