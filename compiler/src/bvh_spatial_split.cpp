@@ -218,7 +218,16 @@ namespace {
 // Bins the references of [begin, end) on every axis with extent, reference by reference (its
 // corners loaded once).
 void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
-  for (const auto& r : refs) {
+  // The triangles and corners of references in sorted order are scattered over the scene:
+  // prefetched, the triangle kTriangleAhead references ahead, its corners kCornersAhead ahead.
+  constexpr std::size_t kTriangleAhead = 16, kCornersAhead = 8;
+  const std::size_t n = refs.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i + kTriangleAhead < n) __builtin_prefetch(&scene.triangles[refs[i + kTriangleAhead].prim]);
+    if (i + kCornersAhead < n)
+      for (const auto v : scene.triangles[refs[i + kCornersAhead].prim].v)
+        __builtin_prefetch(&scene.positions[v]);
+    const PrimRef& r = refs[i];
     format::Float3 v[3];
     load_corners(r, scene, v);
     for (int a = 0; a < 3; ++a)
