@@ -129,6 +129,10 @@ struct BinMap {
 
 struct Split {
   float cost = std::numeric_limits<float>::infinity();
+  // The weighted area sum that gave `cost` (cost = traversal + intersection x sum / area, which
+  // never decreases as the sum grows): a candidate with no smaller sum cannot cost less, so
+  // the sweep divides only for candidates below it.
+  float sum = std::numeric_limits<float>::infinity();
   int axis = -1;
   std::uint32_t bin = 0;
   std::size_t left_count = 0;
@@ -221,11 +225,11 @@ void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const B
   for (std::size_t j = 0; j + 1 < m; ++j) {
     left.grow(bins.box[base + used[j]]);
     left_count += bins.count[base + used[j]];
-    const float cost = o.traversal_cost + o.intersection_cost *
-                                              (bvh_simd::half_area(left) * float(left_count) +
-                                               right_area[j + 1] * float(n - left_count)) /
-                                              node_area;
-    if (cost < best.cost) best = {cost, a, used[j], left_count, left, right_box[j + 1]};
+    const float sum =
+        bvh_simd::half_area(left) * float(left_count) + right_area[j + 1] * float(n - left_count);
+    if (!(sum < best.sum)) continue;
+    const float cost = o.traversal_cost + o.intersection_cost * sum / node_area;
+    if (cost < best.cost) best = {cost, sum, a, used[j], left_count, left, right_box[j + 1]};
   }
 }
 
@@ -289,6 +293,36 @@ struct Task {
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes);
 
+// The first axis on which the centroids spread (a bin map gives them bins 0 and k - 1), or -1.
+int first_spread_axis(const Box3f& centroids) {
+  for (int a = 0; a < 3; ++a)
+    if (format::at(centroids.max, a) - format::at(centroids.min, a) > 0.0f) return a;
+  return -1;
+}
+
+// split_task for two references whose centroids spread on `a`, without binning: on every axis
+// where they spread they take bins 0 and k - 1, so the only candidate is one against the other,
+// at the same cost on each axis (the same two areas summed), and the first such axis wins.
+// Same cost, boxes and reference order as binning and partitioning gives.
+std::optional<std::pair<Task, Task>> split_pair(const Context& ctx, const Task& t, int a,
+                                                int& axis) {
+  const auto& o = ctx.o;
+  BuildRef* r = ctx.refs.data() + t.begin;
+  alignas(16) float c0[4], c1[4];
+  bvh_simd::store(c0, bvh_simd::centroid(r[0]));
+  bvh_simd::store(c1, bvh_simd::centroid(r[1]));
+  if (c1[a] < c0[a]) std::swap(r[0], r[1]), std::swap(c0, c1);  // the left one first
+  const VBox l{bvh_simd::lower(r[0]), bvh_simd::upper(r[0])};
+  const VBox rb{bvh_simd::lower(r[1]), bvh_simd::upper(r[1])};
+  const float sum = bvh_simd::half_area(l) * 1.0f + bvh_simd::half_area(rb) * 1.0f;
+  const float cost = o.traversal_cost + o.intersection_cost * sum / t.box.half_area();
+  if (cost >= o.intersection_cost * 2.0f && 2 <= o.max_leaf_size) return std::nullopt;
+  axis = a;
+  const auto point = [](const float* c) { return Box3f{{c[0], c[1], c[2]}, {c[0], c[1], c[2]}}; };
+  return std::pair{Task{t.begin, t.begin + 1, l.box(), point(c0), t.depth + 1},
+                   Task{t.begin + 1, t.end, rb.box(), point(c1), t.depth + 1}};
+}
+
 // Splits [begin, end) by the SAH (or in half when every centroid coincides) and returns the two
 // child tasks, or nothing when the node should be a leaf.
 std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& t, int& axis) {
@@ -300,9 +334,11 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return std::nullopt;
   }
+  const float area = t.box.half_area();
+  if (n == 2 && area > 0.0f)
+    if (const int a = first_spread_axis(t.centroids); a >= 0) return split_pair(ctx, t, a, axis);
   const std::span<BuildRef> refs = ctx.refs.subspan(t.begin, n);
   const BinMap map(t.centroids, std::max<std::uint32_t>(o.bins, 2));
-  const float area = t.box.half_area();
   const unsigned threads = t.depth < ctx.parallel_depth ? 0u : 1u;
   Split s;
   if (area > 0.0f) {
