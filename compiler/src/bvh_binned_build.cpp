@@ -308,19 +308,20 @@ std::optional<std::pair<Task, Task>> split_pair(const Context& ctx, const Task& 
                                                 int& axis) {
   const auto& o = ctx.o;
   BuildRef* r = ctx.refs.data() + t.begin;
-  alignas(16) float c0[4], c1[4];
-  bvh_simd::store(c0, bvh_simd::centroid(r[0]));
-  bvh_simd::store(c1, bvh_simd::centroid(r[1]));
-  if (c1[a] < c0[a]) std::swap(r[0], r[1]), std::swap(c0, c1);  // the left one first
-  const VBox l{bvh_simd::lower(r[0]), bvh_simd::upper(r[0])};
-  const VBox rb{bvh_simd::lower(r[1]), bvh_simd::upper(r[1])};
+  alignas(16) float c[2][4];
+  bvh_simd::store(c[0], bvh_simd::centroid(r[0]));
+  bvh_simd::store(c[1], bvh_simd::centroid(r[1]));
+  const int first = c[1][a] < c[0][a] ? 1 : 0;  // the one on the left
+  const VBox l{bvh_simd::lower(r[first]), bvh_simd::upper(r[first])};
+  const VBox rb{bvh_simd::lower(r[1 - first]), bvh_simd::upper(r[1 - first])};
   const float sum = bvh_simd::half_area(l) * 1.0f + bvh_simd::half_area(rb) * 1.0f;
   const float cost = o.traversal_cost + o.intersection_cost * sum / t.box.half_area();
   if (cost >= o.intersection_cost * 2.0f && 2 <= o.max_leaf_size) return std::nullopt;
   axis = a;
+  if (first == 1) std::swap(r[0], r[1]), std::swap(c[0], c[1]);  // the partition's order
   const auto point = [](const float* c) { return Box3f{{c[0], c[1], c[2]}, {c[0], c[1], c[2]}}; };
-  return std::pair{Task{t.begin, t.begin + 1, l.box(), point(c0), t.depth + 1},
-                   Task{t.begin + 1, t.end, rb.box(), point(c1), t.depth + 1}};
+  return std::pair{Task{t.begin, t.begin + 1, l.box(), point(c[0]), t.depth + 1},
+                   Task{t.begin + 1, t.end, rb.box(), point(c[1]), t.depth + 1}};
 }
 
 // Splits [begin, end) by the SAH (or in half when every centroid coincides) and returns the two
