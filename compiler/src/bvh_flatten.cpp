@@ -1,6 +1,6 @@
-// The flat BVH: the binned builder's nodes or a temporary tree flattened pbrt-style (pre-order,
-// first child adjacent, second child's index stored), leaf triangles copied in leaf order, and
-// the statistics every builder reports.
+// The flat BVH (pbrt-style: pre-order, first child adjacent, second child's index stored) from
+// the binned, sweep or SBVH builder, leaf triangles copied in leaf order, and the statistics
+// every builder reports.
 #include <algorithm>
 #include <stdexcept>
 
@@ -12,35 +12,6 @@
 namespace kiln {
 
 namespace {
-
-struct Flattener {
-  const Scene& scene;
-  FlatBvh& out;
-
-  std::uint32_t emit(const BvhBuildNode& n) {
-    const auto index = std::uint32_t(out.nodes.size());
-    out.nodes.emplace_back();
-    format::BvhNode node{};
-    for (int a = 0; a < 3; ++a)
-      node.min[a] = format::at(n.box.min, a), node.max[a] = format::at(n.box.max, a);
-    if (n.is_leaf()) {
-      node.offset = std::uint32_t(out.triangles.size());
-      node.count = std::uint16_t(n.prims.size());
-      for (const std::uint32_t prim : n.prims) {
-        const auto& t = scene.triangles[prim];
-        out.triangles.push_back(
-            {scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]});
-        out.prim_ids.push_back(prim);
-      }
-    } else {
-      node.axis = n.axis;
-      emit(*n.child[0]);
-      node.offset = emit(*n.child[1]);
-    }
-    out.nodes[index] = node;
-    return index;
-  }
-};
 
 double half_area(const format::BvhNode& n) {
   const double dx = double(n.max[0]) - n.min[0], dy = double(n.max[1]) - n.min[1],
@@ -115,6 +86,10 @@ std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& o
 // The sweep or binned builder's nodes and primitive ids in leaf order; returns the number of
 // build references.
 std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options, FlatBvh& out) {
+  if (options.builder == BvhBuilder::kSpatial) {
+    out.nodes = build_sbvh_nodes(scene, options, out.prim_ids);
+    return out.prim_ids.size();
+  }
   if (options.builder == BvhBuilder::kSweep) {
     std::vector<PrimRef> refs = build_refs(scene, options);
     out.nodes = build_sweep_nodes(refs, out.prim_ids, options);  // reference indices
@@ -125,13 +100,6 @@ std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
 }
 
 }  // namespace
-
-FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuildOptions& options) {
-  FlatBvh out;
-  Flattener{scene, out}.emit(root);
-  out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
-  return out;
-}
 
 BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::size_t triangles,
                                   const BvhBuildOptions& options) {
@@ -171,8 +139,6 @@ FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
   if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
   if (options.builder == BvhBuilder::kSpatial && options.presplit != BvhPresplit::kNone)
     throw std::invalid_argument("BVH: a presplit needs the binned or sweep builder");
-  if (options.builder == BvhBuilder::kSpatial)
-    return flatten_bvh(*build_bvh_tree(scene, options), scene, options);
   FlatBvh out;
   const std::size_t references = build_flat_nodes(scene, options, out);
   if (options.presplit != BvhPresplit::kNone) dedupe_leaf_references(out.nodes, out.prim_ids);
