@@ -385,8 +385,8 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
 
 }  // namespace
 
-std::vector<BuildRef> triangle_build_refs(const Scene& scene, unsigned threads) {
-  std::vector<BuildRef> refs(scene.triangles.size());
+bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads) {
+  bvh_simd::BuildRefs refs(scene.triangles.size());
   parallel_for_batched(refs.size(), 65536, threads, [&](std::size_t i) {
     Box3f box;
     for (const auto v : scene.triangles[i].v) box.grow(scene.positions[v]);

@@ -68,7 +68,7 @@ void dedupe_leaf_references(std::vector<format::BvhNode>& nodes,
 // the presplit's pieces, whose PrimRef array goes before the build).
 std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
                                     FlatBvh& out) {
-  std::vector<bvh_simd::BuildRef> refs;
+  bvh_simd::BuildRefs refs;
   if (options.presplit == BvhPresplit::kNone) {
     refs = triangle_build_refs(scene, options.threads);
   } else {
@@ -79,7 +79,8 @@ std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& o
   }
   out.nodes = build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options);
   out.prim_ids.resize(refs.size());
-  for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim();
+  parallel_for_batched(refs.size(), 65536, options.threads,
+                       [&](std::size_t i) { out.prim_ids[i] = refs[i].prim(); });
   return refs.size();
 }
 
@@ -106,12 +107,13 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
   BvhStatistics s;
   s.node_count = nodes.size();
   const double root_area = nodes.empty() ? 0.0 : half_area(nodes[0]);
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{0, 1}};  // (node, depth)
-  while (!nodes.empty() && !stack.empty()) {
-    const auto [i, depth] = stack.back();
-    stack.pop_back();
+  // The nodes lie in pre-order (first child adjacent), so one pass in index order visits them as
+  // a depth-first walk would (and sums the cost in that order); a node passes its depth on.
+  std::vector<std::uint8_t> depth(nodes.size());
+  if (!nodes.empty()) depth[0] = 1;
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
     const format::BvhNode& n = nodes[i];
-    s.max_depth = std::max(s.max_depth, depth);
+    s.max_depth = std::max<std::uint32_t>(s.max_depth, depth[i]);
     const double area = root_area > 0 ? half_area(n) / root_area : 0.0;
     if (n.count != 0) {
       s.leaf_count += 1;
@@ -120,8 +122,7 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
       s.sah_cost += area * options.intersection_cost * double(n.count);
     } else {
       s.sah_cost += area * options.traversal_cost;
-      stack.push_back({n.offset, depth + 1});
-      stack.push_back({i + 1, depth + 1});
+      depth[i + 1] = depth[n.offset] = std::uint8_t(depth[i] + 1);
     }
   }
   s.average_leaf_size = s.leaf_count ? double(s.reference_count) / double(s.leaf_count) : 0;
