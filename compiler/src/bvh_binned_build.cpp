@@ -28,8 +28,9 @@ namespace kiln {
 namespace {
 
 constexpr std::size_t kParallelSubtree = 16384;     // fork subtrees at least this large
-constexpr std::size_t kParallelBinning = 1u << 18;  // bin in chunks above this many references
-constexpr std::size_t kBinChunk = 1u << 16;
+constexpr std::size_t kParallelBinning = 1u << 16;  // bin in chunks above this many references
+constexpr std::size_t kBinChunk = 1u << 14;
+constexpr std::uint32_t kMaxBins = 1024;  // as --bvh-bins allows
 
 using bvh_simd::BuildRef;
 using bvh_simd::V4;
@@ -201,23 +202,19 @@ Bins& bin_all(std::span<const BuildRef> refs, const BinMap& map, unsigned thread
 
 // The SAH sweep over one axis's occupied bins: a split after an empty bin is the previous one at
 // the same cost, which the strict comparison would not take, so only occupied bins are
-// candidates, and small nodes (most of them) cost their occupied bins, not k.
+// candidates, and small nodes (most of them) cost their occupied bins, not k. Records the
+// winner's cost, axis, bin and count; best_split grows its boxes after.
 void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const BvhBuildOptions& o,
                 Split& best) {
-  thread_local std::vector<std::uint32_t> used;
-  thread_local std::vector<VBox> right_box;
-  thread_local std::vector<float> right_area;
+  std::uint16_t used[kMaxBins];
+  float right_area[kMaxBins];
   const std::size_t base = std::size_t(a) * bins.k;
-  used.clear();
-  bins.for_each(a, [&](std::uint32_t b) { used.push_back(b); });
-  const std::size_t m = used.size();
+  std::size_t m = 0;
+  bins.for_each(a, [&](std::uint32_t b) { used[m++] = std::uint16_t(b); });
   if (m < 2) return;
-  right_box.resize(m);
-  right_area.resize(m);
   VBox acc;
   for (std::size_t j = m; j-- > 1;) {
     acc.grow(bins.box[base + used[j]]);
-    right_box[j] = acc;
     right_area[j] = bvh_simd::half_area(acc);
   }
   VBox left;
@@ -229,7 +226,9 @@ void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const B
         bvh_simd::half_area(left) * float(left_count) + right_area[j + 1] * float(n - left_count);
     if (!(sum < best.sum)) continue;
     const float cost = o.traversal_cost + o.intersection_cost * sum / node_area;
-    if (cost < best.cost) best = {cost, sum, a, used[j], left_count, left, right_box[j + 1]};
+    if (cost < best.cost)
+      best.cost = cost, best.sum = sum, best.axis = a, best.bin = used[j],
+      best.left_count = left_count;
   }
 }
 
@@ -238,6 +237,19 @@ Split best_split(const Bins& bins, const BinMap& map, std::size_t n, float node_
   Split best;
   for (int a = 0; a < 3; ++a)
     if (map.axis_scale[a] > 0.0f) sweep_axis(bins, a, n, node_area, o, best);
+  if (best.axis < 0) return best;
+  // The winner's boxes, grown as the sweep grew them: the left side upwards, the right side
+  // from the last bin down.
+  const std::size_t base = std::size_t(best.axis) * bins.k;
+  std::uint16_t right[kMaxBins];
+  std::size_t m = 0;
+  bins.for_each(best.axis, [&](std::uint32_t b) {
+    if (b <= best.bin)
+      best.left_box.grow(bins.box[base + b]);
+    else
+      right[m++] = std::uint16_t(b);
+  });
+  while (m-- > 0) best.right_box.grow(bins.box[base + right[m]]);
   return best;
 }
 
@@ -397,13 +409,26 @@ bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads) {
 
 std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
                                                 const BvhBuildOptions& options) {
-  VBox root;
-  for (const BuildRef& r : refs) root.grow(bvh_simd::lower(r), bvh_simd::upper(r));
+  if (options.bins > kMaxBins)
+    throw std::invalid_argument("BVH: at most " + std::to_string(kMaxBins) + " bins");
+  // The root's box and centroid bounds in one pass over fixed chunks (in parallel), merged in
+  // chunk order: the bounds one pass in order gives.
+  const std::size_t chunks = (refs.size() + kBinChunk - 1) / kBinChunk;
+  std::vector<VBox> box(chunks), centroids(chunks);
+  parallel_for(chunks, options.threads, [&](std::size_t c) {
+    for (const BuildRef& r :
+         refs.subspan(c * kBinChunk, std::min(kBinChunk, refs.size() - c * kBinChunk))) {
+      box[c].grow(bvh_simd::lower(r), bvh_simd::upper(r));
+      const V4 p = bvh_simd::centroid(r);
+      centroids[c].grow(p, p);
+    }
+  });
+  for (std::size_t c = 1; c < chunks; ++c) box[0].grow(box[c]), centroids[0].grow(centroids[c]);
   const Context ctx{refs, options, fork_depth(options.threads)};
   std::vector<format::BvhNode> nodes;
   // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
   nodes.reserve(refs.size() + refs.size() / 4 + 1);
-  emit(ctx, {0, refs.size(), root.box(), centroid_bounds(refs).box(), 0}, nodes);
+  emit(ctx, {0, refs.size(), box[0].box(), centroids[0].box(), 0}, nodes);
   return nodes;
 }
 
