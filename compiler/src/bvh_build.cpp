@@ -70,10 +70,10 @@ struct Choice {
 };
 
 Choice choose_split(const BuildContext& ctx, const SortedRefs& refs, const format::Box3f& box,
-                    std::size_t budget) {
+                    std::size_t budget, unsigned threads) {
   const auto& o = ctx.options;
   Choice c;
-  c.object = find_sweep_split(refs, box, o);
+  c.object = find_sweep_split(refs, box, o, threads);
   if (c.object.valid()) c.order_axis = c.object.axis;
   if (budget > 0) {
     const float overlap =
@@ -97,7 +97,9 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return append_leaf(box, refs.axis[0], out);
   }
-  const Choice c = choose_split(ctx, refs, box, budget);
+  // Near the root, where the subtrees have not forked yet, a large node's axes run apart.
+  const unsigned threads = depth < ctx.parallel_depth && n >= kParallelSweep ? o.threads : 1u;
+  const Choice c = choose_split(ctx, refs, box, budget, threads);
   const float best_cost = std::min(c.object.cost, c.spatial.cost);
   const auto& ordered = refs.axis[c.order_axis];
   SortedRefs left, right;
@@ -105,12 +107,12 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
   if (!c.object.valid() && !c.spatial.valid()) {
     // All centroids coincide: nothing separates them by the SAH, so split the list in half.
     if (n <= o.max_leaf_size) return append_leaf(box, ordered, out);
-    partition_object_split(std::move(refs), c.order_axis, n / 2, left, right);
+    partition_object_split(std::move(refs), c.order_axis, n / 2, left, right, threads);
   } else if (best_cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) {
     return append_leaf(box, ordered, out);
   } else if (c.spatial.valid() && c.spatial.cost < c.object.cost) {
     const std::size_t added =
-        apply_spatial_split(c.spatial, refs, c.order_axis, ctx.scene, left, right);
+        apply_spatial_split(c.spatial, refs, c.order_axis, ctx.scene, left, right, threads);
     budget -= std::min(budget, added);
     if (left.size() == 0 || right.size() == 0) {  // unsplitting moved everything to one side
       if (!c.object.valid()) return append_leaf(box, ordered, out);
@@ -120,7 +122,8 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
     }
   }
   if (left.size() == 0 && right.size() == 0)
-    partition_object_split(std::move(refs), c.object.axis, c.object.left_count, left, right);
+    partition_object_split(std::move(refs), c.object.axis, c.object.left_count, left, right,
+                           threads);
   const int axis = spatial ? c.spatial.axis : std::max(c.object.axis, 0);
   refs.clear();  // free before recursing
 

@@ -4,6 +4,7 @@
 
 #include "bvh_build_simd.hpp"
 #include "bvh_splits.hpp"
+#include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
 
@@ -38,33 +39,53 @@ bvh_simd::V4 upper(const PrimRef& r) {
 
 }  // namespace
 
+namespace {
+
+// The exact sweep on one axis: replaces `best` with a cheaper split (the first position wins
+// ties). Boxes grown on vectors, half areas as Box3f's (bvh_build_simd.hpp: the same bits).
+void sweep_on_axis(const PrimRef* s, std::size_t n, float node_area, const BvhBuildOptions& o,
+                   int axis, std::vector<float>& right_area, ObjectSplit& best) {
+  right_area.resize(n);  // of the references [i, n) on the axis
+  bvh_simd::VBox acc;
+  for (std::size_t i = n; i-- > 1;) {
+    acc.grow(lower(s[i]), upper(s[i]));
+    right_area[i] = bvh_simd::half_area(acc);
+  }
+  bvh_simd::VBox left;
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    left.grow(lower(s[i]), upper(s[i]));
+    const float cost = o.traversal_cost + o.intersection_cost *
+                                              (bvh_simd::half_area(left) * float(i + 1) +
+                                               right_area[i + 1] * float(n - i - 1)) /
+                                              node_area;
+    if (cost < best.cost) best.cost = cost, best.axis = axis, best.left_count = i + 1;
+  }
+}
+
+}  // namespace
+
 ObjectSplit find_sweep_split(const SortedRefs& refs, const format::Box3f& node_box,
-                             const BvhBuildOptions& o) {
+                             const BvhBuildOptions& o, unsigned threads) {
   const float node_area = node_box.half_area();
   ObjectSplit best;
   const std::size_t n = refs.size();
   if (node_area <= 0.0f || n < 2) return best;
-  // Boxes grown on vectors, half areas as Box3f's (bvh_build_simd.hpp: the same bits); the
-  // winner's two boxes are grown once more at the end rather than stored at every step.
-  thread_local std::vector<float> right_area;  // of the references [i, n) on the axis
-  right_area.resize(n);
-  for (int axis = 0; axis < 3; ++axis) {
-    const PrimRef* s = refs.axis[axis].data();
-    bvh_simd::VBox acc;
-    for (std::size_t i = n; i-- > 1;) {
-      acc.grow(lower(s[i]), upper(s[i]));
-      right_area[i] = bvh_simd::half_area(acc);
-    }
-    bvh_simd::VBox left;
-    for (std::size_t i = 0; i + 1 < n; ++i) {
-      left.grow(lower(s[i]), upper(s[i]));
-      const float cost = o.traversal_cost + o.intersection_cost *
-                                                (bvh_simd::half_area(left) * float(i + 1) +
-                                                 right_area[i + 1] * float(n - i - 1)) /
-                                                node_area;
-      if (cost < best.cost) best.cost = cost, best.axis = axis, best.left_count = i + 1;
-    }
+  if (threads == 1 || n < kParallelSweep) {
+    thread_local std::vector<float> right_area;
+    for (int axis = 0; axis < 3; ++axis)
+      sweep_on_axis(refs.axis[axis].data(), n, node_area, o, axis, right_area, best);
+  } else {
+    // Each axis apart, then the first cheapest in axis order: what one pass over the axes in
+    // turn finds.
+    ObjectSplit per_axis[3];
+    std::vector<float> right_area[3];
+    parallel_for(3, threads, [&](std::size_t a) {
+      sweep_on_axis(refs.axis[a].data(), n, node_area, o, int(a), right_area[a], per_axis[a]);
+    });
+    for (const ObjectSplit& s : per_axis)
+      if (s.cost < best.cost) best = s;
   }
+  // The winner's two boxes, grown once more here rather than stored at every step.
   const auto& s = refs.axis[best.axis];
   for (std::size_t i = 0; i < best.left_count; ++i) best.left_box.grow(s[i].box);
   for (std::size_t i = n; i-- > best.left_count;) best.right_box.grow(s[i].box);
@@ -97,7 +118,7 @@ void partition_object_split(const SortedRefs& refs, int axis, std::size_t left_c
 }
 
 void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count, SortedRefs& left,
-                            SortedRefs& right) {
+                            SortedRefs& right, unsigned threads) {
   // The left child keeps the parent's arrays (pages already touched), compacted in place: a
   // left reference only ever moves to a lower index, so reading ahead of writing is safe.
   auto& split = refs.axis[axis];
@@ -105,8 +126,8 @@ void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count,
   const std::uint64_t pivot = centroid_key(split[left_count], axis);
   right.axis[axis].assign(split.begin() + std::ptrdiff_t(left_count), split.end());
   split.resize(left_count);
-  for (int a = 0; a < 3; ++a) {
-    if (a == axis) continue;
+  parallel_for(2, threads, [&](std::size_t other) {  // the two other axes, apart
+    const int a = (axis + 1 + int(other)) % 3;
     auto& v = refs.axis[a];
     auto& r = right.axis[a];
     r.resize(n - left_count);
@@ -119,7 +140,7 @@ void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count,
         *rp++ = ref;
     }
     v.resize(left_count);
-  }
+  });
   left = std::move(refs);
 }
 

@@ -391,7 +391,8 @@ void children_on_axis(const std::vector<PrimRef>& parent, int axis, int split_ax
 }  // namespace
 
 std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
-                                const Scene& scene, SortedRefs& left_out, SortedRefs& right_out) {
+                                const Scene& scene, SortedRefs& left_out, SortedRefs& right_out,
+                                unsigned threads) {
   const int axis = split.axis;
   const float pos = split.position;
   format::Box3f left_box, right_box;
@@ -458,9 +459,10 @@ std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& ref
       added += 1;
     }
   }
-  for (int a = 0; a < 3; ++a) {
-    children_on_axis(refs.axis[a], a, axis, pos, left, right, left_out.axis[a], right_out.axis[a]);
-  }
+  parallel_for(3, threads, [&](std::size_t a) {
+    children_on_axis(refs.axis[a], int(a), axis, pos, left, right, left_out.axis[a],
+                     right_out.axis[a]);
+  });
   return added;
 }
 
