@@ -1,5 +1,5 @@
-// BVH builders (binned SAH, full-sweep SAH, SBVH) producing a temporary tree, and the pass that
-// flattens it into the mapped layout (formats/bvh.hpp).
+// BVH builders (binned SAH, full-sweep SAH, SBVH), each emitting its nodes straight into the
+// mapped flat layout (formats/bvh.hpp), and the statistics they report.
 #pragma once
 
 #include <cstdint>
