@@ -414,7 +414,7 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
   // The root's box and centroid bounds in one pass over fixed chunks (in parallel), merged in
   // chunk order: the bounds one pass in order gives.
   const std::size_t chunks = (refs.size() + kBinChunk - 1) / kBinChunk;
-  std::vector<VBox> box(chunks), centroids(chunks);
+  std::vector<VBox> box(std::max<std::size_t>(chunks, 1)), centroids(box.size());
   parallel_for(chunks, options.threads, [&](std::size_t c) {
     for (const BuildRef& r :
          refs.subspan(c * kBinChunk, std::min(kBinChunk, refs.size() - c * kBinChunk))) {

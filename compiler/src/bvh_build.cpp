@@ -86,6 +86,9 @@ Choice choose_split(const BuildContext& ctx, const SortedRefs& refs, const forma
   return c;
 }
 
+void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, std::uint32_t depth,
+                    std::size_t budget, std::size_t index, FlatOut& out);
+
 void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, std::size_t budget,
                 FlatOut& out) {
   const auto& o = ctx.options;
@@ -126,20 +129,23 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
                            threads);
   const int axis = spatial ? c.spatial.axis : std::max(c.object.axis, 0);
   refs.clear();  // free before recursing
-
-  // The duplication budget is shared in proportion to size: deterministic, no global counter.
-  const std::size_t total = left.size() + right.size();
-  const std::size_t left_budget = budget * left.size() / total;
-  const std::size_t right_budget = budget - left_budget;
   const std::size_t index = out.nodes.size();
   out.nodes.push_back(node_of(box));  // made interior below
-  // Left and right subtrees are built apart and only then appended: the nodes are the same
-  // whether or not the right one ran on its own thread.
+  out.nodes[index].axis = std::uint8_t(axis);
+  build_children(ctx, std::move(left), std::move(right), depth, budget, index, out);
+}
+
+// The children of the node at `index`, the duplication budget shared in proportion to size
+// (deterministic, no global counter). Left and right subtrees are built apart and only then
+// appended: the nodes are the same whether or not the right one ran on its own thread.
+void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, std::uint32_t depth,
+                    std::size_t budget, std::size_t index, FlatOut& out) {
+  const std::size_t left_budget = budget * left.size() / (left.size() + right.size());
   const auto left_tree = [&](FlatOut& o) {
     build_node(ctx, std::move(left), depth + 1, left_budget, o);
   };
   const auto right_tree = [&](FlatOut& o) {
-    build_node(ctx, std::move(right), depth + 1, right_budget, o);
+    build_node(ctx, std::move(right), depth + 1, budget - left_budget, o);
   };
   std::uint32_t second;
   if (depth < ctx.parallel_depth && left.size() >= kParallelSubtree &&
@@ -156,7 +162,6 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
     right_tree(out);
   }
   out.nodes[index].offset = second;
-  out.nodes[index].axis = std::uint8_t(axis);
 }
 
 }  // namespace
