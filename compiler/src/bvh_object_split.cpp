@@ -1,6 +1,7 @@
 // Object splits of the SBVH builder on presorted per-axis arrays.
 #include <algorithm>
 #include <cstddef>
+#include <utility>
 #include <vector>
 
 #include "bvh_build_simd.hpp"
@@ -19,12 +20,41 @@ struct KeyIndex {
 
 }  // namespace
 
+namespace {
+
+// LSD radix sort of unique 64-bit keys, 11 bits a pass, skipping the passes whose digit is the
+// same for every key (the high bits of the primitive ids, mostly): the order std::sort gives.
+void radix_sort(std::vector<KeyIndex>& keys) {
+  constexpr int kBits = 11, kPasses = 6;  // 66 bits
+  constexpr std::size_t kBuckets = std::size_t(1) << kBits;
+  std::vector<std::uint32_t> count(kPasses * kBuckets, 0);
+  for (const KeyIndex& k : keys)
+    for (int p = 0; p < kPasses; ++p)
+      ++count[p * kBuckets + ((k.key >> (p * kBits)) & (kBuckets - 1))];
+  std::vector<KeyIndex> tmp(keys.size());
+  for (int p = 0; p < kPasses; ++p) {
+    std::uint32_t* c = count.data() + p * kBuckets;
+    if (std::any_of(c, c + kBuckets, [&](std::uint32_t n) { return n == keys.size(); })) continue;
+    std::uint32_t sum = 0;
+    for (std::size_t b = 0; b < kBuckets; ++b) sum += std::exchange(c[b], sum);
+    for (const KeyIndex& k : keys) tmp[c[(k.key >> (p * kBits)) & (kBuckets - 1)]++] = k;
+    keys.swap(tmp);
+  }
+}
+
+constexpr std::size_t kRadixSort = 2048;  // radix sort from this many references, std::sort below
+
+}  // namespace
+
 void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimRef>& out) {
   // Sorting 12-byte keys, then gathering once, costs a fraction of sorting 28-byte references.
   std::vector<KeyIndex> keys(refs.size());
   for (std::size_t i = 0; i < refs.size(); ++i)
     keys[i] = {centroid_key(refs[i], axis), std::uint32_t(i)};
-  std::sort(keys.begin(), keys.end());
+  if (keys.size() >= kRadixSort)
+    radix_sort(keys);
+  else
+    std::sort(keys.begin(), keys.end());
   out.resize(refs.size());
   for (std::size_t i = 0; i < refs.size(); ++i) out[i] = refs[keys[i].index];
 }
