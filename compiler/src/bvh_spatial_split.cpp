@@ -141,12 +141,10 @@ struct SpatialBins {
 };
 
 // The box of the points where a triangle's edges cross the plane axis a = hi, per lane (empty
-// where none does): edge_point's operations on vectors (corners p, edge vectors d, their axis
-// coordinates c and dc, splat).
+// where none does): edge_point's operations on vectors (corners p and their axis coordinates c,
+// splat).
 [[gnu::always_inline]] inline void plane_cuts(const bvh_simd::V4 (&p)[3][3],
-                                              const bvh_simd::V4 (&d)[3][3],
-                                              const bvh_simd::V4 (&c)[3],
-                                              const bvh_simd::V4 (&dc)[3], int a, bvh_simd::V4 hi,
+                                              const bvh_simd::V4 (&c)[3], int a, bvh_simd::V4 hi,
                                               bvh_simd::V4 (&cut_min)[3],
                                               bvh_simd::V4 (&cut_max)[3]) {
   using namespace bvh_simd;
@@ -157,9 +155,11 @@ struct SpatialBins {
     const int j = i == 2 ? 0 : i + 1;
     const V4 cross = (lt(c[i], hi) & lt(hi, c[j])) | (lt(c[j], hi) & lt(hi, c[i]));
     if (!mask_bits(cross)) continue;
-    const V4 s = vmin(one, vmax(zero, (hi - c[i]) / dc[i]));  // std::clamp(x, 0, 1)
+    // The edge vector, b - a as edge_point takes it (lane-wise, the same bits), only for an
+    // edge that crosses.
+    const V4 s = vmin(one, vmax(zero, (hi - c[i]) / (c[j] - c[i])));  // std::clamp(x, 0, 1)
     for (int q = 0; q < 3; ++q) {
-      const V4 x = q == a ? hi : p[i][q] + d[i][q] * s;
+      const V4 x = q == a ? hi : p[i][q] + (p[j][q] - p[i][q]) * s;
       cut_min[q] = vmin(blend(cross, x, inf), cut_min[q]);
       cut_max[q] = vmax(blend(cross, x, ninf), cut_max[q]);
     }
@@ -171,15 +171,10 @@ void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int 
   using namespace bvh_simd;
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const V4 inf = splat(kInf), ninf = splat(-kInf);
-  V4 p[3][3], d[3][3], c[3], dc[3];  // corners, edge vectors, axis coordinates (splat)
+  V4 p[3][3], c[3];  // corners and their axis coordinates (splat)
   for (int i = 0; i < 3; ++i) {
-    const int j = i == 2 ? 0 : i + 1;
-    for (int q = 0; q < 3; ++q) {
-      p[i][q] = splat(format::at(v[i], q));
-      d[i][q] = splat(format::at(v[j], q) - format::at(v[i], q));
-    }
-    c[i] = splat(coord(v[i], a));
-    dc[i] = splat(coord(v[j], a) - coord(v[i], a));
+    for (int q = 0; q < 3; ++q) p[i][q] = splat(format::at(v[i], q));
+    c[i] = p[i][a];
   }
   V4 rmin[3], rmax[3];
   for (int q = 0; q < 3; ++q) rmin[q] = splat(format::at(r.box.min, q));
@@ -194,7 +189,7 @@ void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int 
     const V4 hi = blend(lt(lane, vm1), planes, inf);  // the last bin has no upper plane
     const V4 lo = shift_in(prev_hi, hi);
     V4 cut_min[3], cut_max[3];
-    plane_cuts(p, d, c, dc, a, hi, cut_min, cut_max);
+    plane_cuts(p, c, a, hi, cut_min, cut_max);
     V4 lo_box[3], hi_box[3];
     for (int q = 0; q < 3; ++q) {
       lo_box[q] = shift_in(prev_min[q], cut_min[q]);
