@@ -35,7 +35,7 @@ inline constexpr double kEvhDefaultThreshold = 1.0 / 16384;
 
 struct BvhBuildOptions {
   BvhBuilder builder = BvhBuilder::kBinned;
-  std::uint32_t bins = 32;            // binned SAH and SBVH spatial bins
+  std::uint32_t bins = 32;            // binned SAH and SBVH spatial bins (2-1024)
   float traversal_cost = 1.0f;        // SAH cost of visiting a node
   float intersection_cost = 1.0f;     // SAH cost of one triangle test
   std::uint32_t max_leaf_size = 8;    // larger leaves are split even when the SAH disagrees
