@@ -133,5 +133,40 @@ TEST(BvhBinnedBuild, SameTreeOnAnyThreadCountWithParallelChunkBinning) {
   }
 }
 
+// Two references: a node that stays a leaf keeps them in input order; a split puts the one with
+// the lower centroid on the first spread axis first (as binning and the in-place partition
+// do), each child's box being its triangle's.
+TEST(BvhBinnedBuild, TwoReferenceNodesKeepTheirOrderOrPutTheLowerCentroidFirst) {
+  const auto two = [](format::Float3 a, format::Float3 b, float size) {
+    Scene scene;
+    for (const format::Float3 c : {a, b}) {
+      const auto base = std::uint32_t(scene.positions.size());
+      scene.positions.push_back(c);
+      scene.positions.push_back({c.x + size, c.y, c.z});
+      scene.positions.push_back({c.x, c.y + size, c.z + size});
+      scene.triangles.push_back({{base, base + 1, base + 2}});
+    }
+    BvhBuildOptions options;
+    options.leaf_triangles = false;
+    return std::pair{scene, build_bvh(scene, options)};
+  };
+  // Overlapping: splitting costs 1 + about 2 > 2, so one leaf, in input order.
+  const auto [overlap, leaf] = two({0.1f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 10.0f);
+  ASSERT_EQ(leaf.nodes.size(), 1u);
+  EXPECT_EQ(leaf.prim_ids, (std::vector<std::uint32_t>{0, 1}));
+  // Far apart, the second lower on x (the first axis they spread on): split, it goes first.
+  const auto [apart, split] = two({50.0f, 0.0f, 0.0f}, {0.0f, 3.0f, 0.0f}, 1.0f);
+  ASSERT_EQ(split.nodes.size(), 3u);
+  EXPECT_EQ(split.nodes[0].axis, 0);
+  EXPECT_EQ(split.prim_ids, (std::vector<std::uint32_t>{1, 0}));
+  for (std::uint32_t i = 1; i < 3; ++i) {
+    const format::Box3f b = triangle_box(apart, split.prim_ids[split.nodes[i].offset]);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(split.nodes[i].min[a], format::at(b.min, a));
+      EXPECT_EQ(split.nodes[i].max[a], format::at(b.max, a));
+    }
+  }
+}
+
 }  // namespace
 }  // namespace kiln

@@ -289,6 +289,21 @@ void expect_presorted(const SortedRefs& s) {
   }
 }
 
+// Sorting is by (centroid, primitive id) whatever the input order (the radix sort above 2048
+// references takes the id's digits too): shuffled references sort to the same arrays.
+TEST(SbvhPresorted, SortByCentroidIgnoresTheInputOrder) {
+  const Scene scene = random_triangles(5000, 9);
+  std::vector<PrimRef> refs = triangle_refs(scene);
+  const SortedRefs in_order = presorted(refs);
+  expect_presorted(in_order);
+  std::shuffle(refs.begin(), refs.end(), std::mt19937(4));
+  const SortedRefs shuffled = presorted(refs);
+  for (int a = 0; a < 3; ++a)
+    EXPECT_EQ(0, std::memcmp(in_order.axis[a].data(), shuffled.axis[a].data(),
+                             refs.size() * sizeof(PrimRef)))
+        << a;
+}
+
 TEST(SbvhPresorted, ObjectSplitKeepsEveryAxisSortedAndSplitsAtTheSweepPrefix) {
   const Scene scene = random_triangles(3000, 3);
   const SortedRefs all = presorted(triangle_refs(scene));

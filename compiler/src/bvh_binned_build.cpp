@@ -28,8 +28,9 @@ namespace kiln {
 namespace {
 
 constexpr std::size_t kParallelSubtree = 16384;     // fork subtrees at least this large
-constexpr std::size_t kParallelBinning = 1u << 18;  // bin in chunks above this many references
-constexpr std::size_t kBinChunk = 1u << 16;
+constexpr std::size_t kParallelBinning = 1u << 16;  // bin in chunks above this many references
+constexpr std::size_t kBinChunk = 1u << 14;
+constexpr std::uint32_t kMaxBins = 1024;  // as --bvh-bins allows
 
 using bvh_simd::BuildRef;
 using bvh_simd::V4;
@@ -129,6 +130,10 @@ struct BinMap {
 
 struct Split {
   float cost = std::numeric_limits<float>::infinity();
+  // The weighted area sum that gave `cost` (cost = traversal + intersection x sum / area, which
+  // never decreases as the sum grows): a candidate with no smaller sum cannot cost less, so
+  // the sweep divides only for candidates below it.
+  float sum = std::numeric_limits<float>::infinity();
   int axis = -1;
   std::uint32_t bin = 0;
   std::size_t left_count = 0;
@@ -197,23 +202,19 @@ Bins& bin_all(std::span<const BuildRef> refs, const BinMap& map, unsigned thread
 
 // The SAH sweep over one axis's occupied bins: a split after an empty bin is the previous one at
 // the same cost, which the strict comparison would not take, so only occupied bins are
-// candidates, and small nodes (most of them) cost their occupied bins, not k.
+// candidates, and small nodes (most of them) cost their occupied bins, not k. Records the
+// winner's cost, axis, bin and count; best_split grows its boxes after.
 void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const BvhBuildOptions& o,
                 Split& best) {
-  thread_local std::vector<std::uint32_t> used;
-  thread_local std::vector<VBox> right_box;
-  thread_local std::vector<float> right_area;
+  std::uint16_t used[kMaxBins];
+  float right_area[kMaxBins];
   const std::size_t base = std::size_t(a) * bins.k;
-  used.clear();
-  bins.for_each(a, [&](std::uint32_t b) { used.push_back(b); });
-  const std::size_t m = used.size();
+  std::size_t m = 0;
+  bins.for_each(a, [&](std::uint32_t b) { used[m++] = std::uint16_t(b); });
   if (m < 2) return;
-  right_box.resize(m);
-  right_area.resize(m);
   VBox acc;
   for (std::size_t j = m; j-- > 1;) {
     acc.grow(bins.box[base + used[j]]);
-    right_box[j] = acc;
     right_area[j] = bvh_simd::half_area(acc);
   }
   VBox left;
@@ -221,11 +222,13 @@ void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const B
   for (std::size_t j = 0; j + 1 < m; ++j) {
     left.grow(bins.box[base + used[j]]);
     left_count += bins.count[base + used[j]];
-    const float cost = o.traversal_cost + o.intersection_cost *
-                                              (bvh_simd::half_area(left) * float(left_count) +
-                                               right_area[j + 1] * float(n - left_count)) /
-                                              node_area;
-    if (cost < best.cost) best = {cost, a, used[j], left_count, left, right_box[j + 1]};
+    const float sum =
+        bvh_simd::half_area(left) * float(left_count) + right_area[j + 1] * float(n - left_count);
+    if (!(sum < best.sum)) continue;
+    const float cost = o.traversal_cost + o.intersection_cost * sum / node_area;
+    if (cost < best.cost)
+      best.cost = cost, best.sum = sum, best.axis = a, best.bin = used[j],
+      best.left_count = left_count;
   }
 }
 
@@ -234,6 +237,19 @@ Split best_split(const Bins& bins, const BinMap& map, std::size_t n, float node_
   Split best;
   for (int a = 0; a < 3; ++a)
     if (map.axis_scale[a] > 0.0f) sweep_axis(bins, a, n, node_area, o, best);
+  if (best.axis < 0) return best;
+  // The winner's boxes, grown as the sweep grew them: the left side upwards, the right side
+  // from the last bin down.
+  const std::size_t base = std::size_t(best.axis) * bins.k;
+  std::uint16_t right[kMaxBins];
+  std::size_t m = 0;
+  bins.for_each(best.axis, [&](std::uint32_t b) {
+    if (b <= best.bin)
+      best.left_box.grow(bins.box[base + b]);
+    else
+      right[m++] = std::uint16_t(b);
+  });
+  while (m-- > 0) best.right_box.grow(bins.box[base + right[m]]);
   return best;
 }
 
@@ -289,6 +305,37 @@ struct Task {
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes);
 
+// The first axis on which the centroids spread (a bin map gives them bins 0 and k - 1), or -1.
+int first_spread_axis(const Box3f& centroids) {
+  for (int a = 0; a < 3; ++a)
+    if (format::at(centroids.max, a) - format::at(centroids.min, a) > 0.0f) return a;
+  return -1;
+}
+
+// split_task for two references whose centroids spread on `a`, without binning: on every axis
+// where they spread they take bins 0 and k - 1, so the only candidate is one against the other,
+// at the same cost on each axis (the same two areas summed), and the first such axis wins.
+// Same cost, boxes and reference order as binning and partitioning gives.
+std::optional<std::pair<Task, Task>> split_pair(const Context& ctx, const Task& t, int a,
+                                                int& axis) {
+  const auto& o = ctx.o;
+  BuildRef* r = ctx.refs.data() + t.begin;
+  alignas(16) float c[2][4];
+  bvh_simd::store(c[0], bvh_simd::centroid(r[0]));
+  bvh_simd::store(c[1], bvh_simd::centroid(r[1]));
+  const int first = c[1][a] < c[0][a] ? 1 : 0;  // the one on the left
+  const VBox l{bvh_simd::lower(r[first]), bvh_simd::upper(r[first])};
+  const VBox rb{bvh_simd::lower(r[1 - first]), bvh_simd::upper(r[1 - first])};
+  const float sum = bvh_simd::half_area(l) * 1.0f + bvh_simd::half_area(rb) * 1.0f;
+  const float cost = o.traversal_cost + o.intersection_cost * sum / t.box.half_area();
+  if (cost >= o.intersection_cost * 2.0f && 2 <= o.max_leaf_size) return std::nullopt;
+  axis = a;
+  if (first == 1) std::swap(r[0], r[1]), std::swap(c[0], c[1]);  // the partition's order
+  const auto point = [](const float* c) { return Box3f{{c[0], c[1], c[2]}, {c[0], c[1], c[2]}}; };
+  return std::pair{Task{t.begin, t.begin + 1, l.box(), point(c[0]), t.depth + 1},
+                   Task{t.begin + 1, t.end, rb.box(), point(c[1]), t.depth + 1}};
+}
+
 // Splits [begin, end) by the SAH (or in half when every centroid coincides) and returns the two
 // child tasks, or nothing when the node should be a leaf.
 std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& t, int& axis) {
@@ -300,9 +347,11 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return std::nullopt;
   }
+  const float area = t.box.half_area();
+  if (n == 2 && area > 0.0f)
+    if (const int a = first_spread_axis(t.centroids); a >= 0) return split_pair(ctx, t, a, axis);
   const std::span<BuildRef> refs = ctx.refs.subspan(t.begin, n);
   const BinMap map(t.centroids, std::max<std::uint32_t>(o.bins, 2));
-  const float area = t.box.half_area();
   const unsigned threads = t.depth < ctx.parallel_depth ? 0u : 1u;
   Split s;
   if (area > 0.0f) {
@@ -348,8 +397,8 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
 
 }  // namespace
 
-std::vector<BuildRef> triangle_build_refs(const Scene& scene, unsigned threads) {
-  std::vector<BuildRef> refs(scene.triangles.size());
+bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads) {
+  bvh_simd::BuildRefs refs(scene.triangles.size());
   parallel_for_batched(refs.size(), 65536, threads, [&](std::size_t i) {
     Box3f box;
     for (const auto v : scene.triangles[i].v) box.grow(scene.positions[v]);
@@ -360,13 +409,26 @@ std::vector<BuildRef> triangle_build_refs(const Scene& scene, unsigned threads) 
 
 std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
                                                 const BvhBuildOptions& options) {
-  VBox root;
-  for (const BuildRef& r : refs) root.grow(bvh_simd::lower(r), bvh_simd::upper(r));
+  if (options.bins > kMaxBins)
+    throw std::invalid_argument("BVH: at most " + std::to_string(kMaxBins) + " bins");
+  // The root's box and centroid bounds in one pass over fixed chunks (in parallel), merged in
+  // chunk order: the bounds one pass in order gives.
+  const std::size_t chunks = (refs.size() + kBinChunk - 1) / kBinChunk;
+  std::vector<VBox> box(std::max<std::size_t>(chunks, 1)), centroids(box.size());
+  parallel_for(chunks, options.threads, [&](std::size_t c) {
+    for (const BuildRef& r :
+         refs.subspan(c * kBinChunk, std::min(kBinChunk, refs.size() - c * kBinChunk))) {
+      box[c].grow(bvh_simd::lower(r), bvh_simd::upper(r));
+      const V4 p = bvh_simd::centroid(r);
+      centroids[c].grow(p, p);
+    }
+  });
+  for (std::size_t c = 1; c < chunks; ++c) box[0].grow(box[c]), centroids[0].grow(centroids[c]);
   const Context ctx{refs, options, fork_depth(options.threads)};
   std::vector<format::BvhNode> nodes;
   // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
   nodes.reserve(refs.size() + refs.size() / 4 + 1);
-  emit(ctx, {0, refs.size(), root.box(), centroid_bounds(refs).box(), 0}, nodes);
+  emit(ctx, {0, refs.size(), box[0].box(), centroids[0].box(), 0}, nodes);
   return nodes;
 }
 

@@ -10,7 +10,7 @@
 namespace kiln {
 
 /// One reference per triangle of the scene (its box, its index), built in parallel.
-std::vector<bvh_simd::BuildRef> triangle_build_refs(const Scene& scene, unsigned threads);
+bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads);
 
 /// The binned SAH builder over `refs`, which it partitions in place into leaf order; returns
 /// the nodes in the flat layout, each leaf's offset indexing `refs`. Byte-identical for any

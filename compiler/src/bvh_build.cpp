@@ -29,12 +29,37 @@ format::Box3f bounds_of(std::span<const PrimRef> refs) {
   return box;
 }
 
-std::unique_ptr<BvhBuildNode> make_leaf(const format::Box3f& box, std::span<const PrimRef> refs) {
-  auto leaf = std::make_unique<BvhBuildNode>();
-  leaf->box = box;
-  leaf->prims.reserve(refs.size());
-  for (const auto& r : refs) leaf->prims.push_back(r.prim);
-  return leaf;
+// The nodes and primitive ids of a subtree, emitted depth-first (first child adjacent); leaf
+// offsets index `prims`, interior offsets `nodes`, both from 0 for a subtree built apart.
+struct FlatOut {
+  std::vector<format::BvhNode> nodes;
+  std::vector<std::uint32_t> prims;
+};
+
+format::BvhNode node_of(const format::Box3f& box) {
+  format::BvhNode node{};
+  for (int a = 0; a < 3; ++a)
+    node.min[a] = format::at(box.min, a), node.max[a] = format::at(box.max, a);
+  return node;
+}
+
+void append_leaf(const format::Box3f& box, std::span<const PrimRef> refs, FlatOut& out) {
+  format::BvhNode node = node_of(box);
+  node.offset = std::uint32_t(out.prims.size());
+  node.count = std::uint16_t(refs.size());
+  out.nodes.push_back(node);
+  for (const auto& r : refs) out.prims.push_back(r.prim);
+}
+
+// Appends a subtree built apart, shifting its offsets past what `out` holds.
+void append_subtree(FlatOut& out, const FlatOut& sub) {
+  const auto node_shift = std::uint32_t(out.nodes.size());
+  const auto prim_shift = std::uint32_t(out.prims.size());
+  for (format::BvhNode n : sub.nodes) {
+    n.offset += n.count == 0 ? node_shift : prim_shift;
+    out.nodes.push_back(n);
+  }
+  out.prims.insert(out.prims.end(), sub.prims.begin(), sub.prims.end());
 }
 
 // How a node splits: by the SAH sweep, a spatial split, halves (no SAH split), or not at all.
@@ -45,10 +70,10 @@ struct Choice {
 };
 
 Choice choose_split(const BuildContext& ctx, const SortedRefs& refs, const format::Box3f& box,
-                    std::size_t budget) {
+                    std::size_t budget, unsigned threads) {
   const auto& o = ctx.options;
   Choice c;
-  c.object = find_sweep_split(refs, box, o);
+  c.object = find_sweep_split(refs, box, o, threads);
   if (c.object.valid()) c.order_axis = c.object.axis;
   if (budget > 0) {
     const float overlap =
@@ -61,8 +86,11 @@ Choice choose_split(const BuildContext& ctx, const SortedRefs& refs, const forma
   return c;
 }
 
-std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, SortedRefs refs,
-                                         std::uint32_t depth, std::size_t budget) {
+void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, std::uint32_t depth,
+                    std::size_t budget, std::size_t index, FlatOut& out);
+
+void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, std::size_t budget,
+                FlatOut& out) {
   const auto& o = ctx.options;
   const format::Box3f box = bounds_of(refs.axis[0]);
   const std::size_t n = refs.size();
@@ -70,50 +98,70 @@ std::unique_ptr<BvhBuildNode> build_node(const BuildContext& ctx, SortedRefs ref
   if (n <= 1 || must_stop) {
     if (n > format::kBvhMaxLeafSize)
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
-    return make_leaf(box, refs.axis[0]);
+    return append_leaf(box, refs.axis[0], out);
   }
-  const Choice c = choose_split(ctx, refs, box, budget);
+  // Near the root, where the subtrees have not forked yet, a large node's axes run apart.
+  const unsigned threads = depth < ctx.parallel_depth && n >= kParallelSweep ? o.threads : 1u;
+  const Choice c = choose_split(ctx, refs, box, budget, threads);
   const float best_cost = std::min(c.object.cost, c.spatial.cost);
   const auto& ordered = refs.axis[c.order_axis];
   SortedRefs left, right;
   bool spatial = false;
   if (!c.object.valid() && !c.spatial.valid()) {
     // All centroids coincide: nothing separates them by the SAH, so split the list in half.
-    if (n <= o.max_leaf_size) return make_leaf(box, ordered);
-    partition_object_split(std::move(refs), c.order_axis, n / 2, left, right);
+    if (n <= o.max_leaf_size) return append_leaf(box, ordered, out);
+    partition_object_split(std::move(refs), c.order_axis, n / 2, left, right, threads);
   } else if (best_cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) {
-    return make_leaf(box, ordered);
+    return append_leaf(box, ordered, out);
   } else if (c.spatial.valid() && c.spatial.cost < c.object.cost) {
     const std::size_t added =
-        apply_spatial_split(c.spatial, refs, c.order_axis, ctx.scene, left, right);
+        apply_spatial_split(c.spatial, refs, c.order_axis, ctx.scene, left, right, threads);
     budget -= std::min(budget, added);
     if (left.size() == 0 || right.size() == 0) {  // unsplitting moved everything to one side
-      if (!c.object.valid()) return make_leaf(box, ordered);
+      if (!c.object.valid()) return append_leaf(box, ordered, out);
       left.clear(), right.clear();
     } else {
       spatial = true;
     }
   }
   if (left.size() == 0 && right.size() == 0)
-    partition_object_split(std::move(refs), c.object.axis, c.object.left_count, left, right);
+    partition_object_split(std::move(refs), c.object.axis, c.object.left_count, left, right,
+                           threads);
   const int axis = spatial ? c.spatial.axis : std::max(c.object.axis, 0);
   refs.clear();  // free before recursing
+  const std::size_t index = out.nodes.size();
+  out.nodes.push_back(node_of(box));  // made interior below
+  out.nodes[index].axis = std::uint8_t(axis);
+  build_children(ctx, std::move(left), std::move(right), depth, budget, index, out);
+}
 
-  // The duplication budget is shared in proportion to size: deterministic, no global counter.
-  const std::size_t total = left.size() + right.size();
-  const std::size_t left_budget = budget * left.size() / total;
-  const std::size_t right_budget = budget - left_budget;
-  auto node = std::make_unique<BvhBuildNode>();
-  node->box = box;
-  node->axis = std::uint8_t(axis);
-  // Left and right subtrees are built apart and only then attached: the tree is the same
-  // whether or not the right one ran on its own thread.
-  fork_join(
-      depth < ctx.parallel_depth && left.size() >= kParallelSubtree &&
-          right.size() >= kParallelSubtree,
-      [&] { node->child[0] = build_node(ctx, std::move(left), depth + 1, left_budget); },
-      [&] { node->child[1] = build_node(ctx, std::move(right), depth + 1, right_budget); });
-  return node;
+// The children of the node at `index`, the duplication budget shared in proportion to size
+// (deterministic, no global counter). Left and right subtrees are built apart and only then
+// appended: the nodes are the same whether or not the right one ran on its own thread.
+void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, std::uint32_t depth,
+                    std::size_t budget, std::size_t index, FlatOut& out) {
+  const std::size_t left_budget = budget * left.size() / (left.size() + right.size());
+  const auto left_tree = [&](FlatOut& o) {
+    build_node(ctx, std::move(left), depth + 1, left_budget, o);
+  };
+  const auto right_tree = [&](FlatOut& o) {
+    build_node(ctx, std::move(right), depth + 1, budget - left_budget, o);
+  };
+  std::uint32_t second;
+  if (depth < ctx.parallel_depth && left.size() >= kParallelSubtree &&
+      right.size() >= kParallelSubtree) {
+    FlatOut l, r;
+    fork_join(
+        true, [&] { left_tree(l); }, [&] { right_tree(r); });
+    append_subtree(out, l);
+    second = std::uint32_t(out.nodes.size());
+    append_subtree(out, r);
+  } else {
+    left_tree(out);
+    second = std::uint32_t(out.nodes.size());
+    right_tree(out);
+  }
+  out.nodes[index].offset = second;
 }
 
 }  // namespace
@@ -130,15 +178,14 @@ const char* bvh_builder_name(BvhBuilder builder) {
   return "?";
 }
 
-std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildOptions& options) {
+std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuildOptions& options,
+                                              std::vector<std::uint32_t>& prim_ids) {
   if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
   std::vector<PrimRef> refs(scene.triangles.size());
   for (std::uint32_t i = 0; i < refs.size(); ++i) {
     for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
     refs[i].prim = i;
   }
-  if (options.builder != BvhBuilder::kSpatial)
-    throw std::invalid_argument("BVH: the tree builder is the SBVH's");
   const format::Box3f root = bounds_of(refs);
   const BuildContext ctx{scene, options, root.half_area(), fork_depth(options.threads)};
   SortedRefs sorted;  // sorted once here, kept sorted through every split
@@ -147,7 +194,10 @@ std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildO
   refs = {};
   const std::size_t budget = std::size_t(double(scene.triangles.size()) *
                                          std::max(0.0, double(options.sbvh_max_duplication)));
-  return build_node(ctx, std::move(sorted), 0, budget);
+  FlatOut out;
+  build_node(ctx, std::move(sorted), 0, budget, out);
+  prim_ids = std::move(out.prims);
+  return std::move(out.nodes);
 }
 
 }  // namespace kiln

@@ -7,6 +7,9 @@
 #include <bit>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <utility>
+#include <vector>
 
 #include "kiln/formats/vector.hpp"
 
@@ -64,6 +67,41 @@ inline void truncate(V4 a, std::int32_t* out) {
 inline int less_mask(V4 a, V4 b) {
   return _mm_movemask_ps(_mm_cmplt_ps(a.v, b.v));
 }
+inline V4 operator/(V4 a, V4 b) {
+  return {_mm_div_ps(a.v, b.v)};
+}
+// Lane-wise masks (all bits set where true), as V4.
+inline V4 lt(V4 a, V4 b) {
+  return {_mm_cmplt_ps(a.v, b.v)};
+}
+inline V4 le(V4 a, V4 b) {
+  return {_mm_cmple_ps(a.v, b.v)};
+}
+inline V4 operator&(V4 a, V4 b) {
+  return {_mm_and_ps(a.v, b.v)};
+}
+inline V4 operator|(V4 a, V4 b) {
+  return {_mm_or_ps(a.v, b.v)};
+}
+// Lane-wise m ? a : b for a mask m.
+inline V4 blend(V4 m, V4 a, V4 b) {
+  return {_mm_or_ps(_mm_and_ps(m.v, a.v), _mm_andnot_ps(m.v, b.v))};
+}
+// Bit i set where mask lane i is set.
+inline int mask_bits(V4 m) {
+  return _mm_movemask_ps(m.v);
+}
+// {prev[3], cur[0], cur[1], cur[2]}: the lanes moved up by one, the first from `prev`.
+inline V4 shift_in(V4 prev, V4 cur) {
+  const __m128 t = _mm_shuffle_ps(prev.v, cur.v, _MM_SHUFFLE(0, 0, 3, 3));  // p3 p3 c0 c0
+  return {_mm_shuffle_ps(t, cur.v, _MM_SHUFFLE(2, 1, 2, 0))};
+}
+inline V4 loadu(const float* p) {
+  return {_mm_loadu_ps(p)};
+}
+inline void storeu(float* p, V4 a) {
+  _mm_storeu_ps(p, a.v);
+}
 #else
 struct V4 {
   float f[4];
@@ -87,6 +125,7 @@ inline V4 set(float x, float y, float z, float w) {
 KILN_V4_OP(+)
 KILN_V4_OP(-)
 KILN_V4_OP(*)
+KILN_V4_OP(/)
 #undef KILN_V4_OP
 inline V4 vmin(V4 x, V4 acc) {
   V4 r;
@@ -104,6 +143,54 @@ inline void truncate(V4 a, std::int32_t* out) {
 inline V4 xyz(V4 a) {
   return {{a.f[0], a.f[1], a.f[2], 0.0f}};
 }
+inline V4 select(bool take, V4 a, V4 b) {
+  return take ? a : b;
+}
+inline int less_mask(V4 a, V4 b) {
+  int m = 0;
+  for (int i = 0; i < 4; ++i) m |= int(a.f[i] < b.f[i]) << i;
+  return m;
+}
+inline V4 mask_of(bool t0, bool t1, bool t2, bool t3) {
+  const auto f = [](bool t) { return std::bit_cast<float>(t ? ~0u : 0u); };
+  return {{f(t0), f(t1), f(t2), f(t3)}};
+}
+inline V4 lt(V4 a, V4 b) {
+  return mask_of(a.f[0] < b.f[0], a.f[1] < b.f[1], a.f[2] < b.f[2], a.f[3] < b.f[3]);
+}
+inline V4 le(V4 a, V4 b) {
+  return mask_of(a.f[0] <= b.f[0], a.f[1] <= b.f[1], a.f[2] <= b.f[2], a.f[3] <= b.f[3]);
+}
+#define KILN_V4_BITS(op)                                                          \
+  inline V4 operator op(V4 a, V4 b) {                                             \
+    V4 r;                                                                         \
+    for (int i = 0; i < 4; ++i)                                                   \
+      r.f[i] = std::bit_cast<float>(std::bit_cast<std::uint32_t>(a.f[i])          \
+                                        op std::bit_cast<std::uint32_t>(b.f[i])); \
+    return r;                                                                     \
+  }
+KILN_V4_BITS(&)
+KILN_V4_BITS(|)
+#undef KILN_V4_BITS
+inline int mask_bits(V4 m) {
+  int bits = 0;
+  for (int i = 0; i < 4; ++i) bits |= int(std::bit_cast<std::uint32_t>(m.f[i]) >> 31) << i;
+  return bits;
+}
+inline V4 blend(V4 m, V4 a, V4 b) {
+  V4 r;
+  for (int i = 0; i < 4; ++i) r.f[i] = std::bit_cast<std::uint32_t>(m.f[i]) ? a.f[i] : b.f[i];
+  return r;
+}
+inline V4 shift_in(V4 prev, V4 cur) {
+  return {{prev.f[3], cur.f[0], cur.f[1], cur.f[2]}};
+}
+inline V4 loadu(const float* p) {
+  return load(p);
+}
+inline void storeu(float* p, V4 a) {
+  store(p, a);
+}
 #endif
 
 /// A build reference in 32 bytes, two aligned vectors: the box's corners, the primitive id in
@@ -119,6 +206,30 @@ struct alignas(16) BuildRef {
   }
 };
 static_assert(sizeof(BuildRef) == 32);
+
+/// An allocator whose value construction leaves trivial elements uninitialised: a reference
+/// array resized for a parallel fill is not first zeroed (and its pages faulted in) serially.
+template <class T>
+struct UninitAllocator : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = UninitAllocator<U>;
+  };
+  UninitAllocator() = default;
+  template <class U>
+  UninitAllocator(const UninitAllocator<U>&) noexcept {}
+  template <class U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
+/// Build references, allocated without zeroing.
+using BuildRefs = std::vector<BuildRef, UninitAllocator<BuildRef>>;
 
 /// A box as two vectors (fourth lanes ignored); empty as Box3f's default.
 struct VBox {

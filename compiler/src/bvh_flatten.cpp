@@ -1,6 +1,6 @@
-// The flat BVH: the binned builder's nodes or a temporary tree flattened pbrt-style (pre-order,
-// first child adjacent, second child's index stored), leaf triangles copied in leaf order, and
-// the statistics every builder reports.
+// The flat BVH (pbrt-style: pre-order, first child adjacent, second child's index stored) from
+// the binned, sweep or SBVH builder, leaf triangles copied in leaf order, and the statistics
+// every builder reports.
 #include <algorithm>
 #include <stdexcept>
 
@@ -12,35 +12,6 @@
 namespace kiln {
 
 namespace {
-
-struct Flattener {
-  const Scene& scene;
-  FlatBvh& out;
-
-  std::uint32_t emit(const BvhBuildNode& n) {
-    const auto index = std::uint32_t(out.nodes.size());
-    out.nodes.emplace_back();
-    format::BvhNode node{};
-    for (int a = 0; a < 3; ++a)
-      node.min[a] = format::at(n.box.min, a), node.max[a] = format::at(n.box.max, a);
-    if (n.is_leaf()) {
-      node.offset = std::uint32_t(out.triangles.size());
-      node.count = std::uint16_t(n.prims.size());
-      for (const std::uint32_t prim : n.prims) {
-        const auto& t = scene.triangles[prim];
-        out.triangles.push_back(
-            {scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]});
-        out.prim_ids.push_back(prim);
-      }
-    } else {
-      node.axis = n.axis;
-      emit(*n.child[0]);
-      node.offset = emit(*n.child[1]);
-    }
-    out.nodes[index] = node;
-    return index;
-  }
-};
 
 double half_area(const format::BvhNode& n) {
   const double dx = double(n.max[0]) - n.min[0], dy = double(n.max[1]) - n.min[1],
@@ -97,7 +68,7 @@ void dedupe_leaf_references(std::vector<format::BvhNode>& nodes,
 // the presplit's pieces, whose PrimRef array goes before the build).
 std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
                                     FlatBvh& out) {
-  std::vector<bvh_simd::BuildRef> refs;
+  bvh_simd::BuildRefs refs;
   if (options.presplit == BvhPresplit::kNone) {
     refs = triangle_build_refs(scene, options.threads);
   } else {
@@ -108,13 +79,18 @@ std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& o
   }
   out.nodes = build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options);
   out.prim_ids.resize(refs.size());
-  for (std::size_t i = 0; i < refs.size(); ++i) out.prim_ids[i] = refs[i].prim();
+  parallel_for_batched(refs.size(), 65536, options.threads,
+                       [&](std::size_t i) { out.prim_ids[i] = refs[i].prim(); });
   return refs.size();
 }
 
 // The sweep or binned builder's nodes and primitive ids in leaf order; returns the number of
 // build references.
 std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options, FlatBvh& out) {
+  if (options.builder == BvhBuilder::kSpatial) {
+    out.nodes = build_sbvh_nodes(scene, options, out.prim_ids);
+    return out.prim_ids.size();
+  }
   if (options.builder == BvhBuilder::kSweep) {
     std::vector<PrimRef> refs = build_refs(scene, options);
     out.nodes = build_sweep_nodes(refs, out.prim_ids, options);  // reference indices
@@ -126,24 +102,18 @@ std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
 
 }  // namespace
 
-FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuildOptions& options) {
-  FlatBvh out;
-  Flattener{scene, out}.emit(root);
-  out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
-  return out;
-}
-
 BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::size_t triangles,
                                   const BvhBuildOptions& options) {
   BvhStatistics s;
   s.node_count = nodes.size();
   const double root_area = nodes.empty() ? 0.0 : half_area(nodes[0]);
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{0, 1}};  // (node, depth)
-  while (!nodes.empty() && !stack.empty()) {
-    const auto [i, depth] = stack.back();
-    stack.pop_back();
+  // The nodes lie in pre-order (first child adjacent), so one pass in index order visits them as
+  // a depth-first walk would (and sums the cost in that order); a node passes its depth on.
+  std::vector<std::uint8_t> depth(nodes.size());
+  if (!nodes.empty()) depth[0] = 1;
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
     const format::BvhNode& n = nodes[i];
-    s.max_depth = std::max(s.max_depth, depth);
+    s.max_depth = std::max<std::uint32_t>(s.max_depth, depth[i]);
     const double area = root_area > 0 ? half_area(n) / root_area : 0.0;
     if (n.count != 0) {
       s.leaf_count += 1;
@@ -152,8 +122,7 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
       s.sah_cost += area * options.intersection_cost * double(n.count);
     } else {
       s.sah_cost += area * options.traversal_cost;
-      stack.push_back({n.offset, depth + 1});
-      stack.push_back({i + 1, depth + 1});
+      depth[i + 1] = depth[n.offset] = std::uint8_t(depth[i] + 1);
     }
   }
   s.average_leaf_size = s.leaf_count ? double(s.reference_count) / double(s.leaf_count) : 0;
@@ -171,8 +140,6 @@ FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
   if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
   if (options.builder == BvhBuilder::kSpatial && options.presplit != BvhPresplit::kNone)
     throw std::invalid_argument("BVH: a presplit needs the binned or sweep builder");
-  if (options.builder == BvhBuilder::kSpatial)
-    return flatten_bvh(*build_bvh_tree(scene, options), scene, options);
   FlatBvh out;
   const std::size_t references = build_flat_nodes(scene, options, out);
   if (options.presplit != BvhPresplit::kNone) dedupe_leaf_references(out.nodes, out.prim_ids);

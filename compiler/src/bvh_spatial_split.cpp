@@ -3,6 +3,7 @@
 #include <limits>
 #include <vector>
 
+#include "bvh_build_simd.hpp"
 #include "bvh_splits.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -71,23 +72,43 @@ void split_reference(const PrimRef& ref, int axis, float position, const Scene& 
 
 namespace {
 
-/// Spatial bins on the three axes over a node box: the planes, each bin's box of clipped pieces,
-/// and how many references enter (start) and exit (end) in each bin.
+/// Spatial bins on the three axes over a node box: the planes, each bin's box of clipped pieces
+/// (structure of arrays: per axis, six rows of k floats, min x y z then max x y z, so that four
+/// consecutive bins grow as one vector), and how many references enter (start) and exit (end)
+/// in each bin.
 struct SpatialBins {
   std::uint32_t k;
   float origin[3], width[3], inv_width[3];
   bool valid[3];
-  std::vector<format::Box3f> box;  // axis-major
+  std::vector<float> bounds;  // 18 rows of k, then 4 floats a vector may run over into
   std::vector<std::size_t> enter, exit;
 
   SpatialBins(const format::Box3f& node_box, std::uint32_t bins)
-      : k(bins), box(3 * std::size_t(k)), enter(3 * std::size_t(k)), exit(3 * std::size_t(k)) {
+      : k(bins),
+        bounds(18 * std::size_t(k) + 4, 0.0f),
+        enter(3 * std::size_t(k)),
+        exit(3 * std::size_t(k)) {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
     for (int a = 0; a < 3; ++a) {
       origin[a] = format::at(node_box.min, a);
       const float extent = format::at(node_box.max, a) - origin[a];
       valid[a] = extent > 0.0f;
       width[a] = extent / float(k);
       inv_width[a] = float(k) / extent;
+      for (int c = 0; c < 6; ++c) std::fill_n(row(a, c), k, c < 3 ? kInf : -kInf);
+    }
+  }
+  float* row(int a, int c) { return bounds.data() + (std::size_t(a) * 6 + std::size_t(c)) * k; }
+  const float* row(int a, int c) const {
+    return bounds.data() + (std::size_t(a) * 6 + std::size_t(c)) * k;
+  }
+  format::Box3f box(int a, std::uint32_t b) const {
+    return {{row(a, 0)[b], row(a, 1)[b], row(a, 2)[b]}, {row(a, 3)[b], row(a, 4)[b], row(a, 5)[b]}};
+  }
+  void grow(int a, std::uint32_t b, const format::Box3f& x) {
+    for (int c = 0; c < 3; ++c) {
+      row(a, c)[b] = std::min(row(a, c)[b], format::at(x.min, c));
+      row(a, c + 3)[b] = std::max(row(a, c + 3)[b], format::at(x.max, c));
     }
   }
   std::uint32_t bin_of(int a, float x) const {
@@ -107,37 +128,99 @@ struct SpatialBins {
     const std::uint32_t last = std::max(first, bin_of(a, format::at(r.box.max, a)));
     enter[base + first] += 1;
     exit[base + last] += 1;
-    if (first == last) {
-      box[base + first].grow(r.box);
-      return;
-    }
-    const float c[3] = {coord(v[0], a), coord(v[1], a), coord(v[2], a)};
-    constexpr float kInf = std::numeric_limits<float>::infinity();
-    format::Box3f cut_lo;  // the triangle's cut by the bin's lower plane
-    float lo = -kInf;
-    for (std::uint32_t b = first;; ++b) {
-      const float hi = b < last ? plane(a, b + 1) : kInf;
-      format::Box3f piece = cut_lo, cut_hi;
-      for (int i = 0; i < 3; ++i)
-        if (c[i] >= lo && c[i] <= hi) piece.grow(v[i]);
-      if (b < last) {
-        for (int i = 0; i < 3; ++i) {
-          const int j = i == 2 ? 0 : i + 1;
-          if ((c[i] < hi && c[j] > hi) || (c[j] < hi && c[i] > hi))
-            cut_hi.grow(edge_point(v[i], v[j], c[i], c[j], a, hi));
-        }
-        piece.grow(cut_hi);
-      }
-      format::at(piece.min, a) = std::max(format::at(piece.min, a), lo);
-      format::at(piece.max, a) = std::min(format::at(piece.max, a), hi);
-      piece = format::Box3f::intersection(piece, r.box);
-      if (!piece.empty()) box[base + b].grow(piece);
-      if (b == last) break;
-      cut_lo = cut_hi;
-      lo = hi;
+    if (first == last) return grow(a, first, r.box);
+    add_slabs(r, v, a, first, last);
+  }
+
+  // add's pieces, four bins at a time: lane j of a group is bin first + t + j, its upper plane
+  // cut (edge points on vectors) and its lower one the previous lane's. Every lane computes
+  // what the scalar clipping did, operation for operation (the same bits), and min/max keep
+  // Box3f::grow's and intersection's operand order.
+  void add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int a, std::uint32_t first,
+                 std::uint32_t last);
+};
+
+// The box of the points where a triangle's edges cross the plane axis a = hi, per lane (empty
+// where none does): edge_point's operations on vectors (corners p and their axis coordinates c,
+// splat).
+[[gnu::always_inline]] inline void plane_cuts(const bvh_simd::V4 (&p)[3][3],
+                                              const bvh_simd::V4 (&c)[3], int a, bvh_simd::V4 hi,
+                                              bvh_simd::V4 (&cut_min)[3],
+                                              bvh_simd::V4 (&cut_max)[3]) {
+  using namespace bvh_simd;
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  const V4 inf = splat(kInf), ninf = splat(-kInf), zero = splat(0.0f), one = splat(1.0f);
+  for (int q = 0; q < 3; ++q) cut_min[q] = inf, cut_max[q] = ninf;
+  for (int i = 0; i < 3; ++i) {
+    const int j = i == 2 ? 0 : i + 1;
+    const V4 cross = (lt(c[i], hi) & lt(hi, c[j])) | (lt(c[j], hi) & lt(hi, c[i]));
+    if (!mask_bits(cross)) continue;
+    // The edge vector, b - a as edge_point takes it (lane-wise, the same bits), only for an
+    // edge that crosses.
+    const V4 s = vmin(one, vmax(zero, (hi - c[i]) / (c[j] - c[i])));  // std::clamp(x, 0, 1)
+    for (int q = 0; q < 3; ++q) {
+      const V4 x = q == a ? hi : p[i][q] + (p[j][q] - p[i][q]) * s;
+      cut_min[q] = vmin(blend(cross, x, inf), cut_min[q]);
+      cut_max[q] = vmax(blend(cross, x, ninf), cut_max[q]);
     }
   }
-};
+}
+
+void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int a,
+                            std::uint32_t first, std::uint32_t last) {
+  using namespace bvh_simd;
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  const V4 inf = splat(kInf), ninf = splat(-kInf);
+  V4 p[3][3], c[3];  // corners and their axis coordinates (splat)
+  for (int i = 0; i < 3; ++i) {
+    for (int q = 0; q < 3; ++q) p[i][q] = splat(format::at(v[i], q));
+    c[i] = p[i][a];
+  }
+  V4 rmin[3], rmax[3];
+  for (int q = 0; q < 3; ++q) rmin[q] = splat(format::at(r.box.min, q));
+  for (int q = 0; q < 3; ++q) rmax[q] = splat(format::at(r.box.max, q));
+  const std::uint32_t m = last - first + 1;
+  const V4 vm = splat(float(m)), vm1 = splat(float(m - 1));
+  V4 prev_hi = ninf, prev_min[3] = {inf, inf, inf}, prev_max[3] = {ninf, ninf, ninf};
+  for (std::uint32_t t = 0; t < m; t += 4) {
+    const V4 lane = set(float(t), float(t + 1), float(t + 2), float(t + 3));
+    const float b = float(first + t);
+    const V4 planes = splat(origin[a]) + splat(width[a]) * set(b + 1, b + 2, b + 3, b + 4);
+    const V4 hi = blend(lt(lane, vm1), planes, inf);  // the last bin has no upper plane
+    const V4 lo = shift_in(prev_hi, hi);
+    V4 cut_min[3], cut_max[3];
+    plane_cuts(p, c, a, hi, cut_min, cut_max);
+    V4 lo_box[3], hi_box[3];
+    for (int q = 0; q < 3; ++q) {
+      lo_box[q] = shift_in(prev_min[q], cut_min[q]);
+      hi_box[q] = shift_in(prev_max[q], cut_max[q]);
+    }
+    for (int i = 0; i < 3; ++i) {
+      const V4 in = le(lo, c[i]) & le(c[i], hi);
+      for (int q = 0; q < 3; ++q) {
+        lo_box[q] = vmin(blend(in, p[i][q], inf), lo_box[q]);
+        hi_box[q] = vmax(blend(in, p[i][q], ninf), hi_box[q]);
+      }
+    }
+    V4 empty = le(vm, lane);  // lanes past the last bin
+    for (int q = 0; q < 3; ++q) {
+      lo_box[q] = vmin(cut_min[q], lo_box[q]);
+      hi_box[q] = vmax(cut_max[q], hi_box[q]);
+      if (q == a) lo_box[q] = vmax(lo, lo_box[q]), hi_box[q] = vmin(hi, hi_box[q]);
+      lo_box[q] = vmax(rmin[q], lo_box[q]);
+      hi_box[q] = vmin(rmax[q], hi_box[q]);
+      empty = empty | lt(hi_box[q], lo_box[q]);
+    }
+    for (int q = 0; q < 3; ++q) {
+      float* lo_row = row(a, q) + first + t;
+      float* hi_row = row(a, q + 3) + first + t;
+      storeu(lo_row, vmin(blend(empty, inf, lo_box[q]), loadu(lo_row)));
+      storeu(hi_row, vmax(blend(empty, ninf, hi_box[q]), loadu(hi_row)));
+    }
+    prev_hi = hi;
+    for (int q = 0; q < 3; ++q) prev_min[q] = cut_min[q], prev_max[q] = cut_max[q];
+  }
+}
 
 }  // namespace
 
@@ -146,7 +229,16 @@ namespace {
 // Bins the references of [begin, end) on every axis with extent, reference by reference (its
 // corners loaded once).
 void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
-  for (const auto& r : refs) {
+  // The triangles and corners of references in sorted order are scattered over the scene:
+  // prefetched, the triangle kTriangleAhead references ahead, its corners kCornersAhead ahead.
+  constexpr std::size_t kTriangleAhead = 16, kCornersAhead = 8;
+  const std::size_t n = refs.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i + kTriangleAhead < n) __builtin_prefetch(&scene.triangles[refs[i + kTriangleAhead].prim]);
+    if (i + kCornersAhead < n)
+      for (const auto v : scene.triangles[refs[i + kCornersAhead].prim].v)
+        __builtin_prefetch(&scene.positions[v]);
+    const PrimRef& r = refs[i];
     format::Float3 v[3];
     load_corners(r, scene, v);
     for (int a = 0; a < 3; ++a)
@@ -156,8 +248,14 @@ void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBi
 
 // Bin boxes grow by min/max and counts add, so merging chunks in any order gives the same bins.
 void merge_bins(SpatialBins& into, const SpatialBins& from) {
-  for (std::size_t i = 0; i < into.box.size(); ++i) {
-    into.box[i].grow(from.box[i]);
+  for (int a = 0; a < 3; ++a)
+    for (int c = 0; c < 6; ++c) {
+      float* to = into.row(a, c);
+      const float* f = from.row(a, c);
+      for (std::uint32_t b = 0; b < into.k; ++b)
+        to[b] = c < 3 ? std::min(to[b], f[b]) : std::max(to[b], f[b]);
+    }
+  for (std::size_t i = 0; i < into.enter.size(); ++i) {
     into.enter[i] += from.enter[i];
     into.exit[i] += from.exit[i];
   }
@@ -176,7 +274,7 @@ void best_plane_on_axis(const SpatialBins& bins, int axis, float node_area,
   format::Box3f acc;
   std::size_t right_count = 0;
   for (std::uint32_t b = k; b-- > 1;) {
-    acc.grow(bins.box[base + b]);
+    acc.grow(bins.box(axis, b));
     right_box[b] = acc;
     right_count += bins.exit[base + b];
     right_counts[b] = right_count;
@@ -184,7 +282,7 @@ void best_plane_on_axis(const SpatialBins& bins, int axis, float node_area,
   format::Box3f left;
   std::size_t left_count = 0;
   for (std::uint32_t b = 0; b + 1 < k; ++b) {
-    left.grow(bins.box[base + b]);
+    left.grow(bins.box(axis, b));
     left_count += bins.enter[base + b];
     const std::size_t rc = right_counts[b + 1];
     if (left_count == 0 || rc == 0) continue;
@@ -304,7 +402,8 @@ void children_on_axis(const std::vector<PrimRef>& parent, int axis, int split_ax
 }  // namespace
 
 std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
-                                const Scene& scene, SortedRefs& left_out, SortedRefs& right_out) {
+                                const Scene& scene, SortedRefs& left_out, SortedRefs& right_out,
+                                unsigned threads) {
   const int axis = split.axis;
   const float pos = split.position;
   format::Box3f left_box, right_box;
@@ -371,9 +470,10 @@ std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& ref
       added += 1;
     }
   }
-  for (int a = 0; a < 3; ++a) {
-    children_on_axis(refs.axis[a], a, axis, pos, left, right, left_out.axis[a], right_out.axis[a]);
-  }
+  parallel_for(3, threads, [&](std::size_t a) {
+    children_on_axis(refs.axis[a], int(a), axis, pos, left, right, left_out.axis[a],
+                     right_out.axis[a]);
+  });
   return added;
 }
 

@@ -42,17 +42,21 @@ struct ObjectSplit {
   bool valid() const { return axis >= 0; }
 };
 
+/// Nodes at least this large may search, partition and distribute their three axes on their
+/// own threads (the `threads` arguments below; the result does not depend on them).
+inline constexpr std::size_t kParallelSweep = 32768;
+
 /// Exact SAH over the sorted centroids on all three axes (the first axis and the first position
 /// win ties).
 ObjectSplit find_sweep_split(const SortedRefs& refs, const format::Box3f& node_box,
-                             const BvhBuildOptions& options);
+                             const BvhBuildOptions& options, unsigned threads = 1);
 /// Splits `refs` into the first `left_count` references on `axis` and the rest, every axis's
 /// array staying sorted (a stable split by the side each reference takes on `axis`).
 void partition_object_split(const SortedRefs& refs, int axis, std::size_t left_count,
                             SortedRefs& left, SortedRefs& right);
 /// The same, the left child taking over `refs`'s arrays.
 void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count, SortedRefs& left,
-                            SortedRefs& right);
+                            SortedRefs& right, unsigned threads = 1);
 
 struct SpatialSplit {
   float cost = std::numeric_limits<float>::infinity();
@@ -86,7 +90,8 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box
 /// Distributes references (visited in their order on `order_axis`), unsplitting straddlers
 /// where cheaper, into children whose axis arrays stay sorted; returns the added references.
 std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
-                                const Scene& scene, SortedRefs& left, SortedRefs& right);
+                                const Scene& scene, SortedRefs& left, SortedRefs& right,
+                                unsigned threads = 1);
 
 /// Splits a reference's triangle (clipped to its box) by the plane axis = position.
 void split_reference(const PrimRef& ref, int axis, float position, const Scene& scene,

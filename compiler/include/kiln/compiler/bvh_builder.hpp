@@ -1,5 +1,5 @@
-// BVH builders (binned SAH, full-sweep SAH, SBVH) producing a temporary tree, and the pass that
-// flattens it into the mapped layout (formats/bvh.hpp).
+// BVH builders (binned SAH, full-sweep SAH, SBVH), each emitting its nodes straight into the
+// mapped flat layout (formats/bvh.hpp), and the statistics they report.
 #pragma once
 
 #include <cstdint>
@@ -35,7 +35,7 @@ inline constexpr double kEvhDefaultThreshold = 1.0 / 16384;
 
 struct BvhBuildOptions {
   BvhBuilder builder = BvhBuilder::kBinned;
-  std::uint32_t bins = 32;            // binned SAH and SBVH spatial bins
+  std::uint32_t bins = 32;            // binned SAH and SBVH spatial bins (2-1024)
   float traversal_cost = 1.0f;        // SAH cost of visiting a node
   float intersection_cost = 1.0f;     // SAH cost of one triangle test
   std::uint32_t max_leaf_size = 8;    // larger leaves are split even when the SAH disagrees
@@ -46,8 +46,7 @@ struct BvhBuildOptions {
                                       // build_bvh ignores it and always returns the binary tree
   bool quantized = false;             // wide layouts: 8-bit child boxes (ignored by build_bvh)
   // Fill FlatBvh::triangles (the binary layout's leaf triangles). The wide layout reads corners
-  // from the scene instead, which saves 36 bytes per triangle at the build's peak (the binned
-  // and sweep builders honour it; SBVH's tree flattening always copies them).
+  // from the scene instead, which saves 36 bytes per triangle at the build's peak.
   bool leaf_triangles = true;
   BvhPresplit presplit = BvhPresplit::kNone;
   double evh_threshold = kEvhDefaultThreshold;  // fraction of the scene box's volume
@@ -58,14 +57,6 @@ struct BvhBuildOptions {
 struct PrimRef {
   format::Box3f box;
   std::uint32_t prim;
-};
-
-struct BvhBuildNode {
-  format::Box3f box;
-  std::unique_ptr<BvhBuildNode> child[2];
-  std::uint8_t axis = 0;
-  std::vector<std::uint32_t> prims;  // leaf references (original triangle ids)
-  bool is_leaf() const { return child[0] == nullptr; }
 };
 
 struct BvhStatistics {
@@ -83,11 +74,11 @@ struct FlatBvh {
   BvhStatistics stats;
 };
 
-// The sweep and SBVH builders' temporary tree over every triangle of the scene.
-std::unique_ptr<BvhBuildNode> build_bvh_tree(const Scene& scene, const BvhBuildOptions& options);
-
-// Depth-first pre-order flattening (first child adjacent), triangles copied in leaf order.
-FlatBvh flatten_bvh(const BvhBuildNode& root, const Scene& scene, const BvhBuildOptions& options);
+// The SBVH builder (bvh_build.cpp) over every triangle of the scene: the nodes in the flat
+// layout (depth-first, first child adjacent) and, in `prim_ids`, the primitive ids in leaf
+// order (leaf offsets index it; a split triangle appears once per leaf that holds a piece).
+std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuildOptions& options,
+                                              std::vector<std::uint32_t>& prim_ids);
 
 // The binned builder (bvh_binned_build.cpp): partitions `refs` in place into leaf order and
 // returns the nodes in the flat layout, each leaf's offset indexing `refs`.
@@ -108,7 +99,7 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
 
 /// The BVH of `options.builder` over every triangle of the scene, in the flat layout. The
 /// binned builder works in place on one reference array, the sweep builder on presorted index
-/// arrays; SBVH (which adds references) builds a temporary tree. With an EVH presplit (binned
+/// arrays, SBVH on presorted reference arrays. With an EVH presplit (binned
 /// and sweep only; SBVH throws std::invalid_argument) the builders see the pieces' references and
 /// each leaf keeps one reference per triangle.
 FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options);
