@@ -1,16 +1,21 @@
 // The polygon index's top-level table (PolygonIndexTopGrid): derived at open from the nodes the
 // view has validated, so it holds no bytes of its own to check, and used by every point query to
-// skip the first k levels of the descent with one lookup.
+// skip the descent with one lookup, then at most a branch entry, then one leaf record.
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <cstring>
 
 #include "kiln/runtime/polygon_index.hpp"
+#include "polygon_index_records.hpp"
+#include "predicates2_inline.hpp"
 
 namespace kiln {
 
 using format::Box2d;
 using format::Double2;
+using Grid = PolygonIndexTopGrid;
 
 namespace {
 
@@ -30,80 +35,187 @@ std::vector<double> split_lines(double lo, double hi, std::uint32_t level) {
   return s;
 }
 
-// Names `node` (at depth `depth`, covering cells [x0, x0 + size) x [y0, y0 + size) of level k)
-// in its cells, or recurses into its children above level k.
-void fill(const PolygonIndexParts& parts, PolygonIndexTopGrid& g, std::uint32_t node,
-          std::uint32_t depth, std::uint32_t x0, std::uint32_t y0) {
-  const std::uint32_t size = 1u << (g.level - depth), side = 1u << g.level;
-  const format::PolygonIndexNode& n = parts.nodes[node];
-  if (n.is_leaf() || depth == g.level) {
-    for (std::uint32_t y = y0; y < y0 + size; ++y)
-      for (std::uint32_t x = x0; x < x0 + size; ++x) {
-        g.node[std::size_t(y) * side + x] = node;
-        g.node_level[std::size_t(y) * side + x] = std::uint8_t(depth);
+// One edge of a record group while it is built: its endpoints oriented so that the leaf's
+// centre lies to its left, and the group's polygons it bounds.
+struct GroupEdge {
+  Double2 a, b;
+  std::uint32_t mask;
+  std::array<double, 4> coordinates() const { return {a.x, a.y, b.x, b.y}; }
+  // Bit patterns, for a total order (NaN coordinates of a forged layer included).
+  auto key() const {
+    return std::array{std::bit_cast<std::uint64_t>(a.x), std::bit_cast<std::uint64_t>(a.y),
+                      std::bit_cast<std::uint64_t>(b.x), std::bit_cast<std::uint64_t>(b.y)};
+  }
+};
+
+class Builder {
+ public:
+  Builder(const PolygonIndexParts& parts, Grid& g) : parts_(parts), g_(g) {}
+
+  // Subtree depths (children are stored after their parent), then the table's codes.
+  bool build() {
+    depth_.assign(parts_.nodes.size(), 0);
+    for (std::size_t i = parts_.nodes.size(); i-- > 0;) {
+      const format::PolygonIndexNode& n = parts_.nodes[i];
+      if (n.is_leaf()) continue;
+      std::uint8_t d = 0;
+      for (std::uint32_t c = 0; c < 4; ++c) d = std::max(d, depth_[n.first + c]);
+      depth_[i] = std::uint8_t(d + 1);
+    }
+    fill(0, parts_.bounds, 0, 0, 0);
+    return ok_;
+  }
+
+ private:
+  // Writes the code of `node` (at depth `depth`, covering table cells [x0, x0 + size) x [y0,
+  // y0 + size), size = 2^(k - depth)) into its cells, or recurses into its children above k.
+  void fill(std::uint32_t node, const Box2d& box, std::uint32_t depth, std::uint32_t x0,
+            std::uint32_t y0) {
+    const std::uint32_t size = 1u << (g_.level - depth), side = 1u << g_.level;
+    const format::PolygonIndexNode& n = parts_.nodes[node];
+    if (n.is_leaf() || depth == g_.level) {
+      const std::uint32_t code = code_of(node, box);
+      for (std::uint32_t y = y0; y < y0 + size; ++y)
+        std::fill_n(&g_.code[std::size_t(y) * side + x0], size, code);
+      return;
+    }
+    const std::uint32_t half = size / 2;
+    for (std::uint32_t c = 0; c < 4; ++c)
+      fill(n.first + c, format::quadtree_child_box(box, c), depth + 1, x0 + (c & 1u ? half : 0),
+           y0 + (c & 2u ? half : 0));
+  }
+
+  // The code a query reaching `node` (cell `box`) reads: a leaf's answer or record, else a new
+  // branch over the next d = min(kFine, subtree depth) levels.
+  std::uint32_t code_of(std::uint32_t node, const Box2d& box) {
+    const format::PolygonIndexNode& n = parts_.nodes[node];
+    if (n.is_leaf()) return leaf_code(n, box);
+    const std::uint32_t d = std::min<std::uint32_t>(Grid::kFine, depth_[node]);
+    const std::size_t at = g_.branches.size();
+    if (at + (std::size_t(1) << 2 * d) > Grid::kOffset + 1) return fail();
+    g_.branches.resize(at + (std::size_t(1) << 2 * d));
+    fill_branch(node, box, d, at);
+    return Grid::kBranch | (d - 1) << 28 | std::uint32_t(at);
+  }
+
+  // Entries at..at + 4^d of a branch: the codes of the cells `d` levels below `node`, child
+  // bits interleaved, the first level's most significant; a leaf above them fills all of its.
+  void fill_branch(std::uint32_t node, const Box2d& box, std::uint32_t d, std::size_t at) {
+    const format::PolygonIndexNode& n = parts_.nodes[node];
+    if (n.is_leaf() || d == 0) {
+      const std::uint32_t code = code_of(node, box);
+      std::fill_n(g_.branches.begin() + std::ptrdiff_t(at), std::size_t(1) << 2 * d, code);
+      return;
+    }
+    for (std::uint32_t c = 0; c < 4; ++c)
+      fill_branch(n.first + c, format::quadtree_child_box(box, c), d - 1,
+                  at + (std::size_t(c) << 2 * (d - 1)));
+  }
+
+  std::uint32_t fail() {
+    ok_ = false;
+    return Grid::kAnswer | Grid::kNoFeature;
+  }
+
+  // A leaf answering every point alike (no entry: none; a first entry wholly inside: its
+  // feature, the lowest holding any point as entries ascend by polygon) is coded as that
+  // answer; else its record is appended, groups of at most 31 polygons.
+  std::uint32_t leaf_code(const format::PolygonIndexNode& n, const Box2d& box) {
+    const auto entries = parts_.entries.subspan(n.first, n.count);
+    if (entries.empty()) return Grid::kAnswer | Grid::kNoFeature;
+    if (entries[0].wholly_inside()) {
+      const std::uint32_t f = feature(entries[0].polygon);
+      if (f < Grid::kNoFeature) return Grid::kAnswer | f;
+    }
+    const std::size_t at = g_.records.size();
+    if (at > Grid::kRecordOffset) return fail();
+    const Double2 c = format::quadtree_centre(box);
+    for (std::size_t first = 0; first < entries.size(); first += Grid::kGroupPolygons) {
+      const auto group = entries.subspan(first, std::min<std::size_t>(Grid::kGroupPolygons,
+                                                                      entries.size() - first));
+      if (!append_group(group, c, first + group.size() < entries.size())) return fail();
+    }
+    return std::uint32_t(at);
+  }
+
+  bool append_group(std::span<const format::PolygonIndexEntry> group, const Double2& c,
+                    bool more) {
+    const auto v = parts_.layer.vertices;
+    std::uint32_t centre = more ? 0x80000000u : 0;
+    edges_.clear();
+    for (std::size_t j = 0; j < group.size(); ++j) {
+      const format::PolygonIndexEntry& e = group[j];
+      const std::uint32_t bit = 1u << j;
+      if (e.wholly_inside() || e.centre_inside()) centre |= bit;
+      if ((edge_refs_ += e.edges()) > parts_.edges.size()) return false;  // shared ranges
+      for (const format::PolygonIndexEdge& edge : parts_.edges.subspan(e.first_edge, e.edges())) {
+        Double2 a = v[edge.a], b = v[edge.b];
+        // The crossing test is symmetric in a and b; an edge with the centre on its line under
+        // the shift has a == b and never crosses.
+        const int side = detail::side_of_shifted_point(a, b, c);
+        if (side == 0) continue;
+        if (side < 0) std::swap(a, b);
+        edges_.push_back({a, b, bit});
       }
-    return;
-  }
-  const std::uint32_t half = size / 2;
-  for (std::uint32_t c = 0; c < 4; ++c)
-    fill(parts, g, n.first + c, depth + 1, x0 + (c & 1u ? half : 0), y0 + (c & 2u ? half : 0));
-}
-
-// Each cell's code: the answer where the leaf covering it answers alike for all its points (no
-// entry: none; a first entry wholly inside: that polygon's feature, the lowest containing any
-// point, as entries ascend by polygon), else the node. The view refuses 2^31 nodes or more.
-void classify(const PolygonIndexParts& parts, PolygonIndexTopGrid& g) {
-  g.code.resize(g.node.size());
-  g.empty.assign((g.node.size() + 63) / 64, 0);
-  for (std::size_t cell = 0; cell < g.node.size(); ++cell) {
-    const format::PolygonIndexNode& n = parts.nodes[g.node[cell]];
-    std::uint32_t code = g.node[cell];
-    if (n.is_leaf() && n.count == 0) {
-      code = PolygonIndexTopGrid::kAnswer | PolygonIndexTopGrid::kNoFeature;
-      g.empty[cell / 64] |= std::uint64_t(1) << (cell % 64);
-    } else if (n.is_leaf() && parts.entries[n.first].wholly_inside()) {
-      const std::uint32_t polygon = parts.entries[n.first].polygon;
-      const std::uint32_t f = polygon < g.feature.size() ? g.feature[polygon] : ~0u;
-      if (f < PolygonIndexTopGrid::kNoFeature) code = PolygonIndexTopGrid::kAnswer | f;
     }
-    g.code[cell] = code;
-  }
-}
-
-// The leaf records: each leaf's entries with their edges' endpoints inline, leaves in node order.
-// False when they would hold more units than the entry and edge sections have elements: the
-// builder never shares an entry between leaves nor an edge between entries, while forged ranges
-// that overlap could make a small blob ask for a huge copy (the view then refuses it).
-bool make_records(const PolygonIndexParts& parts, PolygonIndexTopGrid& g) {
-  const std::uint64_t most =
-      std::min<std::uint64_t>(parts.entries.size() + parts.edges.size(), 0xFFFFFFFFu);
-  std::uint64_t units = 0;
-  for (const format::PolygonIndexNode& n : parts.nodes) {
-    if (n.is_leaf())
-      for (const format::PolygonIndexEntry& e : parts.entries.subspan(n.first, n.count))
-        units += 1 + e.edges();
-    if (units > most) return false;  // per leaf: the count stays O(nodes + most)
-  }
-  g.units.reserve(units);
-  g.nodes.assign(parts.nodes.begin(), parts.nodes.end());
-  const auto v = parts.layer.vertices;
-  for (format::PolygonIndexNode& n : g.nodes) {
-    if (!n.is_leaf()) continue;
-    const auto entries = parts.entries.subspan(n.first, n.count);
-    n.first = std::uint32_t(g.units.size());
-    for (const format::PolygonIndexEntry& e : entries) {
-      const PolygonIndexTopGrid::Head head{
-          e.polygon < g.feature.size() ? g.feature[e.polygon] : PolygonQueries::kNone,
-          e.edge_count};
-      PolygonIndexTopGrid::Unit unit{};
-      std::memcpy(&unit, &head, sizeof head);
-      g.units.push_back(unit);
-      for (const format::PolygonIndexEdge& edge : parts.edges.subspan(e.first_edge, e.edges()))
-        g.units.push_back({{v[edge.a].x, v[edge.a].y, v[edge.b].x, v[edge.b].y}});
+    // The same edge twice (neighbours' shared borders; a spike's two sides in one polygon):
+    // once, with the polygons' bits xored (a polygon's own pair cancels, as its crossings do).
+    std::sort(edges_.begin(), edges_.end(),
+              [](const GroupEdge& x, const GroupEdge& y) { return x.key() < y.key(); });
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < edges_.size();) {
+      GroupEdge merged = edges_[i];
+      while (++i < edges_.size() && edges_[i].key() == merged.key()) merged.mask ^= edges_[i].mask;
+      if (merged.mask) edges_[kept++] = merged;
     }
+    edges_.resize(kept);
+    auto& r = g_.records;
+    // Blocks of four edges, a coordinate at a time, then the four masks; the last block padded
+    // with copies of its first edge under an empty mask.
+    const std::size_t blocks = (edges_.size() + 3) / 4;
+    r.push_back(std::uint64_t(blocks) | std::uint64_t(centre) << 32);
+    r.push_back(std::bit_cast<std::uint64_t>(c.x));
+    r.push_back(std::bit_cast<std::uint64_t>(c.y));
+    for (std::size_t k = 0; k < blocks; ++k) {
+      GroupEdge block[4];
+      for (std::size_t l = 0; l < 4; ++l)
+        block[l] = 4 * k + l < edges_.size() ? edges_[4 * k + l] : GroupEdge{edges_[4 * k].a, edges_[4 * k].b, 0};
+      for (std::size_t axis = 0; axis < 4; ++axis)
+        for (const GroupEdge& e : block)
+          r.push_back(std::bit_cast<std::uint64_t>(e.coordinates()[axis]));
+      std::uint32_t words[4];
+      for (std::size_t l = 0; l < 4; ++l) {
+        const GroupEdge& e = block[l];
+        // The shifted side of a point on the edge's line: right when the edge points up, or
+        // along -x when horizontal (detail::side_of_shifted_point).
+        const bool right = e.b.y != e.a.y ? e.b.y > e.a.y : !(e.b.x > e.a.x);
+        words[l] = e.mask | (right ? 0x80000000u : 0);
+      }
+      r.push_back(std::uint64_t(words[0]) | std::uint64_t(words[1]) << 32);
+      r.push_back(std::uint64_t(words[2]) | std::uint64_t(words[3]) << 32);
+    }
+    auto& words = words_;
+    words.clear();
+    words.push_back(std::uint32_t(group.size()));
+    for (const format::PolygonIndexEntry& e : group) words.push_back(feature(e.polygon));
+    if (words.size() % 2) words.push_back(0);
+    for (std::size_t i = 0; i < words.size(); i += 2)
+      r.push_back(std::uint64_t(words[i]) | std::uint64_t(words[i + 1]) << 32);
+    return r.size() <= std::size_t(Grid::kRecordOffset) + 1;
   }
-  return true;
-}
+
+  std::uint32_t feature(std::uint32_t polygon) const {
+    return polygon < g_.feature.size() ? g_.feature[polygon] : PolygonQueries::kNone;
+  }
+
+  const PolygonIndexParts& parts_;
+  Grid& g_;
+  std::vector<std::uint8_t> depth_;  // per node: its subtree's depth (at most 30, validated)
+  std::vector<GroupEdge> edges_;
+  std::vector<std::uint32_t> words_;
+  std::uint64_t edge_refs_ = 0;
+  bool ok_ = true;
+};
 
 }  // namespace
 
@@ -114,15 +226,17 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
   // cost more cache misses than the levels they skip (docs/BENCHMARKS.md).
   while (g->level < 9 && (std::uint64_t(4) << (2 * g->level)) <= 16 * parts.nodes.size())
     ++g->level;
-  g->xs = split_lines(parts.bounds.min.x, parts.bounds.max.x, g->level);
-  g->ys = split_lines(parts.bounds.min.y, parts.bounds.max.y, g->level);
+  const std::uint32_t fine = g->level + Grid::kFine;
+  g->xs = split_lines(parts.bounds.min.x, parts.bounds.max.x, fine);
+  g->ys = split_lines(parts.bounds.min.y, parts.bounds.max.y, fine);
   const std::size_t cells = std::size_t(1) << (2 * g->level);
-  g->node.resize(cells);
-  g->node_level.resize(cells);
   const Box2d& b = parts.bounds;
-  g->scale = {double(1u << g->level) / (b.max.x - b.min.x),
-              double(1u << g->level) / (b.max.y - b.min.y)};
-  fill(parts, *g, 0, 0, 0, 0);
+  // A degenerate or forged side gives scale 0 (the lookup then walks from column 0).
+  auto scale = [&](double side) {
+    const double s = double(1u << fine) / side;
+    return std::isfinite(s) && s > 0 ? s : 0.0;
+  };
+  g->scale = {scale(b.max.x - b.min.x), scale(b.max.y - b.min.y)};
   const auto offsets = parts.layer.feature_polygons;
   // Bounded by the table's size too: a view made from raw parts has no Blob::open checks.
   g->feature.assign(parts.layer.polygon_count(), PolygonQueries::kNone);
@@ -130,8 +244,12 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
     for (std::uint64_t q = offsets[f];
          q < std::min<std::uint64_t>(offsets[f + 1], g->feature.size()); ++q)
       g->feature[q] = std::uint32_t(f);
-  classify(parts, *g);
-  if (!make_records(parts, *g)) return nullptr;
+  g->code.resize(cells);
+  if (!Builder(parts, *g).build()) return nullptr;
+  g->empty.assign((cells + 63) / 64, 0);
+  for (std::size_t cell = 0; cell < cells; ++cell)
+    if (g->code[cell] == (Grid::kAnswer | Grid::kNoFeature))
+      g->empty[cell / 64] |= std::uint64_t(1) << (cell % 64);
   return g;
 }
 

@@ -2,6 +2,7 @@
 // holding the point, then decide each listed polygon by its wholly-inside mark or by the parity
 // of its listed edges' crossings with the ray from the point towards +x).
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -9,7 +10,9 @@
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/polygon_index.hpp"
 #include "kiln/runtime/predicates2.hpp"
+#include "polygon_index_records.hpp"
 #include "predicates2_inline.hpp"
+
 
 namespace kiln {
 
@@ -23,6 +26,7 @@ PolygonIndexView::PolygonIndexView(const PolygonIndexParts& parts, const std::st
     : parts_(parts) {
   validate(name);
   top_ = make_polygon_index_top_grid(parts_);
+  record_ = polygon_records::kernel(polygon_records::best_kernel());
   if (!top_)
     throw BlobError("polygon index '" + name +
                     "': leaves share entries or entries share edges (its leaf records would "
@@ -138,182 +142,197 @@ namespace {
 
 // The largest j < 2^k with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
 // column the descent reaches (it sends v >= a split line to the upper side). `guess` is the
-// uniform estimate; the split lines are non-decreasing, so the walks end.
+// uniform estimate, right but within a rounding of a line; the walks correct it (the split lines
+// are non-decreasing, so they end).
 inline std::uint32_t column(const std::vector<double>& lines, double v, double guess) {
   const auto last = std::uint32_t(lines.size() - 2);
-  std::uint32_t j = guess > 0 ? std::min(last, std::uint32_t(std::min(guess, 4294967295.0))) : 0;
+  // guess >= 0 or NaN (v is in the bounds, the scale finite and >= 0): NaN takes `last`.
+  std::uint32_t j = std::uint32_t(guess < double(last) ? guess : double(last));
+  if ((lines[j] <= v) & (v < lines[j + 1])) [[likely]]
+    return j;
   while (j > 0 && lines[j] > v) --j;
   while (j < last && lines[j + 1] <= v) ++j;
   return j;
 }
 
-}  // namespace
-
-// The table cell holding p (inside the bounds), its column and row.
-inline std::size_t PolygonIndexView::top_cell(const Double2& p, std::uint32_t& ix,
-                                              std::uint32_t& iy) const {
-  const PolygonIndexTopGrid& g = *top_;
-  const Box2d& b = parts_.bounds;
-  ix = column(g.xs, p.x, (p.x - b.min.x) * g.scale.x);
-  iy = column(g.ys, p.y, (p.y - b.min.y) * g.scale.y);
-  return std::size_t(iy) << g.level | ix;
+// Box2d::contains with one branch instead of four.
+inline bool inside(const Box2d& b, const Double2& p) {
+  return (p.x >= b.min.x) & (p.x <= b.max.x) & (p.y >= b.min.y) & (p.y <= b.max.y);
 }
 
-// The box of the node the table names for cell (ix, iy): apart from top_cell, since most
-// queries end at the cell's code without it.
-inline Box2d PolygonIndexView::top_box(std::size_t cell, std::uint32_t ix, std::uint32_t iy) const {
+// Child bits of the kFine levels below a table cell, first level most significant, from the
+// fine column's and row's low bits: bit i of x goes to bit 2i, of y to bit 2i + 1.
+constexpr std::uint8_t kSpread[8] = {0, 1, 4, 5, 16, 17, 20, 21};
+static_assert(PolygonIndexTopGrid::kFine == 3);
+
+}  // namespace
+
+// The table cell holding p (inside the bounds), and p's column and row among the fine lines.
+inline std::size_t PolygonIndexView::top_cell(const Double2& p, std::uint32_t& fx,
+                                              std::uint32_t& fy) const {
   const PolygonIndexTopGrid& g = *top_;
-  const std::uint32_t shift = g.level - g.node_level[cell];
-  const std::uint32_t x0 = ix >> shift << shift, y0 = iy >> shift << shift;
-  return {{g.xs[x0], g.ys[y0]}, {g.xs[x0 + (1u << shift)], g.ys[y0 + (1u << shift)]}};
+  const Box2d& b = parts_.bounds;
+  fx = column(g.xs, p.x, (p.x - b.min.x) * g.scale.x);
+  fy = column(g.ys, p.y, (p.y - b.min.y) * g.scale.y);
+  constexpr std::uint32_t f = PolygonIndexTopGrid::kFine;
+  return std::size_t(fy >> f) << g.level | fx >> f;
 }
 
 // Calls visit(entry, cell) for each entry of the leaf holding p, in order, until it returns
-// false.
+// false. The descent runs from the root on the stored nodes (not the table's codes); `cost`
+// counts the table lookup as one node and each level below the table's as one more.
 template <class Visit>
 void PolygonIndexView::visit_leaf(const Double2& p, Visit&& visit, Cost* cost) const {
   if (!parts_.bounds.contains(p)) return;
-  std::uint32_t ix, iy;
-  const std::size_t cell = top_cell(p, ix, iy);  // one lookup for the first levels
-  Box2d box = top_box(cell, ix, iy);
-  const PolygonIndexNode* n = &parts_.nodes[top_->node[cell]];
+  Box2d box = parts_.bounds;
+  const PolygonIndexNode* n = &parts_.nodes[0];
   if (cost) ++cost->nodes;
-  while (!n->is_leaf()) {
+  for (std::uint32_t depth = 1; !n->is_leaf(); ++depth) {
     const std::uint32_t child = format::quadtree_child_of(box, p);
     box = format::quadtree_child_box(box, child);
     n = &parts_.nodes[n->first + child];
-    if (cost) ++cost->nodes;
+    if (cost && depth > top_->level) ++cost->nodes;
   }
   for (const PolygonIndexEntry& e : parts_.entries.subspan(n->first, n->count))
     if (!visit(e, box)) return;
 }
 
-// A leaf record's answer for p: its entries in order, each wholly inside or decided by its
-// inline edges as entry_contains decides it (the same doubles, so the same answers).
-std::uint32_t PolygonIndexView::record_locate(const PolygonIndexTopGrid::Unit* unit,
-                                              std::uint32_t entries, const Box2d& cell,
-                                              const Double2& p) const {
-  const Double2 c = format::quadtree_centre(cell);
-  const Double2 lo{std::min(c.x, p.x), std::min(c.y, p.y)};
-  const Double2 hi{std::max(c.x, p.x), std::max(c.y, p.y)};
-  for (std::uint32_t k = 0; k < entries; ++k) {
-    PolygonIndexTopGrid::Head head;
-    std::memcpy(&head, unit++, sizeof head);
-    if (head.edges == format::kPolygonWhollyInside) return head.feature;
-    const std::uint32_t count = head.edges & ~format::kPolygonCentreInside;
-    bool inside = (head.edges & format::kPolygonCentreInside) != 0;
-    for (std::uint32_t i = 0; i < count; i += 64) {
-      const std::uint32_t n = std::min<std::uint32_t>(64, count - i);
-      std::uint64_t hits = 0;
-      for (std::uint32_t j = 0; j < n; ++j) {
-        const double* e = unit[i + j].v;  // a.x, a.y, b.x, b.y
-        const bool miss = (std::max(e[0], e[2]) < lo.x) | (std::min(e[0], e[2]) > hi.x) |
-                          (std::max(e[1], e[3]) < lo.y) | (std::min(e[1], e[3]) > hi.y);
-        hits |= std::uint64_t(!miss) << j;
-      }
-      for (; hits; hits &= hits - 1) {
-        const double* e = unit[i + std::uint32_t(__builtin_ctzll(hits))].v;
-        inside ^= detail::shifted_segment_crosses_unboxed(c, p, {e[0], e[1]}, {e[2], e[3]});
-      }
-    }
-    if (inside) return head.feature;
-    unit += count;
-  }
-  return PolygonQueries::kNone;
+namespace {
+
+inline std::uint32_t answer_of(std::uint32_t code) {
+  const std::uint32_t f = code & PolygonIndexTopGrid::kNoFeature;
+  return f == PolygonIndexTopGrid::kNoFeature ? PolygonQueries::kNone : f;
 }
 
-// The hot path: a cell answering alike for all its points ends at the table; else the descent
-// below it and the leaf's entries in order, as visit_leaf does.
-[[gnu::always_inline]] inline std::uint32_t PolygonIndexView::locate_inline(
-    const Double2& p) const {
-  if (!parts_.bounds.contains(p)) return PolygonQueries::kNone;
-  std::uint32_t ix, iy;
-  const std::size_t cell = top_cell(p, ix, iy);
-  // A bit per cell (8 KB at k = 8, cached) settles empty space without loading the code.
-  if (top_->empty[cell / 64] >> (cell % 64) & 1) return PolygonQueries::kNone;
-  const std::uint32_t code = top_->code[cell];
-  if (code & PolygonIndexTopGrid::kAnswer) {
-    const std::uint32_t f = code & PolygonIndexTopGrid::kNoFeature;
-    return f == PolygonIndexTopGrid::kNoFeature ? PolygonQueries::kNone : f;
-  }
-  Box2d box = top_box(cell, ix, iy);
-  const auto& nodes = top_->nodes;
-  const PolygonIndexNode* n = &nodes[code];
-  while (!n->is_leaf()) {
+inline bool is_branch(std::uint32_t code) {
+  return (code & (PolygonIndexTopGrid::kAnswer | PolygonIndexTopGrid::kBranch)) ==
+         PolygonIndexTopGrid::kBranch;
+}
+
+// The branch entry a point reaches below `box`: the d levels' child bits, first most significant.
+inline std::uint32_t branch_entry(std::uint32_t code, Box2d& box, const Double2& p) {
+  const std::uint32_t d = 1 + (code >> 28 & 3);
+  std::uint32_t index = 0;
+  for (std::uint32_t l = 0; l < d; ++l) {
     const std::uint32_t child = format::quadtree_child_of(box, p);
     box = format::quadtree_child_box(box, child);
-    n = &nodes[n->first + child];
+    index = index << 2 | child;
   }
-  return record_locate(&top_->units[n->first], n->count, box, p);
+  return (code & PolygonIndexTopGrid::kOffset) + index;
+}
+
+}  // namespace
+
+// The code of the leaf holding p below a table cell coded as a branch: its entry from the fine
+// column and row, then (below kFine levels) branches again, descending from the fine cell.
+inline std::uint32_t PolygonIndexView::table_branch(std::uint32_t code, std::uint32_t fx,
+                                                    std::uint32_t fy, const Double2& p) const {
+  const PolygonIndexTopGrid& g = *top_;
+  const std::uint32_t d = 1 + (code >> 28 & 3);
+  const std::uint32_t index = (kSpread[fx & 7] | kSpread[fy & 7] << 1) >> 2 * (3 - d);
+  code = g.branches[(code & PolygonIndexTopGrid::kOffset) + index];
+  if (!is_branch(code)) [[likely]]
+    return code;
+  Box2d box{{g.xs[fx], g.ys[fy]}, {g.xs[fx + 1], g.ys[fy + 1]}};  // d == kFine here
+  do code = g.branches[branch_entry(code, box, p)];
+  while (is_branch(code));
+  return code;
+}
+
+// The hot path: a cell answering alike for all its points ends at the table; else its leaf's
+// code through at most a branch or two, then the record.
+[[gnu::always_inline]] inline std::uint32_t PolygonIndexView::locate_inline(
+    const Double2& p) const {
+  if (!inside(parts_.bounds, p)) return PolygonQueries::kNone;
+  const PolygonIndexTopGrid& g = *top_;
+  std::uint32_t ix, iy;
+  const std::size_t cell = top_cell(p, ix, iy);
+  // A bit per cell (32 KB at k = 9) settles empty space without loading the code.
+  if (g.empty[cell / 64] >> (cell % 64) & 1) return PolygonQueries::kNone;
+  std::uint32_t code = g.code[cell];
+  if (is_branch(code)) code = table_branch(code, ix, iy, p);
+#ifdef PIP_NO_RECORD
+  return code;
+#endif
+#ifdef PIP_RECORD_TOUCH
+  if (code & PolygonIndexTopGrid::kAnswer) return answer_of(code);
+  return std::uint32_t(g.records[code]);
+#endif
+  if (code & PolygonIndexTopGrid::kAnswer) return answer_of(code);
+  return record_(&g.records[code], p);
 }
 
 std::uint32_t PolygonIndexView::locate(const Double2& p) const {
   return locate_inline(p);
 }
 
-// Groups of 32 points go through each stage together (table lookups, then the descent one
-// level at a time, then the records), each stage prefetching what the next one reads: the
-// group's cache misses overlap instead of forming one dependent chain per point. Answers are
-// locate's: the same steps on the same doubles.
+// Groups of 32 points go through each stage together (table lookups, branch entries one level
+// per pass, then the records), each stage prefetching what the next one reads: the group's
+// cache misses overlap instead of forming one dependent chain per point. Answers are locate's:
+// the same steps on the same doubles.
 void PolygonIndexView::locate_many(std::span<const Double2> points,
                                    std::span<std::uint32_t> out) const {
   constexpr std::size_t kGroup = 32;
   const std::size_t n = std::min(points.size(), out.size());
   const PolygonIndexTopGrid& g = *top_;
-  std::uint32_t ix[kGroup], iy[kGroup], node[kGroup], active[kGroup];
+  std::uint32_t ix[kGroup], iy[kGroup], code[kGroup], entry[kGroup], active[kGroup];
   std::size_t cell[kGroup];
   Box2d box[kGroup];
   for (std::size_t base = 0; base < n; base += kGroup) {
     const std::size_t m = std::min(kGroup, n - base);
+    const Double2* p = points.data() + base;
     std::size_t live = 0;
     for (std::size_t k = 0; k < m; ++k) {
       out[base + k] = PolygonQueries::kNone;
-      if (!parts_.bounds.contains(points[base + k])) continue;
-      cell[k] = top_cell(points[base + k], ix[k], iy[k]);
+      if (!inside(parts_.bounds, p[k])) continue;
+      cell[k] = top_cell(p[k], ix[k], iy[k]);
+      if (g.empty[cell[k] / 64] >> (cell[k] % 64) & 1) continue;
       __builtin_prefetch(&g.code[cell[k]]);
       active[live++] = std::uint32_t(k);
     }
-    std::size_t next = 0;
+    // Codes: answers end here; a branch's entry or a record is prefetched.
+    std::size_t next = 0, branching = 0;
     for (std::size_t a = 0; a < live; ++a) {
       const std::uint32_t k = active[a];
-      if (g.empty[cell[k] / 64] >> (cell[k] % 64) & 1) continue;
-      const std::uint32_t code = g.code[cell[k]];
-      if (code & PolygonIndexTopGrid::kAnswer) {
-        const std::uint32_t f = code & PolygonIndexTopGrid::kNoFeature;
-        out[base + k] = f == PolygonIndexTopGrid::kNoFeature ? PolygonQueries::kNone : f;
+      code[k] = g.code[cell[k]];
+      if (code[k] & PolygonIndexTopGrid::kAnswer) {
+        out[base + k] = answer_of(code[k]);
         continue;
       }
-      box[k] = top_box(cell[k], ix[k], iy[k]);
-      node[k] = code;
-      __builtin_prefetch(&g.nodes[code]);
+      if (is_branch(code[k])) {
+        const std::uint32_t d = 1 + (code[k] >> 28 & 3);
+        entry[k] = (code[k] & PolygonIndexTopGrid::kOffset) +
+                   ((kSpread[ix[k] & 7] | kSpread[iy[k] & 7] << 1) >> 2 * (3 - d));
+        __builtin_prefetch(&g.branches[entry[k]]);
+        ++branching;
+      } else {
+        __builtin_prefetch(&g.records[code[k]]);
+      }
       active[next++] = k;
     }
     live = next;
-    // Descend one level per pass; a point reaching its leaf prefetches its record's head.
-    std::size_t descending = live;
-    while (descending > 0) {
-      descending = 0;
+    // Branch entries, one level per pass (below kFine levels, descending from the fine cell).
+    for (bool first = true; branching > 0; first = false) {
+      branching = 0;
       for (std::size_t a = 0; a < live; ++a) {
         const std::uint32_t k = active[a];
-        const PolygonIndexNode& nd = g.nodes[node[k]];
-        if (nd.is_leaf()) continue;
-        const std::uint32_t child = format::quadtree_child_of(box[k], points[base + k]);
-        box[k] = format::quadtree_child_box(box[k], child);
-        node[k] = nd.first + child;
-        const PolygonIndexNode& next_node = g.nodes[node[k]];
-        __builtin_prefetch(&next_node);
-        ++descending;
+        if (!is_branch(code[k])) continue;
+        code[k] = g.branches[entry[k]];
+        if (is_branch(code[k])) {
+          if (first)
+            box[k] = {{g.xs[ix[k]], g.ys[iy[k]]}, {g.xs[ix[k] + 1], g.ys[iy[k] + 1]}};
+          entry[k] = branch_entry(code[k], box[k], p[k]);
+          __builtin_prefetch(&g.branches[entry[k]]);
+          ++branching;
+        } else if (!(code[k] & PolygonIndexTopGrid::kAnswer)) {
+          __builtin_prefetch(&g.records[code[k]]);
+        }
       }
     }
     for (std::size_t a = 0; a < live; ++a) {
       const std::uint32_t k = active[a];
-      const PolygonIndexNode& nd = g.nodes[node[k]];
-      if (nd.count) __builtin_prefetch(&g.units[nd.first]);
-    }
-    for (std::size_t a = 0; a < live; ++a) {
-      const std::uint32_t k = active[a];
-      const PolygonIndexNode& nd = g.nodes[node[k]];
-      out[base + k] = record_locate(&g.units[nd.first], nd.count, box[k], points[base + k]);
+      out[base + k] = code[k] & PolygonIndexTopGrid::kAnswer ? answer_of(code[k])
+                                                              : record_(&g.records[code[k]], p[k]);
     }
   }
 }

@@ -36,39 +36,40 @@ struct PolygonIndexLevel {
 };
 
 /// The quadtree's cells at one level k as a flat 2^k x 2^k table, derived from the validated
-/// nodes at open: a query finds its cell by one lookup, then descends only below level k.
-/// `xs` / `ys` hold the 2^k + 1 split coordinates of level k exactly as the descent computes
-/// them (each a midpoint of its two neighbours of the level above), so the lookup lands in the
-/// cell the descent would. A cell whose leaf lies above level k names that leaf and its level.
-/// A cell whose leaf answers every point of it alike (no entry, or a first entry wholly inside)
-/// holds that answer instead, so most points far from any boundary end at the lookup.
+/// nodes at open: a query finds its cell by one lookup, then at most a few more loads.
+/// `xs` / `ys` hold the 2^(k + kFine) + 1 split coordinates of level k + kFine exactly as the
+/// descent computes them (each a midpoint of its two neighbours of the level above), so the
+/// lookup lands in the cell the descent would. Each cell holds a code (docs/FORMAT.md, "Derived at open"): the
+/// answer for every point of it, or the leaf record of the leaf covering it, or a branch (a
+/// dense grid of the next 1-3 levels of its subtree, whose entries are codes again).
 struct PolygonIndexTopGrid {
-  /// `code` bit 31 set: the answer for every point of the cell (low 31 bits: the feature, or
-  /// kNoFeature); clear: the node index (in `nodes` below).
+  /// Code bit 31 set: the answer (low 31 bits: the feature, or kNoFeature). Else bit 30 clear:
+  /// a leaf record at word `code` of `records`; set: a branch of 4^d entries at `branches[code &
+  /// kOffset]`, d = 1 + (code >> 28 & 3), child bits of d descent levels interleaved (first level
+  /// most significant).
   static constexpr std::uint32_t kAnswer = 0x80000000u, kNoFeature = 0x7FFFFFFFu;
-  std::uint32_t level = 0;               ///< k
-  format::Double2 scale;                 ///< 2^k / (bounds' side), the lookup's estimate
-  std::vector<double> xs, ys;            ///< split lines, 2^k + 1 each, non-decreasing
-  std::vector<std::uint32_t> code;       ///< per cell (row-major, y outer): answer or node
-  std::vector<std::uint32_t> node;       ///< per cell: the node (for walks over every entry)
-  std::vector<std::uint64_t> empty;      ///< per cell, one bit: no polygon holds a point of it
-  std::vector<std::uint8_t> node_level;  ///< per cell: the named node's depth (<= k)
-  std::vector<std::uint32_t> feature;    ///< per polygon: its feature (no search per answer)
-
-  /// One 32-byte unit of a leaf record: an entry's head (`head()`: its feature, and its edge
-  /// count with format::kPolygonCentreInside, or format::kPolygonWhollyInside), or one of its
-  /// edges' endpoints copied from the layer (a.x, a.y, b.x, b.y).
-  struct Unit {
-    double v[4];
-  };
-  struct Head {
-    std::uint32_t feature, edges;
-  };
-  /// The nodes again, each leaf's `first` naming its record in `units`: per entry, in order,
-  /// its head, then its edges. A point query reads one contiguous record instead of entries,
-  /// edge indices and scattered vertices (three dependent loads fewer).
-  std::vector<format::PolygonIndexNode> nodes;
-  std::vector<Unit> units;
+  static constexpr std::uint32_t kBranch = 0x40000000u, kOffset = 0x0FFFFFFFu;
+  static constexpr std::uint32_t kRecordOffset = 0x3FFFFFFFu;
+  /// A record group holds at most this many polygons (one bit each in its masks).
+  static constexpr std::uint32_t kGroupPolygons = 31;
+  /// Branches below the table span at most this many levels; the split lines go as deep, so
+  /// that one column lookup per axis gives both the table cell and the branch entry.
+  static constexpr std::uint32_t kFine = 3;
+  std::uint32_t level = 0;            ///< k
+  format::Double2 scale;              ///< 2^(k + kFine) / (bounds' side), the lookup's estimate
+  std::vector<double> xs, ys;         ///< split lines of level k + kFine, non-decreasing
+  std::vector<std::uint32_t> code;    ///< per cell (row-major, y outer)
+  std::vector<std::uint64_t> empty;   ///< per cell, one bit: no polygon holds a point of it
+  std::vector<std::uint32_t> feature;  ///< per polygon: its feature (no search per answer)
+  std::vector<std::uint32_t> branches;  ///< codes, 4^d per branch
+  /// Leaf records in 8-byte words, one or more groups each: word 0 {uint32 edge count n,
+  /// uint32 centre mask (bit j: polygon j of the group holds the leaf's centre; bit 31: another
+  /// group follows)}, words 1-2 the centre (x, y), then n edges of four doubles (a.x, a.y, b.x,
+  /// b.y; each distinct edge of the group's polygons once, oriented so that the centre lies to
+  /// its left under the shifted rule), then uint32s: per edge its polygon mask (bit 31: the
+  /// shifted side of a point on its line is the right), the group's polygon count m, and m
+  /// features ascending; padded to a word.
+  std::vector<std::uint64_t> records;
 };
 
 /// The top-level table of a validated index (O(4^k + nodes above level k)).
@@ -115,13 +116,14 @@ class PolygonIndexView {
                       const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
   std::uint32_t locate_inline(const format::Double2& p) const;
-  std::uint32_t record_locate(const PolygonIndexTopGrid::Unit* unit, std::uint32_t entries,
-                              const format::Box2d& cell, const format::Double2& p) const;
-  std::size_t top_cell(const format::Double2& p, std::uint32_t& ix, std::uint32_t& iy) const;
-  format::Box2d top_box(std::size_t cell, std::uint32_t ix, std::uint32_t iy) const;
+  std::size_t top_cell(const format::Double2& p, std::uint32_t& fx, std::uint32_t& fy) const;
+  std::uint32_t table_branch(std::uint32_t code, std::uint32_t fx, std::uint32_t fy,
+                             const format::Double2& p) const;
 
   PolygonIndexParts parts_;
   std::shared_ptr<const PolygonIndexTopGrid> top_;  // shared: views copy cheaply
+  // A leaf record's answer (runtime/src/polygon_index_records.cpp), the kernel for this CPU.
+  std::uint32_t (*record_)(const std::uint64_t* record, const format::Double2& p) = nullptr;
 };
 
 }  // namespace kiln
