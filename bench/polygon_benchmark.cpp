@@ -154,7 +154,7 @@ Engine kiln_engine(const PolygonLayer& layer, kiln::PolygonIndexBuildOptions opt
             // What the view derives at open (table, branches, leaf records), rebuilt here to
             // count it.
             const auto g = kiln::make_polygon_index_top_grid((*view)->parts());
-            const std::size_t table = g->code.size() * 4 + g->empty.size() * 8 +
+            const std::size_t table = g->code.size() * 4 + g->clear.size() * 8 +
                                       (g->xs.size() + g->ys.size()) * 8 + g->feature.size() * 4;
             const std::size_t records = g->branches.size() * 4 + g->records.size() * 8;
             return "open (validate + derive) " + std::to_string(*open_ms).substr(0, 6) +

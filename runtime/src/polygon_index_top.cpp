@@ -217,6 +217,19 @@ class Builder {
   bool ok_ = true;
 };
 
+// Whether the uniform estimate (v - min) * scale of every split line lies within kEstimateSlack
+// of its index. The estimate grows with v (monotone rounding), so then the estimate of any v
+// in [lines[j], lines[j + 1]) lies in [j - slack, j + 1 + slack]: its floor is within
+// slack + 1 <= 2^kFine - 1 fine columns of j, and its table cell within one of the true one.
+bool estimates_hold(const std::vector<double>& lines, double min, double scale) {
+  for (std::size_t j = 0; j < lines.size(); ++j) {
+    const double e = (lines[j] - min) * scale;
+    if (!(e >= double(j) - Grid::kEstimateSlack && e <= double(j) + Grid::kEstimateSlack))
+      return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
@@ -246,10 +259,23 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
       g->feature[q] = std::uint32_t(f);
   g->code.resize(cells);
   if (!Builder(parts, *g).build()) return nullptr;
-  g->empty.assign((cells + 63) / 64, 0);
-  for (std::size_t cell = 0; cell < cells; ++cell)
-    if (g->code[cell] == (Grid::kAnswer | Grid::kNoFeature))
-      g->empty[cell / 64] |= std::uint64_t(1) << (cell % 64);
+  g->last = (1u << fine) - 1;
+  g->clear.assign((cells + 63) / 64, 0);
+  if (estimates_hold(g->xs, b.min.x, g->scale.x) && estimates_hold(g->ys, b.min.y, g->scale.y)) {
+    const std::uint32_t side = 1u << g->level;
+    auto empty = [&](std::uint32_t x, std::uint32_t y) {
+      return x >= side || y >= side ||
+             g->code[std::size_t(y) * side + x] == (Grid::kAnswer | Grid::kNoFeature);
+    };
+    for (std::uint32_t y = 0; y < side; ++y)
+      for (std::uint32_t x = 0; x < side; ++x) {
+        bool clear = true;
+        for (std::uint32_t dy = 0; dy < 3; ++dy)
+          for (std::uint32_t dx = 0; dx < 3; ++dx) clear &= empty(x + dx - 1, y + dy - 1);
+        const std::size_t cell = std::size_t(y) * side + x;
+        if (clear) g->clear[cell / 64] |= std::uint64_t(1) << (cell % 64);
+      }
+  }
   return g;
 }
 

@@ -140,14 +140,19 @@ bool PolygonIndexView::entry_contains(const PolygonIndexEntry& e, const Box2d& c
 
 namespace {
 
-// The largest j < 2^k with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
-// column the descent reaches (it sends v >= a split line to the upper side). `guess` is the
-// uniform estimate, right but within a rounding of a line; the walks correct it (the split lines
-// are non-decreasing, so they end).
-inline std::uint32_t column(const std::vector<double>& lines, double v, double guess) {
-  const auto last = std::uint32_t(lines.size() - 2);
-  // guess >= 0 or NaN (v is in the bounds, the scale finite and >= 0): NaN takes `last`.
-  std::uint32_t j = std::uint32_t(guess < double(last) ? guess : double(last));
+// The fine column or row of v's uniform estimate, clamped to the last: within a rounding of the
+// true one (within kEstimateSlack wherever PolygonIndexTopGrid::clear is used). v lies in the
+// bounds, the scale is finite and >= 0, so the estimate is >= 0 or NaN (which takes `last`).
+inline std::uint32_t estimate(double v, double min, double scale, std::uint32_t last) {
+  const double e = (v - min) * scale;
+  return std::uint32_t(e < double(last) ? e : double(last));
+}
+
+// The largest j <= last with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
+// column the descent reaches (it sends v >= a split line to the upper side), from the estimate
+// j; the walks correct it (the split lines are non-decreasing, so they end).
+inline std::uint32_t column(const std::vector<double>& lines, double v, std::uint32_t j,
+                            std::uint32_t last) {
   if ((lines[j] <= v) & (v < lines[j + 1])) [[likely]]
     return j;
   while (j > 0 && lines[j] > v) --j;
@@ -167,13 +172,26 @@ static_assert(PolygonIndexTopGrid::kFine == 3);
 
 }  // namespace
 
-// The table cell holding p (inside the bounds), and p's column and row among the fine lines.
+// Whether the table says p (inside the bounds) is in no polygon from its estimated column and
+// row alone (`ex`, `ey`: estimate()'s), without the split lines.
+inline bool PolygonIndexView::clear_at(const Double2& p, std::uint32_t& ex,
+                                       std::uint32_t& ey) const {
+  const PolygonIndexTopGrid& g = *top_;
+  const Box2d& b = parts_.bounds;
+  ex = estimate(p.x, b.min.x, g.scale.x, g.last);
+  ey = estimate(p.y, b.min.y, g.scale.y, g.last);
+  constexpr std::uint32_t f = PolygonIndexTopGrid::kFine;
+  const std::size_t cell = std::size_t(ey >> f) << g.level | ex >> f;
+  return g.clear[cell / 64] >> (cell % 64) & 1;
+}
+
+// The table cell holding p, and p's column and row among the fine lines (in fx, fy: on entry,
+// their estimates).
 inline std::size_t PolygonIndexView::top_cell(const Double2& p, std::uint32_t& fx,
                                               std::uint32_t& fy) const {
   const PolygonIndexTopGrid& g = *top_;
-  const Box2d& b = parts_.bounds;
-  fx = column(g.xs, p.x, (p.x - b.min.x) * g.scale.x);
-  fy = column(g.ys, p.y, (p.y - b.min.y) * g.scale.y);
+  fx = column(g.xs, p.x, fx, g.last);
+  fy = column(g.ys, p.y, fy, g.last);
   constexpr std::uint32_t f = PolygonIndexTopGrid::kFine;
   return std::size_t(fy >> f) << g.level | fx >> f;
 }
@@ -246,18 +264,10 @@ inline std::uint32_t PolygonIndexView::table_branch(std::uint32_t code, std::uin
   if (!inside(parts_.bounds, p)) return PolygonQueries::kNone;
   const PolygonIndexTopGrid& g = *top_;
   std::uint32_t ix, iy;
-  const std::size_t cell = top_cell(p, ix, iy);
-  // A bit per cell (32 KB at k = 9) settles empty space without loading the code.
-  if (g.empty[cell / 64] >> (cell % 64) & 1) return PolygonQueries::kNone;
-  std::uint32_t code = g.code[cell];
+  // A bit per cell (32 KB at k = 9) settles most empty space from the estimates alone.
+  if (clear_at(p, ix, iy)) return PolygonQueries::kNone;
+  std::uint32_t code = g.code[top_cell(p, ix, iy)];
   if (is_branch(code)) code = table_branch(code, ix, iy, p);
-#ifdef PIP_NO_RECORD
-  return code;
-#endif
-#ifdef PIP_RECORD_TOUCH
-  if (code & PolygonIndexTopGrid::kAnswer) return answer_of(code);
-  return std::uint32_t(g.records[code]);
-#endif
   if (code & PolygonIndexTopGrid::kAnswer) return answer_of(code);
   return record_(&g.records[code], p);
 }
@@ -284,9 +294,8 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
     std::size_t live = 0;
     for (std::size_t k = 0; k < m; ++k) {
       out[base + k] = PolygonQueries::kNone;
-      if (!inside(parts_.bounds, p[k])) continue;
+      if (!inside(parts_.bounds, p[k]) || clear_at(p[k], ix[k], iy[k])) continue;
       cell[k] = top_cell(p[k], ix[k], iy[k]);
-      if (g.empty[cell[k] / 64] >> (cell[k] % 64) & 1) continue;
       __builtin_prefetch(&g.code[cell[k]]);
       active[live++] = std::uint32_t(k);
     }

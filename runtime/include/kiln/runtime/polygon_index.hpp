@@ -59,7 +59,12 @@ struct PolygonIndexTopGrid {
   format::Double2 scale;              ///< 2^(k + kFine) / (bounds' side), the lookup's estimate
   std::vector<double> xs, ys;         ///< split lines of level k + kFine, non-decreasing
   std::vector<std::uint32_t> code;    ///< per cell (row-major, y outer)
-  std::vector<std::uint64_t> empty;   ///< per cell, one bit: no polygon holds a point of it
+  std::uint32_t last = 0;             ///< 2^(k + kFine) - 1: the last fine column and row
+  /// Per cell, one bit: no polygon holds a point of it or of its eight neighbours. Set only
+  /// where every fine split line lies within kEstimateSlack columns of its uniform estimate
+  /// (checked when the table is made), so a point whose estimated cell is clear is in no polygon.
+  std::vector<std::uint64_t> clear;
+  static constexpr double kEstimateSlack = 2;
   std::vector<std::uint32_t> feature;  ///< per polygon: its feature (no search per answer)
   std::vector<std::uint32_t> branches;  ///< codes, 4^d per branch
   /// Leaf records in 8-byte words, one or more groups each: word 0 {uint32 edge count n,
@@ -116,6 +121,7 @@ class PolygonIndexView {
                       const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
   std::uint32_t locate_inline(const format::Double2& p) const;
+  bool clear_at(const format::Double2& p, std::uint32_t& ex, std::uint32_t& ey) const;
   std::size_t top_cell(const format::Double2& p, std::uint32_t& fx, std::uint32_t& fy) const;
   std::uint32_t table_branch(std::uint32_t code, std::uint32_t fx, std::uint32_t fy,
                              const format::Double2& p) const;
