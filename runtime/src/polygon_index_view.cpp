@@ -276,72 +276,95 @@ std::uint32_t PolygonIndexView::locate(const Double2& p) const {
   return locate_inline(p);
 }
 
-// Groups of 32 points go through each stage together (table lookups, branch entries one level
-// per pass, then the records), each stage prefetching what the next one reads: the group's
-// cache misses overlap instead of forming one dependent chain per point. Answers are locate's:
-// the same steps on the same doubles.
+// A batch in groups of 16 points, software-pipelined over four stages: while group g computes
+// its table cells, group g - 1 reads its codes, g - 2 its branch entries and g - 3 its leaf
+// records, each stage prefetching what the next one reads, so a group's cache misses are served
+// while three other groups work. Answers are locate's: the same steps on the same doubles.
 void PolygonIndexView::locate_many(std::span<const Double2> points,
                                    std::span<std::uint32_t> out) const {
-  constexpr std::size_t kGroup = 32;
+  constexpr std::size_t kGroup = 16, kStages = 4;
+  struct Group {
+    std::size_t size = 0;                // points still open
+    std::uint32_t at[kGroup];            // their index in the batch
+    std::uint32_t fx[kGroup], fy[kGroup];  // fine column and row
+    std::uint32_t code[kGroup];          // table cell, then code, then (stage 3) record
+  };
   const std::size_t n = std::min(points.size(), out.size());
   const PolygonIndexTopGrid& g = *top_;
-  std::uint32_t ix[kGroup], iy[kGroup], code[kGroup], entry[kGroup], active[kGroup];
-  std::size_t cell[kGroup];
-  Box2d box[kGroup];
-  for (std::size_t base = 0; base < n; base += kGroup) {
-    const std::size_t m = std::min(kGroup, n - base);
-    const Double2* p = points.data() + base;
-    std::size_t live = 0;
-    for (std::size_t k = 0; k < m; ++k) {
-      out[base + k] = PolygonQueries::kNone;
-      if (!inside(parts_.bounds, p[k]) || clear_at(p[k], ix[k], iy[k])) continue;
-      cell[k] = top_cell(p[k], ix[k], iy[k]);
-      __builtin_prefetch(&g.code[cell[k]]);
-      active[live++] = std::uint32_t(k);
+  Group ring[kStages];
+  const std::size_t groups = (n + kGroup - 1) / kGroup;
+  for (std::size_t step = 0; step < groups + kStages - 1; ++step) {
+    // Stage 3: records (group step - 3).
+    if (step >= 3 && step - 3 < groups) {
+      const Group& r = ring[(step - 3) % kStages];
+      for (std::size_t i = 0; i < r.size; ++i)
+        out[r.at[i]] = r.code[i] & PolygonIndexTopGrid::kAnswer
+                           ? answer_of(r.code[i])
+                           : record_(&g.records[r.code[i]], points[r.at[i]]);
     }
-    // Codes: answers end here; a branch's entry or a record is prefetched.
-    std::size_t next = 0, branching = 0;
-    for (std::size_t a = 0; a < live; ++a) {
-      const std::uint32_t k = active[a];
-      code[k] = g.code[cell[k]];
-      if (code[k] & PolygonIndexTopGrid::kAnswer) {
-        out[base + k] = answer_of(code[k]);
-        continue;
-      }
-      if (is_branch(code[k])) {
-        const std::uint32_t d = 1 + (code[k] >> 28 & 3);
-        entry[k] = (code[k] & PolygonIndexTopGrid::kOffset) +
-                   ((kSpread[ix[k] & 7] | kSpread[iy[k] & 7] << 1) >> 2 * (3 - d));
-        __builtin_prefetch(&g.branches[entry[k]]);
-        ++branching;
-      } else {
-        __builtin_prefetch(&g.records[code[k]]);
-      }
-      active[next++] = k;
-    }
-    live = next;
-    // Branch entries, one level per pass (below kFine levels, descending from the fine cell).
-    for (bool first = true; branching > 0; first = false) {
-      branching = 0;
-      for (std::size_t a = 0; a < live; ++a) {
-        const std::uint32_t k = active[a];
-        if (!is_branch(code[k])) continue;
-        code[k] = g.branches[entry[k]];
-        if (is_branch(code[k])) {
-          if (first)
-            box[k] = {{g.xs[ix[k]], g.ys[iy[k]]}, {g.xs[ix[k] + 1], g.ys[iy[k] + 1]}};
-          entry[k] = branch_entry(code[k], box[k], p[k]);
-          __builtin_prefetch(&g.branches[entry[k]]);
-          ++branching;
-        } else if (!(code[k] & PolygonIndexTopGrid::kAnswer)) {
-          __builtin_prefetch(&g.records[code[k]]);
+    // Stage 2: branch entries (group step - 2); deeper branches resolved on the spot.
+    if (step >= 2 && step - 2 < groups) {
+      Group& r = ring[(step - 2) % kStages];
+      for (std::size_t i = 0; i < r.size; ++i) {
+        std::uint32_t code = r.code[i];
+        if (is_branch(code)) {
+          code = g.branches[code & PolygonIndexTopGrid::kOffset];
+          if (is_branch(code)) {
+            const Double2& p = points[r.at[i]];
+            Box2d box{{g.xs[r.fx[i]], g.ys[r.fy[i]]}, {g.xs[r.fx[i] + 1], g.ys[r.fy[i] + 1]}};
+            do code = g.branches[branch_entry(code, box, p)];
+            while (is_branch(code));
+          }
+          r.code[i] = code;
+        }
+        if (!(code & PolygonIndexTopGrid::kAnswer)) {
+          const char* record = reinterpret_cast<const char*>(&g.records[code]);
+          __builtin_prefetch(record);
+          __builtin_prefetch(record + 64);
+          __builtin_prefetch(record + 128);
         }
       }
     }
-    for (std::size_t a = 0; a < live; ++a) {
-      const std::uint32_t k = active[a];
-      out[base + k] = code[k] & PolygonIndexTopGrid::kAnswer ? answer_of(code[k])
-                                                              : record_(&g.records[code[k]], p[k]);
+    // Stage 1: codes (group step - 1). A branch's code becomes the offset of its entry (flagged
+    // as a branch still).
+    if (step >= 1 && step - 1 < groups) {
+      Group& r = ring[(step - 1) % kStages];
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < r.size; ++i) {
+        std::uint32_t code = g.code[r.code[i]];
+        if (is_branch(code)) {
+          const std::uint32_t d = 1 + (code >> 28 & 3);
+          const std::uint32_t entry =
+              (code & PolygonIndexTopGrid::kOffset) +
+              ((kSpread[r.fx[i] & 7] | kSpread[r.fy[i] & 7] << 1) >> 2 * (3 - d));
+          __builtin_prefetch(&g.branches[entry]);
+          code = PolygonIndexTopGrid::kBranch | entry;
+        } else if (code & PolygonIndexTopGrid::kAnswer) {
+          out[r.at[i]] = answer_of(code);
+          continue;
+        } else {
+          __builtin_prefetch(&g.records[code]);
+        }
+        r.at[kept] = r.at[i], r.fx[kept] = r.fx[i], r.fy[kept] = r.fy[i];
+        r.code[kept++] = code;
+      }
+      r.size = kept;
+    }
+    // Stage 0: table cells (group step).
+    if (step < groups) {
+      Group& r = ring[step % kStages];
+      r.size = 0;
+      const std::size_t end = std::min(n, (step + 1) * kGroup);
+      for (std::size_t k = step * kGroup; k < end; ++k) {
+        const Double2& p = points[k];
+        out[k] = PolygonQueries::kNone;
+        std::uint32_t fx, fy;
+        if (!inside(parts_.bounds, p) || clear_at(p, fx, fy)) continue;
+        const std::size_t cell = top_cell(p, fx, fy);
+        __builtin_prefetch(&g.code[cell]);
+        r.at[r.size] = std::uint32_t(k), r.fx[r.size] = fx, r.fy[r.size] = fy;
+        r.code[r.size++] = std::uint32_t(cell);
+      }
     }
   }
 }
