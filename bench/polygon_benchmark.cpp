@@ -154,14 +154,16 @@ Engine kiln_engine(const PolygonLayer& layer, kiln::PolygonIndexBuildOptions opt
             // What the view derives at open (table, branches, leaf records), rebuilt here to
             // count it.
             const auto g = kiln::make_polygon_index_top_grid((*view)->parts());
-            const std::size_t table = g->code.size() * 4 + g->clear.size() * 8 +
+            const std::size_t cells = std::size_t(1) << 2 * g->level;
+            const std::size_t table = cells * 4 + g->clear.size() * 8 +
                                       (g->xs.size() + g->ys.size()) * 8 + g->feature.size() * 4;
-            const std::size_t records = g->branches.size() * 4 + g->records.size() * 8;
+            const std::size_t branches = (g->code.size() - cells) * 4;
+            const std::size_t records = branches + g->records.size() * 8;
             return "open (validate + derive) " + std::to_string(*open_ms).substr(0, 6) +
                    " ms; derived at open: top table level " + std::to_string(g->level) + ", " +
-                   std::to_string(table) + " bytes; branches " +
-                   std::to_string(g->branches.size() * 4) + " + leaf records " +
-                   std::to_string(g->records.size() * 8) + " = " + std::to_string(records) +
+                   std::to_string(table) + " bytes; branches " + std::to_string(branches) +
+                   " + leaf records " + std::to_string(g->records.size() * 8) + " = " +
+                   std::to_string(records) +
                    " bytes";
           }};
 }

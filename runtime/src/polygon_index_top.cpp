@@ -76,7 +76,7 @@ class Builder {
     if (n.is_leaf() || depth == g_.level) {
       const std::uint32_t code = code_of(node, box);
       for (std::uint32_t y = y0; y < y0 + size; ++y)
-        std::fill_n(&g_.code[std::size_t(y) * side + x0], size, code);
+        std::fill_n(g_.code.begin() + std::ptrdiff_t(std::size_t(y) * side + x0), size, code);
       return;
     }
     const std::uint32_t half = size / 2;
@@ -91,9 +91,9 @@ class Builder {
     const format::PolygonIndexNode& n = parts_.nodes[node];
     if (n.is_leaf()) return leaf_code(n, box);
     const std::uint32_t d = std::min<std::uint32_t>(Grid::kFine, depth_[node]);
-    const std::size_t at = g_.branches.size();
+    const std::size_t at = g_.code.size();
     if (at + (std::size_t(1) << 2 * d) > Grid::kOffset + 1) return fail();
-    g_.branches.resize(at + (std::size_t(1) << 2 * d));
+    g_.code.resize(at + (std::size_t(1) << 2 * d));
     fill_branch(node, box, d, at);
     return Grid::kBranch | (d - 1) << 28 | std::uint32_t(at);
   }
@@ -104,7 +104,7 @@ class Builder {
     const format::PolygonIndexNode& n = parts_.nodes[node];
     if (n.is_leaf() || d == 0) {
       const std::uint32_t code = code_of(node, box);
-      std::fill_n(g_.branches.begin() + std::ptrdiff_t(at), std::size_t(1) << 2 * d, code);
+      std::fill_n(g_.code.begin() + std::ptrdiff_t(at), std::size_t(1) << 2 * d, code);
       return;
     }
     for (std::uint32_t c = 0; c < 4; ++c)

@@ -241,19 +241,22 @@ inline std::uint32_t branch_entry(std::uint32_t code, Box2d& box, const Double2&
 
 }  // namespace
 
-// The code of the leaf holding p below a table cell coded as a branch: its entry from the fine
-// column and row, then (below kFine levels) branches again, descending from the fine cell.
-inline std::uint32_t PolygonIndexView::table_branch(std::uint32_t code, std::uint32_t fx,
-                                                    std::uint32_t fy, const Double2& p) const {
+// The code of the leaf holding p, from its table cell's: a branch's entry from the fine column
+// and row, then (below kFine levels) branches again, descending from the fine cell. (Reading
+// the entry without a branch, a cell that is no branch reading itself again, measured slower.)
+inline std::uint32_t PolygonIndexView::leaf_code(std::size_t cell, std::uint32_t fx,
+                                                 std::uint32_t fy, const Double2& p) const {
   const PolygonIndexTopGrid& g = *top_;
+  std::uint32_t code = g.code[cell];
+  if (!is_branch(code)) return code;
   const std::uint32_t d = 1 + (code >> 28 & 3);
-  const std::uint32_t index = (kSpread[fx & 7] | kSpread[fy & 7] << 1) >> 2 * (3 - d);
-  code = g.branches[(code & PolygonIndexTopGrid::kOffset) + index];
-  if (!is_branch(code)) [[likely]]
-    return code;
-  Box2d box{{g.xs[fx], g.ys[fy]}, {g.xs[fx + 1], g.ys[fy + 1]}};  // d == kFine here
-  do code = g.branches[branch_entry(code, box, p)];
-  while (is_branch(code));
+  code = g.code[(code & PolygonIndexTopGrid::kOffset) +
+                ((kSpread[fx & 7] | kSpread[fy & 7] << 1) >> 2 * (3 - d))];
+  if (is_branch(code)) [[unlikely]] {
+    Box2d box{{g.xs[fx], g.ys[fy]}, {g.xs[fx + 1], g.ys[fy + 1]}};  // d == kFine here
+    do code = g.code[branch_entry(code, box, p)];
+    while (is_branch(code));
+  }
   return code;
 }
 
@@ -266,8 +269,7 @@ inline std::uint32_t PolygonIndexView::table_branch(std::uint32_t code, std::uin
   std::uint32_t ix, iy;
   // A bit per cell (32 KB at k = 9) settles most empty space from the estimates alone.
   if (clear_at(p, ix, iy)) return PolygonQueries::kNone;
-  std::uint32_t code = g.code[top_cell(p, ix, iy)];
-  if (is_branch(code)) code = table_branch(code, ix, iy, p);
+  const std::uint32_t code = leaf_code(top_cell(p, ix, iy), ix, iy, p);
   if (code & PolygonIndexTopGrid::kAnswer) return answer_of(code);
   return record_(&g.records[code], p);
 }
@@ -308,11 +310,11 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
       for (std::size_t i = 0; i < r.size; ++i) {
         std::uint32_t code = r.code[i];
         if (is_branch(code)) {
-          code = g.branches[code & PolygonIndexTopGrid::kOffset];
+          code = g.code[code & PolygonIndexTopGrid::kOffset];
           if (is_branch(code)) {
             const Double2& p = points[r.at[i]];
             Box2d box{{g.xs[r.fx[i]], g.ys[r.fy[i]]}, {g.xs[r.fx[i] + 1], g.ys[r.fy[i] + 1]}};
-            do code = g.branches[branch_entry(code, box, p)];
+            do code = g.code[branch_entry(code, box, p)];
             while (is_branch(code));
           }
           r.code[i] = code;
@@ -337,7 +339,7 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
           const std::uint32_t entry =
               (code & PolygonIndexTopGrid::kOffset) +
               ((kSpread[r.fx[i] & 7] | kSpread[r.fy[i] & 7] << 1) >> 2 * (3 - d));
-          __builtin_prefetch(&g.branches[entry]);
+          __builtin_prefetch(&g.code[entry]);
           code = PolygonIndexTopGrid::kBranch | entry;
         } else if (code & PolygonIndexTopGrid::kAnswer) {
           out[r.at[i]] = answer_of(code);

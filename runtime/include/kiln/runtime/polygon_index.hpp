@@ -44,7 +44,7 @@ struct PolygonIndexLevel {
 /// dense grid of the next 1-3 levels of its subtree, whose entries are codes again).
 struct PolygonIndexTopGrid {
   /// Code bit 31 set: the answer (low 31 bits: the feature, or kNoFeature). Else bit 30 clear:
-  /// a leaf record at word `code` of `records`; set: a branch of 4^d entries at `branches[code &
+  /// a leaf record at word `code` of `records`; set: a branch of 4^d entries at `code[code &
   /// kOffset]`, d = 1 + (code >> 28 & 3), child bits of d descent levels interleaved (first level
   /// most significant).
   static constexpr std::uint32_t kAnswer = 0x80000000u, kNoFeature = 0x7FFFFFFFu;
@@ -58,7 +58,8 @@ struct PolygonIndexTopGrid {
   std::uint32_t level = 0;            ///< k
   format::Double2 scale;              ///< 2^(k + kFine) / (bounds' side), the lookup's estimate
   std::vector<double> xs, ys;         ///< split lines of level k + kFine, non-decreasing
-  std::vector<std::uint32_t> code;    ///< per cell (row-major, y outer)
+  /// Codes: per table cell (row-major, y outer), then the branches' entries, 4^d per branch.
+  std::vector<std::uint32_t> code;
   std::uint32_t last = 0;             ///< 2^(k + kFine) - 1: the last fine column and row
   /// Per cell, one bit: no polygon holds a point of it or of its eight neighbours. Set only
   /// where every fine split line lies within kEstimateSlack columns of its uniform estimate
@@ -66,7 +67,6 @@ struct PolygonIndexTopGrid {
   std::vector<std::uint64_t> clear;
   static constexpr double kEstimateSlack = 2;
   std::vector<std::uint32_t> feature;  ///< per polygon: its feature (no search per answer)
-  std::vector<std::uint32_t> branches;  ///< codes, 4^d per branch
   /// Leaf records in 8-byte words, one or more groups each: word 0 {uint32 edge count n,
   /// uint32 centre mask (bit j: polygon j of the group holds the leaf's centre; bit 31: another
   /// group follows)}, words 1-2 the centre (x, y), then n edges of four doubles (a.x, a.y, b.x,
@@ -123,8 +123,8 @@ class PolygonIndexView {
   std::uint32_t locate_inline(const format::Double2& p) const;
   bool clear_at(const format::Double2& p, std::uint32_t& ex, std::uint32_t& ey) const;
   std::size_t top_cell(const format::Double2& p, std::uint32_t& fx, std::uint32_t& fy) const;
-  std::uint32_t table_branch(std::uint32_t code, std::uint32_t fx, std::uint32_t fy,
-                             const format::Double2& p) const;
+  std::uint32_t leaf_code(std::size_t cell, std::uint32_t fx, std::uint32_t fy,
+                          const format::Double2& p) const;
 
   PolygonIndexParts parts_;
   std::shared_ptr<const PolygonIndexTopGrid> top_;  // shared: views copy cheaply
