@@ -140,12 +140,33 @@ bool PolygonIndexView::entry_contains(const PolygonIndexEntry& e, const Box2d& c
 
 namespace {
 
+// A column and a row among the table's fine split lines (level k + kFine).
+struct Fine {
+  std::uint32_t x, y;
+};
+
 // The fine column or row of v's uniform estimate, clamped to the last: within a rounding of the
 // true one (within kEstimateSlack wherever PolygonIndexTopGrid::clear is used). v lies in the
 // bounds, the scale is finite and >= 0, so the estimate is >= 0 or NaN (which takes `last`).
 inline std::uint32_t estimate(double v, double min, double scale, std::uint32_t last) {
   const double e = (v - min) * scale;
   return std::uint32_t(e < double(last) ? e : double(last));
+}
+
+inline Fine estimate(const PolygonIndexTopGrid& g, const Box2d& bounds, const Double2& p) {
+  return {estimate(p.x, bounds.min.x, g.scale.x, g.last),
+          estimate(p.y, bounds.min.y, g.scale.y, g.last)};
+}
+
+inline std::size_t table_cell(const PolygonIndexTopGrid& g, Fine f) {
+  constexpr std::uint32_t k = PolygonIndexTopGrid::kFine;
+  return std::size_t(f.y >> k) << g.level | f.x >> k;
+}
+
+// Whether the table says p is in no polygon from its estimated column and row alone.
+inline bool clear(const PolygonIndexTopGrid& g, Fine estimate) {
+  const std::size_t cell = table_cell(g, estimate);
+  return g.clear[cell / 64] >> (cell % 64) & 1;
 }
 
 // The largest j <= last with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
@@ -160,6 +181,11 @@ inline std::uint32_t column(const std::vector<double>& lines, double v, std::uin
   return j;
 }
 
+// p's fine column and row, from their estimates.
+inline Fine fine(const PolygonIndexTopGrid& g, const Double2& p, Fine estimate) {
+  return {column(g.xs, p.x, estimate.x, g.last), column(g.ys, p.y, estimate.y, g.last)};
+}
+
 // Box2d::contains with one branch instead of four.
 inline bool inside(const Box2d& b, const Double2& p) {
   return (p.x >= b.min.x) & (p.x <= b.max.x) & (p.y >= b.min.y) & (p.y <= b.max.y);
@@ -169,53 +195,6 @@ inline bool inside(const Box2d& b, const Double2& p) {
 // fine column's and row's low bits: bit i of x goes to bit 2i, of y to bit 2i + 1.
 constexpr std::uint8_t kSpread[8] = {0, 1, 4, 5, 16, 17, 20, 21};
 static_assert(PolygonIndexTopGrid::kFine == 3);
-
-}  // namespace
-
-// Whether the table says p (inside the bounds) is in no polygon from its estimated column and
-// row alone (`ex`, `ey`: estimate()'s), without the split lines.
-inline bool PolygonIndexView::clear_at(const Double2& p, std::uint32_t& ex,
-                                       std::uint32_t& ey) const {
-  const PolygonIndexTopGrid& g = *top_;
-  const Box2d& b = parts_.bounds;
-  ex = estimate(p.x, b.min.x, g.scale.x, g.last);
-  ey = estimate(p.y, b.min.y, g.scale.y, g.last);
-  constexpr std::uint32_t f = PolygonIndexTopGrid::kFine;
-  const std::size_t cell = std::size_t(ey >> f) << g.level | ex >> f;
-  return g.clear[cell / 64] >> (cell % 64) & 1;
-}
-
-// The table cell holding p, and p's column and row among the fine lines (in fx, fy: on entry,
-// their estimates).
-inline std::size_t PolygonIndexView::top_cell(const Double2& p, std::uint32_t& fx,
-                                              std::uint32_t& fy) const {
-  const PolygonIndexTopGrid& g = *top_;
-  fx = column(g.xs, p.x, fx, g.last);
-  fy = column(g.ys, p.y, fy, g.last);
-  constexpr std::uint32_t f = PolygonIndexTopGrid::kFine;
-  return std::size_t(fy >> f) << g.level | fx >> f;
-}
-
-// Calls visit(entry, cell) for each entry of the leaf holding p, in order, until it returns
-// false. The descent runs from the root on the stored nodes (not the table's codes); `cost`
-// counts the table lookup as one node and each level below the table's as one more.
-template <class Visit>
-void PolygonIndexView::visit_leaf(const Double2& p, Visit&& visit, Cost* cost) const {
-  if (!parts_.bounds.contains(p)) return;
-  Box2d box = parts_.bounds;
-  const PolygonIndexNode* n = &parts_.nodes[0];
-  if (cost) ++cost->nodes;
-  for (std::uint32_t depth = 1; !n->is_leaf(); ++depth) {
-    const std::uint32_t child = format::quadtree_child_of(box, p);
-    box = format::quadtree_child_box(box, child);
-    n = &parts_.nodes[n->first + child];
-    if (cost && depth > top_->level) ++cost->nodes;
-  }
-  for (const PolygonIndexEntry& e : parts_.entries.subspan(n->first, n->count))
-    if (!visit(e, box)) return;
-}
-
-namespace {
 
 inline std::uint32_t answer_of(std::uint32_t code) {
   const std::uint32_t f = code & PolygonIndexTopGrid::kNoFeature;
@@ -239,25 +218,43 @@ inline std::uint32_t branch_entry(std::uint32_t code, Box2d& box, const Double2&
   return (code & PolygonIndexTopGrid::kOffset) + index;
 }
 
-}  // namespace
-
-// The code of the leaf holding p, from its table cell's: a branch's entry from the fine column
-// and row, then (below kFine levels) branches again, descending from the fine cell. (Reading
-// the entry without a branch, a cell that is no branch reading itself again, measured slower.)
-inline std::uint32_t PolygonIndexView::leaf_code(std::size_t cell, std::uint32_t fx,
-                                                 std::uint32_t fy, const Double2& p) const {
-  const PolygonIndexTopGrid& g = *top_;
-  std::uint32_t code = g.code[cell];
+// The code of the leaf holding p (fine column and row `f`), from its table cell's: a branch's
+// entry from f's low bits, then (below kFine levels) branches again, descending from the fine
+// cell. (Reading the entry without a branch, a cell that is no branch reading itself again,
+// measured slower.)
+inline std::uint32_t leaf_code(const PolygonIndexTopGrid& g, Fine f, const Double2& p) {
+  std::uint32_t code = g.code[table_cell(g, f)];
   if (!is_branch(code)) return code;
   const std::uint32_t d = 1 + (code >> 28 & 3);
   code = g.code[(code & PolygonIndexTopGrid::kOffset) +
-                ((kSpread[fx & 7] | kSpread[fy & 7] << 1) >> 2 * (3 - d))];
+                ((kSpread[f.x & 7] | kSpread[f.y & 7] << 1) >> 2 * (3 - d))];
   if (is_branch(code)) [[unlikely]] {
-    Box2d box{{g.xs[fx], g.ys[fy]}, {g.xs[fx + 1], g.ys[fy + 1]}};  // d == kFine here
+    Box2d box{{g.xs[f.x], g.ys[f.y]}, {g.xs[f.x + 1], g.ys[f.y + 1]}};  // d == kFine here
     do code = g.code[branch_entry(code, box, p)];
     while (is_branch(code));
   }
   return code;
+}
+
+}  // namespace
+
+// Calls visit(entry, cell) for each entry of the leaf holding p, in order, until it returns
+// false. The descent runs from the root on the stored nodes (not the table's codes); `cost`
+// counts the table lookup as one node and each level below the table's as one more.
+template <class Visit>
+void PolygonIndexView::visit_leaf(const Double2& p, Visit&& visit, Cost* cost) const {
+  if (!parts_.bounds.contains(p)) return;
+  Box2d box = parts_.bounds;
+  const PolygonIndexNode* n = &parts_.nodes[0];
+  if (cost) ++cost->nodes;
+  for (std::uint32_t depth = 1; !n->is_leaf(); ++depth) {
+    const std::uint32_t child = format::quadtree_child_of(box, p);
+    box = format::quadtree_child_box(box, child);
+    n = &parts_.nodes[n->first + child];
+    if (cost && depth > top_->level) ++cost->nodes;
+  }
+  for (const PolygonIndexEntry& e : parts_.entries.subspan(n->first, n->count))
+    if (!visit(e, box)) return;
 }
 
 // The hot path: a cell answering alike for all its points ends at the table; else its leaf's
@@ -266,10 +263,10 @@ inline std::uint32_t PolygonIndexView::leaf_code(std::size_t cell, std::uint32_t
     const Double2& p) const {
   if (!inside(parts_.bounds, p)) return PolygonQueries::kNone;
   const PolygonIndexTopGrid& g = *top_;
-  std::uint32_t ix, iy;
   // A bit per cell (32 KB at k = 9) settles most empty space from the estimates alone.
-  if (clear_at(p, ix, iy)) return PolygonQueries::kNone;
-  const std::uint32_t code = leaf_code(top_cell(p, ix, iy), ix, iy, p);
+  const Fine e = estimate(g, parts_.bounds, p);
+  if (clear(g, e)) return PolygonQueries::kNone;
+  const std::uint32_t code = leaf_code(g, fine(g, p, e), p);
   if (code & PolygonIndexTopGrid::kAnswer) return answer_of(code);
   return record_(&g.records[code], p);
 }
@@ -288,7 +285,7 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
   struct Group {
     std::size_t size = 0;                // points still open
     std::uint32_t at[kGroup];            // their index in the batch
-    std::uint32_t fx[kGroup], fy[kGroup];  // fine column and row
+    Fine f[kGroup];                      // fine column and row
     std::uint32_t code[kGroup];          // table cell, then code, then (stage 3) record
   };
   const std::size_t n = std::min(points.size(), out.size());
@@ -313,7 +310,8 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
           code = g.code[code & PolygonIndexTopGrid::kOffset];
           if (is_branch(code)) {
             const Double2& p = points[r.at[i]];
-            Box2d box{{g.xs[r.fx[i]], g.ys[r.fy[i]]}, {g.xs[r.fx[i] + 1], g.ys[r.fy[i] + 1]}};
+            const Fine f = r.f[i];
+            Box2d box{{g.xs[f.x], g.ys[f.y]}, {g.xs[f.x + 1], g.ys[f.y + 1]}};
             do code = g.code[branch_entry(code, box, p)];
             while (is_branch(code));
           }
@@ -338,7 +336,7 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
           const std::uint32_t d = 1 + (code >> 28 & 3);
           const std::uint32_t entry =
               (code & PolygonIndexTopGrid::kOffset) +
-              ((kSpread[r.fx[i] & 7] | kSpread[r.fy[i] & 7] << 1) >> 2 * (3 - d));
+              ((kSpread[r.f[i].x & 7] | kSpread[r.f[i].y & 7] << 1) >> 2 * (3 - d));
           __builtin_prefetch(&g.code[entry]);
           code = PolygonIndexTopGrid::kBranch | entry;
         } else if (code & PolygonIndexTopGrid::kAnswer) {
@@ -347,7 +345,7 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
         } else {
           __builtin_prefetch(&g.records[code]);
         }
-        r.at[kept] = r.at[i], r.fx[kept] = r.fx[i], r.fy[kept] = r.fy[i];
+        r.at[kept] = r.at[i], r.f[kept] = r.f[i];
         r.code[kept++] = code;
       }
       r.size = kept;
@@ -360,11 +358,13 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
       for (std::size_t k = step * kGroup; k < end; ++k) {
         const Double2& p = points[k];
         out[k] = PolygonQueries::kNone;
-        std::uint32_t fx, fy;
-        if (!inside(parts_.bounds, p) || clear_at(p, fx, fy)) continue;
-        const std::size_t cell = top_cell(p, fx, fy);
+        if (!inside(parts_.bounds, p)) continue;
+        const Fine e = estimate(g, parts_.bounds, p);
+        if (clear(g, e)) continue;
+        const Fine f = fine(g, p, e);
+        const std::size_t cell = table_cell(g, f);
         __builtin_prefetch(&g.code[cell]);
-        r.at[r.size] = std::uint32_t(k), r.fx[r.size] = fx, r.fy[r.size] = fy;
+        r.at[r.size] = std::uint32_t(k), r.f[r.size] = f;
         r.code[r.size++] = std::uint32_t(cell);
       }
     }

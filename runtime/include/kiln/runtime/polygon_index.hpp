@@ -121,10 +121,6 @@ class PolygonIndexView {
                       const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
   std::uint32_t locate_inline(const format::Double2& p) const;
-  bool clear_at(const format::Double2& p, std::uint32_t& ex, std::uint32_t& ey) const;
-  std::size_t top_cell(const format::Double2& p, std::uint32_t& fx, std::uint32_t& fy) const;
-  std::uint32_t leaf_code(std::size_t cell, std::uint32_t fx, std::uint32_t fy,
-                          const format::Double2& p) const;
 
   PolygonIndexParts parts_;
   std::shared_ptr<const PolygonIndexTopGrid> top_;  // shared: views copy cheaply
