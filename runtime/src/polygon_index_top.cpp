@@ -169,38 +169,38 @@ class Builder {
       if (merged.mask) edges_[kept++] = merged;
     }
     edges_.resize(kept);
-    auto& r = g_.records;
     // Blocks of four edges, a coordinate at a time, then the four masks; the last block padded
-    // with copies of its first edge under an empty mask.
+    // with copies of its first edge under an empty mask. Then the polygon count and features.
     const std::size_t blocks = (edges_.size() + 3) / 4;
-    r.push_back(std::uint64_t(blocks) | std::uint64_t(centre) << 32);
-    r.push_back(std::bit_cast<std::uint64_t>(c.x));
-    r.push_back(std::bit_cast<std::uint64_t>(c.y));
+    auto& r = g_.records;
+    const std::size_t at = r.size();
+    r.resize(at + polygon_records::kHeadWords + blocks * polygon_records::kBlockWords +
+             (group.size() + 2) / 2);
+    auto* out = reinterpret_cast<unsigned char*>(r.data() + at);
+    auto put = [&out](auto value) {
+      std::memcpy(out, &value, sizeof value);
+      out += sizeof value;
+    };
+    put(std::uint32_t(blocks));
+    put(centre);
+    put(c.x);
+    put(c.y);
     for (std::size_t k = 0; k < blocks; ++k) {
       GroupEdge block[4];
       for (std::size_t l = 0; l < 4; ++l)
-        block[l] = 4 * k + l < edges_.size() ? edges_[4 * k + l] : GroupEdge{edges_[4 * k].a, edges_[4 * k].b, 0};
+        block[l] = 4 * k + l < edges_.size() ? edges_[4 * k + l]
+                                              : GroupEdge{edges_[4 * k].a, edges_[4 * k].b, 0};
       for (std::size_t axis = 0; axis < 4; ++axis)
-        for (const GroupEdge& e : block)
-          r.push_back(std::bit_cast<std::uint64_t>(e.coordinates()[axis]));
-      std::uint32_t words[4];
-      for (std::size_t l = 0; l < 4; ++l) {
-        const GroupEdge& e = block[l];
+        for (const GroupEdge& e : block) put(e.coordinates()[axis]);
+      for (const GroupEdge& e : block) {
         // The shifted side of a point on the edge's line: right when the edge points up, or
         // along -x when horizontal (detail::side_of_shifted_point).
         const bool right = e.b.y != e.a.y ? e.b.y > e.a.y : !(e.b.x > e.a.x);
-        words[l] = e.mask | (right ? 0x80000000u : 0);
+        put(e.mask | (right ? 0x80000000u : 0));
       }
-      r.push_back(std::uint64_t(words[0]) | std::uint64_t(words[1]) << 32);
-      r.push_back(std::uint64_t(words[2]) | std::uint64_t(words[3]) << 32);
     }
-    auto& words = words_;
-    words.clear();
-    words.push_back(std::uint32_t(group.size()));
-    for (const format::PolygonIndexEntry& e : group) words.push_back(feature(e.polygon));
-    if (words.size() % 2) words.push_back(0);
-    for (std::size_t i = 0; i < words.size(); i += 2)
-      r.push_back(std::uint64_t(words[i]) | std::uint64_t(words[i + 1]) << 32);
+    put(std::uint32_t(group.size()));
+    for (const format::PolygonIndexEntry& e : group) put(feature(e.polygon));
     return r.size() <= std::size_t(Grid::kRecordOffset) + 1;
   }
 
@@ -212,7 +212,6 @@ class Builder {
   Grid& g_;
   std::vector<std::uint8_t> depth_;  // per node: its subtree's depth (at most 30, validated)
   std::vector<GroupEdge> edges_;
-  std::vector<std::uint32_t> words_;
   std::uint64_t edge_refs_ = 0;
   bool ok_ = true;
 };
@@ -262,19 +261,19 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
   g->last = (1u << fine) - 1;
   g->clear.assign((cells + 63) / 64, 0);
   if (estimates_hold(g->xs, b.min.x, g->scale.x) && estimates_hold(g->ys, b.min.y, g->scale.y)) {
-    const std::uint32_t side = 1u << g->level;
-    auto empty = [&](std::uint32_t x, std::uint32_t y) {
-      return x >= side || y >= side ||
-             g->code[std::size_t(y) * side + x] == (Grid::kAnswer | Grid::kNoFeature);
-    };
-    for (std::uint32_t y = 0; y < side; ++y)
-      for (std::uint32_t x = 0; x < side; ++x) {
-        bool clear = true;
-        for (std::uint32_t dy = 0; dy < 3; ++dy)
-          for (std::uint32_t dx = 0; dx < 3; ++dx) clear &= empty(x + dx - 1, y + dy - 1);
-        const std::size_t cell = std::size_t(y) * side + x;
-        if (clear) g->clear[cell / 64] |= std::uint64_t(1) << (cell % 64);
-      }
+    // Empty cells, then empty with both row neighbours, then with the rows above and below too.
+    const std::size_t side = std::size_t(1) << g->level;
+    std::vector<char> empty(cells), across(cells);
+    for (std::size_t cell = 0; cell < cells; ++cell)
+      empty[cell] = g->code[cell] == (Grid::kAnswer | Grid::kNoFeature);
+    for (std::size_t cell = 0; cell < cells; ++cell) {
+      const std::size_t x = cell % side;
+      across[cell] = empty[cell] && (x == 0 || empty[cell - 1]) && (x + 1 == side || empty[cell + 1]);
+    }
+    for (std::size_t cell = 0; cell < cells; ++cell)
+      if (across[cell] && (cell < side || across[cell - side]) &&
+          (cell + side >= cells || across[cell + side]))
+        g->clear[cell / 64] |= std::uint64_t(1) << (cell % 64);
   }
   return g;
 }
