@@ -26,11 +26,10 @@ PolygonIndexView::PolygonIndexView(const PolygonIndexParts& parts, const std::st
     : parts_(parts) {
   validate(name);
   top_ = make_polygon_index_top_grid(parts_);
-  record_ = polygon_records::kernel(polygon_records::best_kernel());
   if (!top_)
     throw BlobError("polygon index '" + name +
-                    "': leaves share entries or entries share edges (its leaf records would "
-                    "outgrow its sections)");
+                    "': entries share edges, or its leaf records would outgrow 32-bit offsets");
+  record_ = polygon_records::kernel(polygon_records::best_kernel());
 }
 
 namespace {

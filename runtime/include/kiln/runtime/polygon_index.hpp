@@ -35,18 +35,15 @@ struct PolygonIndexLevel {
   std::uint64_t leaves = 0, interior = 0, boundary_leaves = 0, edge_refs = 0, entries = 0;
 };
 
-/// The quadtree's cells at one level k as a flat 2^k x 2^k table, derived from the validated
-/// nodes at open: a query finds its cell by one lookup, then at most a few more loads.
-/// `xs` / `ys` hold the 2^(k + kFine) + 1 split coordinates of level k + kFine exactly as the
-/// descent computes them (each a midpoint of its two neighbours of the level above), so the
-/// lookup lands in the cell the descent would. Each cell holds a code (docs/FORMAT.md, "Derived at open"): the
-/// answer for every point of it, or the leaf record of the leaf covering it, or a branch (a
-/// dense grid of the next 1-3 levels of its subtree, whose entries are codes again).
+/// What the view derives at open from the validated sections for `locate` and `locate_many`
+/// (docs/FORMAT.md, "Polygon index", "Top-level table" and "Leaf records"): the quadtree's cells
+/// at one level k as a flat 2^k x 2^k table of codes, so that a query finds its cell by one
+/// lookup, then reads at most a branch entry (or, deeper, a few) and one leaf record.
 struct PolygonIndexTopGrid {
-  /// Code bit 31 set: the answer (low 31 bits: the feature, or kNoFeature). Else bit 30 clear:
-  /// a leaf record at word `code` of `records`; set: a branch of 4^d entries at `code[code &
-  /// kOffset]`, d = 1 + (code >> 28 & 3), child bits of d descent levels interleaved (first level
-  /// most significant).
+  /// Code bit 31 set: the answer for every point of the cell (low 31 bits: the feature, or
+  /// kNoFeature). Else bit 30 clear: the leaf record at word `code` of `records`; set: a branch,
+  /// 4^d codes at `code[code & kOffset]`, d = 1 + (code >> 28 & 3) <= kFine, indexed by the
+  /// child bits of d descent levels interleaved (first level most significant).
   static constexpr std::uint32_t kAnswer = 0x80000000u, kNoFeature = 0x7FFFFFFFu;
   static constexpr std::uint32_t kBranch = 0x40000000u, kOffset = 0x0FFFFFFFu;
   static constexpr std::uint32_t kRecordOffset = 0x3FFFFFFFu;
@@ -55,29 +52,30 @@ struct PolygonIndexTopGrid {
   /// Branches below the table span at most this many levels; the split lines go as deep, so
   /// that one column lookup per axis gives both the table cell and the branch entry.
   static constexpr std::uint32_t kFine = 3;
-  std::uint32_t level = 0;            ///< k
-  format::Double2 scale;              ///< 2^(k + kFine) / (bounds' side), the lookup's estimate
-  std::vector<double> xs, ys;         ///< split lines of level k + kFine, non-decreasing
-  /// Codes: per table cell (row-major, y outer), then the branches' entries, 4^d per branch.
-  std::vector<std::uint32_t> code;
-  std::uint32_t last = 0;             ///< 2^(k + kFine) - 1: the last fine column and row
-  /// Per cell, one bit: no polygon holds a point of it or of its eight neighbours. Set only
-  /// where every fine split line lies within kEstimateSlack columns of its uniform estimate
-  /// (checked when the table is made), so a point whose estimated cell is clear is in no polygon.
-  std::vector<std::uint64_t> clear;
+  /// How far (in fine columns) a split line's uniform estimate may lie from its index for the
+  /// clear bits to be set.
   static constexpr double kEstimateSlack = 2;
+  std::uint32_t level = 0;  ///< k
+  std::uint32_t last = 0;   ///< 2^(k + kFine) - 1: the last fine column and row
+  format::Double2 scale;    ///< 2^(k + kFine) / (bounds' side), the uniform estimate's
+  /// The split lines of level k + kFine (2^(k + kFine) + 1 per axis) exactly as the descent
+  /// computes them (each a midpoint of its two neighbours of the level above), non-decreasing:
+  /// the column of p is the last line <= p.x, the one the descent reaches.
+  std::vector<double> xs, ys;
+  /// Codes: per table cell (row-major, y outer), then the branches' entries.
+  std::vector<std::uint32_t> code;
+  /// Per table cell, one bit: the cell and its eight neighbours code "none". Set only where
+  /// every split line lies within kEstimateSlack of its uniform estimate (checked here), so that
+  /// a point whose estimated cell is clear is in no polygon.
+  std::vector<std::uint64_t> clear;
   std::vector<std::uint32_t> feature;  ///< per polygon: its feature (no search per answer)
-  /// Leaf records in 8-byte words, one or more groups each: word 0 {uint32 edge count n,
-  /// uint32 centre mask (bit j: polygon j of the group holds the leaf's centre; bit 31: another
-  /// group follows)}, words 1-2 the centre (x, y), then n edges of four doubles (a.x, a.y, b.x,
-  /// b.y; each distinct edge of the group's polygons once, oriented so that the centre lies to
-  /// its left under the shifted rule), then uint32s: per edge its polygon mask (bit 31: the
-  /// shifted side of a point on its line is the right), the group's polygon count m, and m
-  /// features ascending; padded to a word.
+  /// Leaf records in 8-byte words (layout: docs/FORMAT.md; answered by
+  /// runtime/src/polygon_index_records.cpp).
   std::vector<std::uint64_t> records;
 };
 
-/// The top-level table of a validated index (O(4^k + nodes above level k)).
+/// The table, branches and leaf records of a validated index (O(4^k + nodes + entries + edge
+/// references x log)); null when entries share edges or the records would outgrow their offsets.
 std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
     const PolygonIndexParts& parts);
 
