@@ -163,8 +163,7 @@ Engine kiln_engine(const PolygonLayer& layer, kiln::PolygonIndexBuildOptions opt
                    " ms; derived at open: top table level " + std::to_string(g->level) + ", " +
                    std::to_string(table) + " bytes; branches " + std::to_string(branches) +
                    " + leaf records " + std::to_string(g->records.size() * 8) + " = " +
-                   std::to_string(records) +
-                   " bytes";
+                   std::to_string(records) + " bytes";
           }};
 }
 

@@ -237,9 +237,8 @@ void expect_agrees(const PolygonLayer& layer, const PolygonIndexView& view,
   for (const char* kernel : record_kernels()) {
     const PolygonIndexView v = view_with_kernel(view, kernel);
     for (std::size_t i = 0; i < points.size(); ++i)
-      ASSERT_EQ(v.locate(points[i]), first[i])
-          << what << " kernel " << kernel << " point " << i << " (" << points[i].x << ", "
-          << points[i].y << ")";
+      ASSERT_EQ(v.locate(points[i]), first[i]) << what << " kernel " << kernel << " point " << i
+                                               << " (" << points[i].x << ", " << points[i].y << ")";
     // The batch call (groups of points through each stage together) answers as locate does.
     std::vector<std::uint32_t> many(points.size() + 1, 12345);
     v.locate_many(points, std::span(many).first(points.size()));
@@ -363,7 +362,8 @@ TEST(PolygonIndex, LeavesOfManyPolygonsAgreeWithBruteForce) {
   std::vector<std::vector<Poly>> features;
   for (int i = 0; i < 40; ++i) {
     const double r = 1 + 0.25 * i;
-    features.push_back({{{{50 - r, 50 - r}, {50 + r, 50 - r}, {50 + r, 50 + r}, {50 - r, 50 + r}}}});
+    features.push_back(
+        {{{{50 - r, 50 - r}, {50 + r, 50 - r}, {50 + r, 50 + r}, {50 - r, 50 + r}}}});
   }
   const PolygonLayer layer = make_layer(features);
   const FlatPolygonIndex index = build_polygon_index(view_of(layer), {8, 3, 1});

@@ -47,7 +47,9 @@ struct Group {
 };
 
 inline Group group_at(const std::uint64_t* w, const Double2& p) {
-  Group g{std::uint32_t(w[0]), std::uint32_t(w[0] >> 32), {load<double>(w, 1), load<double>(w, 2)},
+  Group g{std::uint32_t(w[0]),
+          std::uint32_t(w[0] >> 32),
+          {load<double>(w, 1), load<double>(w, 2)},
           false};
   g.tie = (p.y > g.c.y) | ((p.y == g.c.y) & (p.x < g.c.x));
   return g;
@@ -187,9 +189,9 @@ inline std::uint32_t sse2_flips(const std::uint64_t* block, const Double2& c, co
   const Pair lo = pair_of(block, 0, c, p, t), hi = pair_of(block, 2, c, p, t);
   if (_mm_movemask_pd(_mm_and_pd(lo.sure, hi.sure)) != 3) [[unlikely]]
     return exact_flips(block, c, p);
-  const __m128i right = _mm_or_si128(
-      narrow(lo.right, hi.right),
-      _mm_and_si128(narrow(lo.on_line, hi.on_line), right_of_line(block)));
+  const __m128i right =
+      _mm_or_si128(narrow(lo.right, hi.right),
+                   _mm_and_si128(narrow(lo.on_line, hi.on_line), right_of_line(block)));
   return xor_lanes(_mm_and_si128(narrow(lo.apart, hi.apart), right), block);
 }
 
@@ -210,14 +212,15 @@ std::uint32_t record_sse2(const std::uint64_t* w, const Double2& point) {
 
 #define KILN_AVX2 __attribute__((target("avx2"), always_inline)) inline
 
-KILN_AVX2 __m256d orient4(__m256d ax, __m256d ay, __m256d bx, __m256d by, __m256d cx,
-                          __m256d cy, __m256d& sure) {
+KILN_AVX2 __m256d orient4(__m256d ax, __m256d ay, __m256d bx, __m256d by, __m256d cx, __m256d cy,
+                          __m256d& sure) {
   const __m256d dl = _mm256_mul_pd(_mm256_sub_pd(ax, cx), _mm256_sub_pd(by, cy));
   const __m256d dr = _mm256_mul_pd(_mm256_sub_pd(ay, cy), _mm256_sub_pd(bx, cx));
   const __m256d det = _mm256_sub_pd(dl, dr);
   const __m256d abs = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7FFFFFFFFFFFFFFF));
-  const __m256d bound = _mm256_mul_pd(_mm256_set1_pd(detail::kCcwErrBoundA),
-                                      _mm256_add_pd(_mm256_and_pd(dl, abs), _mm256_and_pd(dr, abs)));
+  const __m256d bound =
+      _mm256_mul_pd(_mm256_set1_pd(detail::kCcwErrBoundA),
+                    _mm256_add_pd(_mm256_and_pd(dl, abs), _mm256_and_pd(dr, abs)));
   sure = _mm256_and_pd(sure, _mm256_cmp_pd(_mm256_and_pd(det, abs), bound, _CMP_GE_OQ));
   return det;
 }
@@ -243,9 +246,9 @@ KILN_AVX2 std::uint32_t avx2_flips(const std::uint64_t* block, const Double2& c,
                                   _mm256_and_pd(_mm256_cmp_pd(oa, zero, _CMP_EQ_OQ), tie));
   const __m256d sb = _mm256_or_pd(_mm256_cmp_pd(ob, zero, _CMP_GT_OQ),
                                   _mm256_and_pd(_mm256_cmp_pd(ob, zero, _CMP_EQ_OQ), tie));
-  const __m128i right =
-      _mm_or_si128(narrow4(_mm256_cmp_pd(op, zero, _CMP_LT_OQ)),
-                   _mm_and_si128(narrow4(_mm256_cmp_pd(op, zero, _CMP_EQ_OQ)), right_of_line(block)));
+  const __m128i right = _mm_or_si128(
+      narrow4(_mm256_cmp_pd(op, zero, _CMP_LT_OQ)),
+      _mm_and_si128(narrow4(_mm256_cmp_pd(op, zero, _CMP_EQ_OQ)), right_of_line(block)));
   return xor_lanes(_mm_and_si128(narrow4(_mm256_xor_pd(sa, sb)), right), block);
 }
 

@@ -131,15 +131,14 @@ class Builder {
     if (at > Grid::kRecordOffset) return fail();
     const Double2 c = format::quadtree_centre(box);
     for (std::size_t first = 0; first < entries.size(); first += Grid::kGroupPolygons) {
-      const auto group = entries.subspan(first, std::min<std::size_t>(Grid::kGroupPolygons,
-                                                                      entries.size() - first));
+      const auto group = entries.subspan(
+          first, std::min<std::size_t>(Grid::kGroupPolygons, entries.size() - first));
       if (!append_group(group, c, first + group.size() < entries.size())) return fail();
     }
     return std::uint32_t(at);
   }
 
-  bool append_group(std::span<const format::PolygonIndexEntry> group, const Double2& c,
-                    bool more) {
+  bool append_group(std::span<const format::PolygonIndexEntry> group, const Double2& c, bool more) {
     const auto v = parts_.layer.vertices;
     std::uint32_t centre = more ? 0x80000000u : 0;
     edges_.clear();
@@ -189,7 +188,7 @@ class Builder {
       GroupEdge block[4];
       for (std::size_t l = 0; l < 4; ++l)
         block[l] = 4 * k + l < edges_.size() ? edges_[4 * k + l]
-                                              : GroupEdge{edges_[4 * k].a, edges_[4 * k].b, 0};
+                                             : GroupEdge{edges_[4 * k].a, edges_[4 * k].b, 0};
       for (std::size_t axis = 0; axis < 4; ++axis)
         for (const GroupEdge& e : block) put(e.coordinates()[axis]);
       for (const GroupEdge& e : block) {
@@ -268,7 +267,8 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
       empty[cell] = g->code[cell] == (Grid::kAnswer | Grid::kNoFeature);
     for (std::size_t cell = 0; cell < cells; ++cell) {
       const std::size_t x = cell % side;
-      across[cell] = empty[cell] && (x == 0 || empty[cell - 1]) && (x + 1 == side || empty[cell + 1]);
+      across[cell] =
+          empty[cell] && (x == 0 || empty[cell - 1]) && (x + 1 == side || empty[cell + 1]);
     }
     for (std::size_t cell = 0; cell < cells; ++cell)
       if (across[cell] && (cell < side || across[cell - side]) &&

@@ -13,7 +13,6 @@
 #include "polygon_index_records.hpp"
 #include "predicates2_inline.hpp"
 
-
 namespace kiln {
 
 using format::Box2d;
@@ -282,10 +281,10 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
                                    std::span<std::uint32_t> out) const {
   constexpr std::size_t kGroup = 16, kStages = 4;
   struct Group {
-    std::size_t size = 0;                // points still open
-    std::uint32_t at[kGroup];            // their index in the batch
-    Fine f[kGroup];                      // fine column and row
-    std::uint32_t code[kGroup];          // table cell, then code, then (stage 3) record
+    std::size_t size = 0;        // points still open
+    std::uint32_t at[kGroup];    // their index in the batch
+    Fine f[kGroup];              // fine column and row
+    std::uint32_t code[kGroup];  // table cell, then code, then (stage 3) record
   };
   const std::size_t n = std::min(points.size(), out.size());
   const PolygonIndexTopGrid& g = *top_;
