@@ -706,6 +706,18 @@ TEST(PolygonIndex, ForgedSectionsAreRefusedOrSafe) {
   EXPECT_GT(opened, 0);
 }
 
+// A node nothing reaches may hold anything (the validation walks the tree from the root): an
+// interior node whose children lie far out of range is never read, and answers stay the tree's.
+TEST(PolygonIndex, UnreachedNodesAreNeverRead) {
+  const PolygonLayer layer = shapes();
+  const FlatPolygonIndex good = build_polygon_index(view_of(layer), {2, 8, 1});
+  FlatPolygonIndex bad = good;
+  bad.nodes.push_back({0xFFFFFFF0u, format::kPolygonNodeInterior});
+  const PolygonIndexView want = open_view(layer, good), got = open_view(layer, bad);
+  for (const Double2& p : random_points(layer.bounds, 2000, 23))
+    ASSERT_EQ(got.locate(p), want.locate(p));
+}
+
 // Forged ranges that overlap (every leaf naming all entries, every entry all edges) would make the
 // leaf records derived at open far larger than the sections: the view refuses them.
 TEST(PolygonIndex, OverlappingRangesAreRefusedBeforeTheRecordsGrow) {

@@ -52,15 +52,21 @@ class Builder {
  public:
   Builder(const PolygonIndexParts& parts, Grid& g) : parts_(parts), g_(g) {}
 
-  // Subtree depths (children are stored after their parent), then the table's codes.
+  // Subtree depths of the nodes the root reaches (the validation checked only those: a node
+  // nothing reaches may name children anywhere), children after their parent in the walk's
+  // order; then the table's codes.
   bool build() {
+    std::vector<std::uint32_t> order{0};
+    for (std::size_t i = 0; i < order.size(); ++i)
+      if (const format::PolygonIndexNode& n = parts_.nodes[order[i]]; !n.is_leaf())
+        for (std::uint32_t c = 0; c < 4; ++c) order.push_back(n.first + c);
     depth_.assign(parts_.nodes.size(), 0);
-    for (std::size_t i = parts_.nodes.size(); i-- > 0;) {
-      const format::PolygonIndexNode& n = parts_.nodes[i];
+    for (std::size_t i = order.size(); i-- > 0;) {
+      const format::PolygonIndexNode& n = parts_.nodes[order[i]];
       if (n.is_leaf()) continue;
       std::uint8_t d = 0;
       for (std::uint32_t c = 0; c < 4; ++c) d = std::max(d, depth_[n.first + c]);
-      depth_[i] = std::uint8_t(d + 1);
+      depth_[order[i]] = std::uint8_t(d + 1);
     }
     fill(0, parts_.bounds, 0, 0, 0);
     return ok_;
