@@ -355,6 +355,36 @@ TEST(PolygonIndex, PointsOnTheTopTableSplitLinesAgreeWithBruteForce) {
   expect_agrees(layer, view, points, "split lines");
 }
 
+// A clear bit is set exactly where the table cell and its eight neighbours (those inside the
+// table) code "none", on tables of 2^1 to 2^9 cells a side.
+TEST(PolygonIndex, ClearBitsMarkCellsWithEmptyNeighbourhoods) {
+  const PolygonLayer layer = shapes();
+  std::vector<std::uint32_t> levels;
+  for (const std::uint32_t max_edges : {64u, 16u, 4u, 1u}) {
+    const FlatPolygonIndex index = build_polygon_index(view_of(layer), {max_edges, 12, 1});
+    const PolygonIndexView view = open_view(layer, index);
+    const auto g = make_polygon_index_top_grid(view.parts());
+    levels.push_back(g->level);
+    const std::size_t side = std::size_t(1) << g->level;
+    auto none = [&](std::size_t x, std::size_t y) {
+      return x >= side || y >= side ||
+             g->code[y * side + x] ==
+                 (PolygonIndexTopGrid::kAnswer | PolygonIndexTopGrid::kNoFeature);
+    };
+    for (std::size_t y = 0; y < side; ++y)
+      for (std::size_t x = 0; x < side; ++x) {
+        bool want = true;
+        for (std::size_t dy = 0; dy < 3; ++dy)
+          for (std::size_t dx = 0; dx < 3; ++dx) want &= none(x + dx - 1, y + dy - 1);
+        const std::size_t cell = y * side + x;
+        ASSERT_EQ(bool(g->clear[cell / 64] >> (cell % 64) & 1), want)
+            << g->level << " " << x << "," << y;
+      }
+  }
+  EXPECT_LT(*std::min_element(levels.begin(), levels.end()), 6u);  // rows narrower than a word
+  EXPECT_GE(*std::max_element(levels.begin(), levels.end()), 7u);  // rows of whole words
+}
+
 // Forty concentric squares: leaves crossing their sides list up to forty polygons, so their
 // records hold two groups (31 polygons each at most), and a point outside the 31 smallest is
 // answered by the second.

@@ -61,13 +61,29 @@ class Builder {
       if (const format::PolygonIndexNode& n = parts_.nodes[order[i]]; !n.is_leaf())
         for (std::uint32_t c = 0; c < 4; ++c) order.push_back(n.first + c);
     depth_.assign(parts_.nodes.size(), 0);
+    std::size_t interior = 0, words = 0, refs = 0;
     for (std::size_t i = order.size(); i-- > 0;) {
       const format::PolygonIndexNode& n = parts_.nodes[order[i]];
-      if (n.is_leaf()) continue;
+      if (n.is_leaf()) {
+        // At most this many record words (before edges shared by polygons are merged).
+        for (std::size_t first = 0; first < n.count; first += Grid::kGroupPolygons) {
+          const std::size_t m = std::min<std::size_t>(Grid::kGroupPolygons, n.count - first);
+          std::size_t edges = 0;
+          for (const auto& e : parts_.entries.subspan(n.first + first, m)) edges += e.edges();
+          refs += edges;
+          words += polygon_records::kHeadWords + (edges + 3) / 4 * polygon_records::kBlockWords +
+                   (m + 2) / 2;
+        }
+        continue;
+      }
+      ++interior;
       std::uint8_t d = 0;
       for (std::uint32_t c = 0; c < 4; ++c) d = std::max(d, depth_[n.first + c]);
       depth_[order[i]] = std::uint8_t(d + 1);
     }
+    // Reserved, not touched: growing by doubling would copy (and fault in) several times more.
+    if (refs <= parts_.edges.size()) g_.records.reserve(words);
+    g_.code.reserve(g_.code.size() + 64 * interior);
     fill(0, parts_.bounds, 0, 0, 0);
     return ok_;
   }
@@ -165,15 +181,29 @@ class Builder {
     }
     // The same edge twice (neighbours' shared borders; a spike's two sides in one polygon):
     // once, with the polygons' bits xored (a polygon's own pair cancels, as its crossings do).
-    std::sort(edges_.begin(), edges_.end(),
-              [](const GroupEdge& x, const GroupEdge& y) { return x.key() < y.key(); });
+    // Few edges (nearly every leaf): pairwise, in order of first appearance; else sorted.
     std::size_t kept = 0;
-    for (std::size_t i = 0; i < edges_.size();) {
-      GroupEdge merged = edges_[i];
-      while (++i < edges_.size() && edges_[i].key() == merged.key()) merged.mask ^= edges_[i].mask;
-      if (merged.mask) edges_[kept++] = merged;
+    if (edges_.size() <= 32) {
+      for (std::size_t i = 0; i < edges_.size(); ++i) {
+        std::size_t j = 0;
+        while (j < kept && edges_[j].key() != edges_[i].key()) ++j;
+        if (j < kept)
+          edges_[j].mask ^= edges_[i].mask;
+        else
+          edges_[kept++] = edges_[i];
+      }
+    } else {
+      std::sort(edges_.begin(), edges_.end(),
+                [](const GroupEdge& x, const GroupEdge& y) { return x.key() < y.key(); });
+      for (std::size_t i = 0; i < edges_.size();) {
+        GroupEdge merged = edges_[i];
+        while (++i < edges_.size() && edges_[i].key() == merged.key())
+          merged.mask ^= edges_[i].mask;
+        edges_[kept++] = merged;
+      }
     }
     edges_.resize(kept);
+    std::erase_if(edges_, [](const GroupEdge& e) { return e.mask == 0; });
     // Blocks of four edges, a coordinate at a time, then the four masks; the last block padded
     // with copies of its first edge under an empty mask. Then the polygon count and features.
     const std::size_t blocks = (edges_.size() + 3) / 4;
@@ -266,20 +296,30 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
   g->last = (1u << fine) - 1;
   g->clear.assign((cells + 63) / 64, 0);
   if (estimates_hold(g->xs, b.min.x, g->scale.x) && estimates_hold(g->ys, b.min.y, g->scale.y)) {
-    // Empty cells, then empty with both row neighbours, then with the rows above and below too.
-    const std::size_t side = std::size_t(1) << g->level;
-    std::vector<char> empty(cells), across(cells);
-    for (std::size_t cell = 0; cell < cells; ++cell)
-      empty[cell] = g->code[cell] == (Grid::kAnswer | Grid::kNoFeature);
-    for (std::size_t cell = 0; cell < cells; ++cell) {
-      const std::size_t x = cell % side;
-      across[cell] =
-          empty[cell] && (x == 0 || empty[cell - 1]) && (x + 1 == side || empty[cell + 1]);
+    // Each row's empty cells as bits, the bits past the last column set (outside is empty); then
+    // those whose row neighbours are empty too, then those whose rows above and below are too.
+    const std::size_t side = std::size_t(1) << g->level, words = (side + 63) / 64;
+    std::vector<std::uint64_t> rows(words * side), across(words * side);
+    for (std::size_t y = 0; y < side; ++y) {
+      std::uint64_t* row = &rows[y * words];
+      if (side < 64) row[0] = ~std::uint64_t(0) << side;
+      for (std::size_t x = 0; x < side; ++x)
+        if (g->code[y * side + x] == (Grid::kAnswer | Grid::kNoFeature))
+          row[x / 64] |= std::uint64_t(1) << (x % 64);
+      for (std::size_t w = 0; w < words; ++w) {
+        const std::uint64_t left = w > 0 ? row[w - 1] >> 63 : 1;
+        const std::uint64_t right = w + 1 < words ? row[w + 1] << 63 : std::uint64_t(1) << 63;
+        across[y * words + w] = row[w] & (row[w] << 1 | left) & (row[w] >> 1 | right);
+      }
     }
-    for (std::size_t cell = 0; cell < cells; ++cell)
-      if (across[cell] && (cell < side || across[cell - side]) &&
-          (cell + side >= cells || across[cell + side]))
-        g->clear[cell / 64] |= std::uint64_t(1) << (cell % 64);
+    for (std::size_t y = 0; y < side; ++y)
+      for (std::size_t x = 0; x < side; ++x) {
+        const std::size_t w = y * words + x / 64;
+        const std::uint64_t up = y + 1 < side ? across[w + words] : ~std::uint64_t(0);
+        const std::uint64_t down = y > 0 ? across[w - words] : ~std::uint64_t(0);
+        if ((across[w] & up & down) >> (x % 64) & 1)
+          g->clear[(y * side + x) / 64] |= std::uint64_t(1) << ((y * side + x) % 64);
+      }
   }
   return g;
 }
