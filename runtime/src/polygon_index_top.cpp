@@ -313,12 +313,15 @@ std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
       }
     }
     for (std::size_t y = 0; y < side; ++y)
-      for (std::size_t x = 0; x < side; ++x) {
-        const std::size_t w = y * words + x / 64;
-        const std::uint64_t up = y + 1 < side ? across[w + words] : ~std::uint64_t(0);
-        const std::uint64_t down = y > 0 ? across[w - words] : ~std::uint64_t(0);
-        if ((across[w] & up & down) >> (x % 64) & 1)
-          g->clear[(y * side + x) / 64] |= std::uint64_t(1) << ((y * side + x) % 64);
+      for (std::size_t w = 0; w < words; ++w) {
+        const std::size_t at = y * words + w;
+        const std::uint64_t up = y + 1 < side ? across[at + words] : ~std::uint64_t(0);
+        const std::uint64_t down = y > 0 ? across[at - words] : ~std::uint64_t(0);
+        const std::uint64_t bits = across[at] & up & down;
+        if (side >= 64)  // rows of whole words, as the clear bits are
+          g->clear[at] = bits;
+        else  // several rows per word, none across two
+          g->clear[y * side / 64] |= (bits & ((std::uint64_t(1) << side) - 1)) << (y * side % 64);
       }
   }
   return g;
