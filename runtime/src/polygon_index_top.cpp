@@ -40,11 +40,19 @@ std::vector<double> split_lines(double lo, double hi, std::uint32_t level) {
 struct GroupEdge {
   Double2 a, b;
   std::uint32_t mask;
-  std::array<double, 4> coordinates() const { return {a.x, a.y, b.x, b.y}; }
-  // Bit patterns, for a total order (NaN coordinates of a forged layer included).
-  auto key() const {
-    return std::array{std::bit_cast<std::uint64_t>(a.x), std::bit_cast<std::uint64_t>(a.y),
-                      std::bit_cast<std::uint64_t>(b.x), std::bit_cast<std::uint64_t>(b.y)};
+  double coordinate(std::size_t axis) const {
+    return axis == 0 ? a.x : axis == 1 ? a.y : axis == 2 ? b.x : b.y;
+  }
+  // Bit patterns, for a total order and equality (NaN coordinates of a forged layer included).
+  std::array<std::uint64_t, 4> key() const {
+    return {std::bit_cast<std::uint64_t>(a.x), std::bit_cast<std::uint64_t>(a.y),
+            std::bit_cast<std::uint64_t>(b.x), std::bit_cast<std::uint64_t>(b.y)};
+  }
+  bool same(const GroupEdge& o) const {
+    return std::bit_cast<std::uint64_t>(a.x) == std::bit_cast<std::uint64_t>(o.a.x) &&
+           std::bit_cast<std::uint64_t>(a.y) == std::bit_cast<std::uint64_t>(o.a.y) &&
+           std::bit_cast<std::uint64_t>(b.x) == std::bit_cast<std::uint64_t>(o.b.x) &&
+           std::bit_cast<std::uint64_t>(b.y) == std::bit_cast<std::uint64_t>(o.b.y);
   }
 };
 
@@ -61,7 +69,7 @@ class Builder {
       if (const format::PolygonIndexNode& n = parts_.nodes[order[i]]; !n.is_leaf())
         for (std::uint32_t c = 0; c < 4; ++c) order.push_back(n.first + c);
     depth_.assign(parts_.nodes.size(), 0);
-    std::size_t interior = 0, words = 0, refs = 0;
+    std::size_t words = 0, refs = 0;
     for (std::size_t i = order.size(); i-- > 0;) {
       const format::PolygonIndexNode& n = parts_.nodes[order[i]];
       if (n.is_leaf()) {
@@ -76,14 +84,12 @@ class Builder {
         }
         continue;
       }
-      ++interior;
       std::uint8_t d = 0;
       for (std::uint32_t c = 0; c < 4; ++c) d = std::max(d, depth_[n.first + c]);
       depth_[order[i]] = std::uint8_t(d + 1);
     }
     // Reserved, not touched: growing by doubling would copy (and fault in) several times more.
     if (refs <= parts_.edges.size()) g_.records.reserve(words);
-    g_.code.reserve(g_.code.size() + 64 * interior);
     fill(0, parts_.bounds, 0, 0, 0);
     return ok_;
   }
@@ -186,7 +192,7 @@ class Builder {
     if (edges_.size() <= 32) {
       for (std::size_t i = 0; i < edges_.size(); ++i) {
         std::size_t j = 0;
-        while (j < kept && edges_[j].key() != edges_[i].key()) ++j;
+        while (j < kept && !edges_[j].same(edges_[i])) ++j;
         if (j < kept)
           edges_[j].mask ^= edges_[i].mask;
         else
@@ -197,8 +203,7 @@ class Builder {
                 [](const GroupEdge& x, const GroupEdge& y) { return x.key() < y.key(); });
       for (std::size_t i = 0; i < edges_.size();) {
         GroupEdge merged = edges_[i];
-        while (++i < edges_.size() && edges_[i].key() == merged.key())
-          merged.mask ^= edges_[i].mask;
+        while (++i < edges_.size() && edges_[i].same(merged)) merged.mask ^= edges_[i].mask;
         edges_[kept++] = merged;
       }
     }
@@ -221,17 +226,18 @@ class Builder {
     put(c.x);
     put(c.y);
     for (std::size_t k = 0; k < blocks; ++k) {
-      GroupEdge block[4];
+      const GroupEdge* block[4];
       for (std::size_t l = 0; l < 4; ++l)
-        block[l] = 4 * k + l < edges_.size() ? edges_[4 * k + l]
-                                             : GroupEdge{edges_[4 * k].a, edges_[4 * k].b, 0};
+        block[l] = &edges_[4 * k + l < edges_.size() ? 4 * k + l : 4 * k];
       for (std::size_t axis = 0; axis < 4; ++axis)
-        for (const GroupEdge& e : block) put(e.coordinates()[axis]);
-      for (const GroupEdge& e : block) {
+        for (const GroupEdge* e : block) put(e->coordinate(axis));
+      for (std::size_t l = 0; l < 4; ++l) {
+        const GroupEdge& e = *block[l];
+        const std::uint32_t mask = 4 * k + l < edges_.size() ? e.mask : 0;
         // The shifted side of a point on the edge's line: right when the edge points up, or
         // along -x when horizontal (detail::side_of_shifted_point).
         const bool right = e.b.y != e.a.y ? e.b.y > e.a.y : !(e.b.x > e.a.x);
-        put(e.mask | (right ? 0x80000000u : 0));
+        put(mask | (right ? 0x80000000u : 0));
       }
     }
     put(std::uint32_t(group.size()));
