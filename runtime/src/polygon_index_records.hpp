@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "kiln/formats/vector.hpp"
+#include "kiln/runtime/polygon_index.hpp"
 
 namespace kiln::polygon_records {
 
@@ -14,8 +15,7 @@ inline constexpr std::size_t kHeadWords = 3;
 /// A block of four edges: a.x[4], a.y[4], b.x[4], b.y[4], then four uint32 masks.
 inline constexpr std::size_t kBlockWords = 18;
 
-/// The lowest feature of the record at `record` holding `p`, or PolygonQueries::kNone.
-using Kernel = std::uint32_t (*)(const std::uint64_t* record, const format::Double2& p);
+using Kernel = PolygonRecordKernel;
 
 enum class KernelKind { kScalar, kSse2, kAvx2 };
 

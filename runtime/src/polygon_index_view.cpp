@@ -13,6 +13,10 @@
 #include "polygon_index_records.hpp"
 #include "predicates2_inline.hpp"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace kiln {
 
 using format::Box2d;
@@ -143,17 +147,27 @@ struct Fine {
   std::uint32_t x, y;
 };
 
-// The fine column or row of v's uniform estimate, clamped to the last: within a rounding of the
-// true one (within kEstimateSlack wherever PolygonIndexTopGrid::clear is used). v lies in the
-// bounds, the scale is finite and >= 0, so the estimate is >= 0 or NaN (which takes `last`).
-inline std::uint32_t estimate(double v, double min, double scale, std::uint32_t last) {
-  const double e = (v - min) * scale;
-  return std::uint32_t(e < double(last) ? e : double(last));
-}
-
+// The fine column or row of v's uniform estimate, clamped to [0, last] (NaN: 0), for any v: for
+// v in the bounds, within a rounding of the true one (within kEstimateSlack wherever
+// PolygonIndexTopGrid::clear is used).
 inline Fine estimate(const PolygonIndexTopGrid& g, const Box2d& bounds, const Double2& p) {
-  return {estimate(p.x, bounds.min.x, g.scale.x, g.last),
-          estimate(p.y, bounds.min.y, g.scale.y, g.last)};
+  const double last = double(g.last);
+#if defined(__SSE2__)
+  // Both axes at once; maxpd answers its second operand, 0, where the first is NaN.
+  __m128d e = _mm_mul_pd(_mm_sub_pd(_mm_loadu_pd(&p.x), _mm_loadu_pd(&bounds.min.x)),
+                         _mm_loadu_pd(&g.scale.x));
+  e = _mm_min_pd(_mm_max_pd(e, _mm_setzero_pd()), _mm_set1_pd(last));
+  const __m128i i = _mm_cvttpd_epi32(e);
+  return {std::uint32_t(_mm_cvtsi128_si32(i)),
+          std::uint32_t(_mm_cvtsi128_si32(_mm_srli_si128(i, 4)))};
+#else
+  auto axis = [last](double v, double min, double scale) {
+    double e = (v - min) * scale;
+    e = e > 0 ? e : 0;
+    return std::uint32_t(e < last ? e : last);
+  };
+  return {axis(p.x, bounds.min.x, g.scale.x), axis(p.y, bounds.min.y, g.scale.y)};
+#endif
 }
 
 inline std::size_t table_cell(const PolygonIndexTopGrid& g, Fine f) {
@@ -170,13 +184,18 @@ inline bool clear(const PolygonIndexTopGrid& g, Fine estimate) {
 // The largest j <= last with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
 // column the descent reaches (it sends v >= a split line to the upper side), from the estimate
 // j; the walks correct it (the split lines are non-decreasing, so they end).
+[[gnu::noinline, gnu::cold]] std::uint32_t walk_column(const std::vector<double>& lines, double v,
+                                                       std::uint32_t j, std::uint32_t last) {
+  while (j > 0 && lines[j] > v) --j;
+  while (j < last && lines[j + 1] <= v) ++j;
+  return j;
+}
+
 inline std::uint32_t column(const std::vector<double>& lines, double v, std::uint32_t j,
                             std::uint32_t last) {
   if ((lines[j] <= v) & (v < lines[j + 1])) [[likely]]
     return j;
-  while (j > 0 && lines[j] > v) --j;
-  while (j < last && lines[j + 1] <= v) ++j;
-  return j;
+  return walk_column(lines, v, j, last);
 }
 
 // p's fine column and row, from their estimates.
@@ -216,6 +235,15 @@ inline std::uint32_t branch_entry(std::uint32_t code, Box2d& box, const Double2&
   return (code & PolygonIndexTopGrid::kOffset) + index;
 }
 
+// Branches below kFine levels, entered from the fine cell's box.
+[[gnu::noinline, gnu::cold]] std::uint32_t deep_code(const PolygonIndexTopGrid& g,
+                                                     std::uint32_t code, Fine f, const Double2& p) {
+  Box2d box{{g.xs[f.x], g.ys[f.y]}, {g.xs[f.x + 1], g.ys[f.y + 1]}};
+  do code = g.code[branch_entry(code, box, p)];
+  while (is_branch(code));
+  return code;
+}
+
 // The code of the leaf holding p (fine column and row `f`), from its table cell's: a branch's
 // entry from f's low bits, then (below kFine levels) branches again, descending from the fine
 // cell. (Reading the entry without a branch, a cell that is no branch reading itself again,
@@ -226,11 +254,8 @@ inline std::uint32_t leaf_code(const PolygonIndexTopGrid& g, Fine f, const Doubl
   const std::uint32_t d = 1 + (code >> 28 & 3);
   code = g.code[(code & PolygonIndexTopGrid::kOffset) +
                 ((kSpread[f.x & 7] | kSpread[f.y & 7] << 1) >> 2 * (3 - d))];
-  if (is_branch(code)) [[unlikely]] {
-    Box2d box{{g.xs[f.x], g.ys[f.y]}, {g.xs[f.x + 1], g.ys[f.y + 1]}};  // d == kFine here
-    do code = g.code[branch_entry(code, box, p)];
-    while (is_branch(code));
-  }
+  if (is_branch(code)) [[unlikely]]
+    return deep_code(g, code, f, p);
   return code;
 }
 
@@ -255,22 +280,29 @@ void PolygonIndexView::visit_leaf(const Double2& p, Visit&& visit, Cost* cost) c
     if (!visit(e, box)) return;
 }
 
-// The hot path: a cell answering alike for all its points ends at the table; else its leaf's
-// code through at most a branch or two, then the record.
-[[gnu::always_inline]] inline std::uint32_t PolygonIndexView::locate_inline(
-    const Double2& p) const {
-  if (!inside(parts_.bounds, p)) return PolygonQueries::kNone;
-  const PolygonIndexTopGrid& g = *top_;
-  // A bit per cell (32 KB at k = 9) settles most empty space from the estimates alone.
-  const Fine e = estimate(g, parts_.bounds, p);
-  if (clear(g, e)) return PolygonQueries::kNone;
+namespace {
+
+// locate past the clear bits, apart so that the clear path stays a few instructions: the
+// bounds, the leaf's code through at most a branch or two, then its record.
+[[gnu::noinline]] std::uint32_t locate_past_clear(const PolygonIndexTopGrid& g, const Box2d& bounds,
+                                                  PolygonRecordKernel record, const Double2& p,
+                                                  Fine e) {
+  if (!inside(bounds, p)) return PolygonQueries::kNone;
   const std::uint32_t code = leaf_code(g, fine(g, p, e), p);
   if (code & PolygonIndexTopGrid::kAnswer) return answer_of(code);
-  return record_(&g.records[code], p);
+  return record(&g.records[code], p);
 }
 
+}  // namespace
+
+// The hot path: a bit per cell (32 KB at k = 9) settles most empty space from the estimates
+// alone, before the bounds (a point outside them is in no polygon either); a cell answering
+// alike for all its points ends at its code.
 std::uint32_t PolygonIndexView::locate(const Double2& p) const {
-  return locate_inline(p);
+  const PolygonIndexTopGrid& g = *top_;
+  const Fine e = estimate(g, parts_.bounds, p);
+  if (clear(g, e)) return PolygonQueries::kNone;
+  return locate_past_clear(g, parts_.bounds, record_, p, e);
 }
 
 // A batch in groups of 16 points, software-pipelined over four stages: while group g computes
@@ -308,10 +340,7 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
           code = g.code[code & PolygonIndexTopGrid::kOffset];
           if (is_branch(code)) {
             const Double2& p = points[r.at[i]];
-            const Fine f = r.f[i];
-            Box2d box{{g.xs[f.x], g.ys[f.y]}, {g.xs[f.x + 1], g.ys[f.y + 1]}};
-            do code = g.code[branch_entry(code, box, p)];
-            while (is_branch(code));
+            code = deep_code(g, code, r.f[i], p);
           }
           r.code[i] = code;
         }
@@ -356,9 +385,8 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
       for (std::size_t k = step * kGroup; k < end; ++k) {
         const Double2& p = points[k];
         out[k] = PolygonQueries::kNone;
-        if (!inside(parts_.bounds, p)) continue;
         const Fine e = estimate(g, parts_.bounds, p);
-        if (clear(g, e)) continue;
+        if (clear(g, e) || !inside(parts_.bounds, p)) continue;
         const Fine f = fine(g, p, e);
         const std::size_t cell = table_cell(g, f);
         __builtin_prefetch(&g.code[cell]);

@@ -74,6 +74,10 @@ struct PolygonIndexTopGrid {
   std::vector<std::uint64_t> records;
 };
 
+/// A leaf record's answer for a point: the lowest feature holding it, or PolygonQueries::kNone.
+using PolygonRecordKernel = std::uint32_t (*)(const std::uint64_t* record,
+                                              const format::Double2& p);
+
 /// The table, branches and leaf records of a validated index (O(4^k + nodes + entries + edge
 /// references x log)); null when entries share edges or the records would outgrow their offsets.
 std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
@@ -118,12 +122,11 @@ class PolygonIndexView {
   bool entry_contains(const format::PolygonIndexEntry& e, const format::Box2d& cell,
                       const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
-  std::uint32_t locate_inline(const format::Double2& p) const;
 
   PolygonIndexParts parts_;
   std::shared_ptr<const PolygonIndexTopGrid> top_;  // shared: views copy cheaply
   // A leaf record's answer (runtime/src/polygon_index_records.cpp), the kernel for this CPU.
-  std::uint32_t (*record_)(const std::uint64_t* record, const format::Double2& p) = nullptr;
+  PolygonRecordKernel record_ = nullptr;
 };
 
 }  // namespace kiln
