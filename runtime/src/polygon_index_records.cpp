@@ -112,17 +112,24 @@ inline std::uint32_t scalar_flips(const std::uint64_t* block, const Double2& c, 
   return sure ? flips & 0x7FFFFFFFu : exact_flips(block, c, p);
 }
 
-std::uint32_t record_scalar(const std::uint64_t* w, const Double2& point) {
+// A record's groups in order, each block's flips by `flips` (the AVX2 kernel has its own copy:
+// a function compiled for AVX2 cannot be inlined into one that is not).
+template <class Flips>
+inline std::uint32_t walk(const std::uint64_t* w, const Double2& point, Flips flips) {
   const Double2 p = point;
   for (;;) {
     const Group g = group_at(w, p);
     std::uint32_t mask = g.head & 0x7FFFFFFFu;
     const std::uint64_t* block = w + kHeadWords;
     for (std::uint32_t k = 0; k < g.blocks; ++k, block += kBlockWords)
-      mask ^= scalar_flips(block, g.c, p, g.tie);
+      mask ^= flips(block, g.c, p, g.tie);
     std::uint32_t answer;
     if (group_answer(g, mask, block, answer, w)) return answer;
   }
+}
+
+std::uint32_t record_scalar(const std::uint64_t* w, const Double2& p) {
+  return walk(w, p, scalar_flips);
 }
 
 #if KILN_POLYGON_X86
@@ -195,17 +202,8 @@ inline std::uint32_t sse2_flips(const std::uint64_t* block, const Double2& c, co
   return xor_lanes(_mm_and_si128(narrow(lo.apart, hi.apart), right), block);
 }
 
-std::uint32_t record_sse2(const std::uint64_t* w, const Double2& point) {
-  const Double2 p = point;
-  for (;;) {
-    const Group g = group_at(w, p);
-    std::uint32_t mask = g.head & 0x7FFFFFFFu;
-    const std::uint64_t* block = w + kHeadWords;
-    for (std::uint32_t k = 0; k < g.blocks; ++k, block += kBlockWords)
-      mask ^= sse2_flips(block, g.c, p, g.tie);
-    std::uint32_t answer;
-    if (group_answer(g, mask, block, answer, w)) return answer;
-  }
+std::uint32_t record_sse2(const std::uint64_t* w, const Double2& p) {
+  return walk(w, p, sse2_flips);
 }
 
 // ---- AVX2: a block in one register per coordinate ----
