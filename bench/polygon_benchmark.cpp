@@ -151,16 +151,19 @@ Engine kiln_engine(const PolygonLayer& layer, kiln::PolygonIndexBuildOptions opt
             (*view)->locate_many(p, out);
           },
           [view, open_ms] {
-            // What the view derives at open (table, leaf records), rebuilt here to count it.
+            // What the view derives at open (table, branches, leaf records), rebuilt here to
+            // count it.
             const auto g = kiln::make_polygon_index_top_grid((*view)->parts());
-            const std::size_t table = g->code.size() * 4 + g->node.size() * 4 +
-                                      g->node_level.size() + g->empty.size() * 8 +
+            const std::size_t cells = std::size_t(1) << 2 * g->level;
+            const std::size_t table = cells * 4 + g->clear.size() * 8 +
                                       (g->xs.size() + g->ys.size()) * 8 + g->feature.size() * 4;
-            const std::size_t records = g->nodes.size() * 8 + g->units.size() * 32;
+            const std::size_t branches = (g->code.size() - cells) * 4;
+            const std::size_t records = branches + g->records.size() * 8;
             return "open (validate + derive) " + std::to_string(*open_ms).substr(0, 6) +
                    " ms; derived at open: top table level " + std::to_string(g->level) + ", " +
-                   std::to_string(table) + " bytes; leaf records " + std::to_string(records) +
-                   " bytes";
+                   std::to_string(table) + " bytes; branches " + std::to_string(branches) +
+                   " + leaf records " + std::to_string(g->records.size() * 8) + " = " +
+                   std::to_string(records) + " bytes";
           }};
 }
 

@@ -202,23 +202,63 @@ PolygonIndexView open_view(const PolygonLayer& layer, const FlatPolygonIndex& in
   return PolygonIndexView({view_of(layer), index.bounds, index.nodes, index.entries, index.edges});
 }
 
+// The leaf-record kernels this CPU runs (KILN_POLYGON_KERNEL names them).
+std::vector<const char*> record_kernels() {
+  std::vector<const char*> out{"scalar"};
+#if defined(__x86_64__) || defined(__i386__)
+  out.push_back("sse2");
+  if (__builtin_cpu_supports("avx2")) out.push_back("avx2");
+#endif
+  return out;
+}
+
+// A view of the same parts whose leaf records answer through `kernel`.
+PolygonIndexView view_with_kernel(const PolygonIndexView& view, const char* kernel) {
+  setenv("KILN_POLYGON_KERNEL", kernel, 1);
+  PolygonIndexView out(view.parts());
+  unsetenv("KILN_POLYGON_KERNEL");
+  return out;
+}
+
+// Brute force against locate_all (a descent from the root over the stored entries), and against
+// locate and locate_many (the table, branches and leaf records derived at open) with every
+// record kernel.
 void expect_agrees(const PolygonLayer& layer, const PolygonIndexView& view,
                    const std::vector<Double2>& points, const char* what) {
   const BruteForce brute(layer);
-  std::vector<std::uint32_t> got;
+  std::vector<std::uint32_t> got, first(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
     const auto want = brute.all(points[i]);
     view.locate_all(points[i], got);
     ASSERT_EQ(got, want) << what << " point " << i << " (" << points[i].x << ", " << points[i].y
                          << ")";
-    ASSERT_EQ(view.locate(points[i]), want.empty() ? PolygonQueries::kNone : want[0]) << what << i;
+    first[i] = want.empty() ? PolygonQueries::kNone : want[0];
   }
-  // The batch call (groups of points through each stage together) answers as locate does.
-  std::vector<std::uint32_t> many(points.size() + 1, 12345);
-  view.locate_many(points, std::span(many).first(points.size()));
-  for (std::size_t i = 0; i < points.size(); ++i)
-    ASSERT_EQ(many[i], view.locate(points[i])) << what << " batch point " << i;
-  EXPECT_EQ(many.back(), 12345u);  // nothing written past `out`
+  for (const char* kernel : record_kernels()) {
+    const PolygonIndexView v = view_with_kernel(view, kernel);
+    for (std::size_t i = 0; i < points.size(); ++i)
+      ASSERT_EQ(v.locate(points[i]), first[i]) << what << " kernel " << kernel << " point " << i
+                                               << " (" << points[i].x << ", " << points[i].y << ")";
+    // The batch call (groups of points through each stage together) answers as locate does.
+    std::vector<std::uint32_t> many(points.size() + 1, 12345);
+    v.locate_many(points, std::span(many).first(points.size()));
+    for (std::size_t i = 0; i < points.size(); ++i)
+      ASSERT_EQ(many[i], first[i]) << what << " kernel " << kernel << " batch point " << i;
+    EXPECT_EQ(many.back(), 12345u);  // nothing written past `out`
+  }
+}
+
+// The centre of every leaf (where the records' segments start) and its corners.
+std::vector<Double2> cell_points(const PolygonIndexView& view) {
+  std::vector<IndexCell2> cells;
+  view.cells(cells);
+  std::vector<Double2> points;
+  for (const IndexCell2& c : cells) {
+    points.push_back(format::quadtree_centre(c.box));
+    points.push_back(c.box.min);
+    points.push_back(c.box.max);
+  }
+  return points;
 }
 
 // Every vertex, every edge's midpoint and points a few ulps around vertices.
@@ -268,6 +308,8 @@ TEST(PolygonIndex, HandMadeShapesAgreeWithBruteForceOnBoundaries) {
     points.insert(points.end(), more.begin(), more.end());
     for (double x = -1; x <= 31; x += 0.5)
       for (double y = -1; y <= 31; y += 0.5) points.push_back({x, y});
+    const auto cells = cell_points(view);
+    points.insert(points.end(), cells.begin(), cells.end());
     expect_agrees(layer, view, points, "shapes");
   }
   const FlatPolygonIndex index = build_polygon_index(view_of(layer), {4, 8, 1});
@@ -313,6 +355,139 @@ TEST(PolygonIndex, PointsOnTheTopTableSplitLinesAgreeWithBruteForce) {
   expect_agrees(layer, view, points, "split lines");
 }
 
+// A clear bit is set exactly where the table cell and its eight neighbours (those inside the
+// table) code "none", on tables of 2^1 to 2^9 cells a side.
+TEST(PolygonIndex, ClearBitsMarkCellsWithEmptyNeighbourhoods) {
+  const PolygonLayer layer = shapes();
+  std::vector<std::uint32_t> levels;
+  for (const std::uint32_t max_edges : {64u, 16u, 4u, 1u}) {
+    const FlatPolygonIndex index = build_polygon_index(view_of(layer), {max_edges, 12, 1});
+    const PolygonIndexView view = open_view(layer, index);
+    const auto g = make_polygon_index_top_grid(view.parts());
+    levels.push_back(g->level);
+    const std::size_t side = std::size_t(1) << g->level;
+    auto none = [&](std::size_t x, std::size_t y) {
+      return x >= side || y >= side ||
+             g->code[y * side + x] ==
+                 (PolygonIndexTopGrid::kAnswer | PolygonIndexTopGrid::kNoFeature);
+    };
+    for (std::size_t y = 0; y < side; ++y)
+      for (std::size_t x = 0; x < side; ++x) {
+        bool want = true;
+        for (std::size_t dy = 0; dy < 3; ++dy)
+          for (std::size_t dx = 0; dx < 3; ++dx) want &= none(x + dx - 1, y + dy - 1);
+        const std::size_t cell = y * side + x;
+        ASSERT_EQ(bool(g->clear[cell / 64] >> (cell % 64) & 1), want)
+            << g->level << " " << x << "," << y;
+      }
+  }
+  EXPECT_LT(*std::min_element(levels.begin(), levels.end()), 6u);  // rows narrower than a word
+  EXPECT_GE(*std::max_element(levels.begin(), levels.end()), 7u);  // rows of whole words
+}
+
+// Forty concentric squares: leaves crossing their sides list up to forty polygons, so their
+// records hold two groups (31 polygons each at most), and a point outside the 31 smallest is
+// answered by the second.
+TEST(PolygonIndex, LeavesOfManyPolygonsAgreeWithBruteForce) {
+  std::vector<std::vector<Poly>> features;
+  for (int i = 0; i < 40; ++i) {
+    const double r = 1 + 0.25 * i;
+    features.push_back(
+        {{{{50 - r, 50 - r}, {50 + r, 50 - r}, {50 + r, 50 + r}, {50 - r, 50 + r}}}});
+  }
+  const PolygonLayer layer = make_layer(features);
+  const FlatPolygonIndex index = build_polygon_index(view_of(layer), {8, 3, 1});
+  std::uint32_t most = 0;
+  for (const auto& n : index.nodes)
+    if (n.is_leaf()) most = std::max(most, n.count);
+  ASSERT_GT(most, 31u);
+  const PolygonIndexView view = open_view(layer, index);
+  auto points = boundary_points(layer, 1);
+  const auto more = random_points(layer.bounds, 5000, 21), cells = cell_points(view);
+  points.insert(points.end(), more.begin(), more.end());
+  points.insert(points.end(), cells.begin(), cells.end());
+  expect_agrees(layer, view, points, "concentric");
+  EXPECT_EQ(view.locate({50 + 1 + 0.25 * 35 - 0.1, 50}), 35u);  // in the second group only
+}
+
+// Edges a record lists twice: a zero-width spike (out and back along the same edge), a hole
+// sharing an edge with its outer ring, and neighbours sharing edges drawn in either direction.
+// Their crossings cancel or flip both polygons, as the crossing number does.
+TEST(PolygonIndex, RepeatedEdgesAgreeWithBruteForce) {
+  const Ring spiked{{0, 0}, {10, 0}, {10, 5}, {16, 5}, {10, 5}, {10, 10}, {0, 10}};
+  const Ring outer{{20, 0}, {30, 0}, {30, 10}, {20, 10}}, hole{{20, 2}, {24, 2}, {24, 6}, {20, 6}};
+  const Ring left{{0, 20}, {10, 20}, {10, 30}, {0, 30}};
+  const Ring right_cw{{10, 20}, {10, 30}, {20, 30}, {20, 20}};
+  const Ring below{{0, 12}, {10, 12}, {10, 20}, {0, 20}};
+  const PolygonLayer layer =
+      make_layer({{{spiked}}, {{outer, hole}}, {{left}}, {{right_cw}}, {{below}}});
+  for (const std::uint32_t max_edges : {1u, 3u, 64u}) {
+    const FlatPolygonIndex index = build_polygon_index(view_of(layer), {max_edges, 8, 1});
+    const PolygonIndexView view = open_view(layer, index);
+    auto points = boundary_points(layer, 1);
+    const auto more = random_points(layer.bounds, 3000, 5), cells = cell_points(view);
+    points.insert(points.end(), more.begin(), more.end());
+    points.insert(points.end(), cells.begin(), cells.end());
+    for (double x = -1; x <= 31; x += 0.25)
+      for (double y = -1; y <= 31; y += 0.25) points.push_back({x, y});
+    expect_agrees(layer, view, points, "repeated edges");
+  }
+}
+
+// Bounds a few hundred ulps wide at large coordinates: the split lines of the table collapse
+// onto each other, the uniform estimate of a column is far from the true one, and the table's
+// clear bits stay unset; answers stay exact.
+TEST(PolygonIndex, TinyBoundsAtLargeCoordinatesAgreeWithBruteForce) {
+  const double o = 1e6, u = std::nextafter(o, 2e6) - o;  // one ulp at 1e6
+  std::vector<std::vector<Poly>> features;
+  std::mt19937_64 rng(9);
+  std::uniform_int_distribution<int> step(0, 300);
+  for (int i = 0; i < 30; ++i) {
+    const Double2 a{o + step(rng) * u, o + step(rng) * u}, b{o + step(rng) * u, o + step(rng) * u};
+    const Double2 c{o + step(rng) * u, o + step(rng) * u};
+    features.push_back({{{a, b, c}}});
+  }
+  const PolygonLayer layer = make_layer(features);
+  const FlatPolygonIndex index = build_polygon_index(view_of(layer), {1, 10, 1});
+  const PolygonIndexView view = open_view(layer, index);
+  const auto grid = make_polygon_index_top_grid(view.parts());
+  ASSERT_GE(grid->level + PolygonIndexTopGrid::kFine, 9u);  // 2^9 fine columns over 300 ulps
+  EXPECT_TRUE(std::all_of(grid->clear.begin(), grid->clear.end(), [](auto w) { return w == 0; }));
+  std::vector<Double2> points = boundary_points(layer, 1);
+  for (int y = -2; y <= 302; ++y)
+    for (int x = -2; x <= 302; x += 3) points.push_back({o + x * u, o + y * u});
+  const auto cells = cell_points(view);
+  points.insert(points.end(), cells.begin(), cells.end());
+  expect_agrees(layer, view, points, "tiny bounds");
+}
+
+// locate_many over every batch size up to a few pipeline groups answers as locate does and
+// writes nothing past its output; a shorter output answers as many points as it holds.
+TEST(PolygonIndex, BatchesOfEverySizeAnswerAsSingleCalls) {
+  const PolygonLayer layer = shapes();
+  const FlatPolygonIndex index = build_polygon_index(view_of(layer), {1, 10, 1});
+  const PolygonIndexView view = open_view(layer, index);
+  Box2d wide = layer.bounds;
+  wide.min = {wide.min.x - 2, wide.min.y - 2};
+  wide.max = {wide.max.x + 2, wide.max.y + 2};
+  auto points = random_points(wide, 100, 8);
+  const auto edges = boundary_points(layer, 3);
+  points.insert(points.begin() + 50, edges.begin(), edges.begin() + 20);
+  for (const char* kernel : record_kernels()) {
+    const PolygonIndexView v = view_with_kernel(view, kernel);
+    for (std::size_t n = 0; n <= 100; ++n) {
+      std::vector<std::uint32_t> many(n + 1, 12345);
+      v.locate_many(std::span(points).first(n), std::span(many).first(n));
+      for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(many[i], v.locate(points[i])) << n << " " << i;
+      ASSERT_EQ(many[n], 12345u) << n;
+    }
+    std::vector<std::uint32_t> shorter(31, 12345);
+    v.locate_many(points, std::span(shorter).first(30));
+    for (std::size_t i = 0; i < 30; ++i) EXPECT_EQ(shorter[i], v.locate(points[i]));
+    EXPECT_EQ(shorter[30], 12345u);
+  }
+}
+
 // A partition of [0, n]^2 into jittered quads split along alternating diagonals into triangles
 // (every polygon shares its borders vertex for vertex): every point is in at most one polygon,
 // and in exactly one when inside the union's interior.
@@ -345,8 +520,9 @@ TEST(PolygonIndex, PartitionPointsFallInExactlyOnePolygon) {
   const FlatPolygonIndex index = build_polygon_index(view_of(layer), {6, 10, 2});
   const PolygonIndexView view = open_view(layer, index);
   auto points = boundary_points(layer, 1);
-  const auto more = random_points(layer.bounds, 5000, 3);
+  const auto more = random_points(layer.bounds, 5000, 3), cells = cell_points(view);
   points.insert(points.end(), more.begin(), more.end());
+  points.insert(points.end(), cells.begin(), cells.end());
   expect_agrees(layer, view, points, "partition");
   std::vector<std::uint32_t> all;
   for (const Double2& p : points) {
@@ -558,6 +734,18 @@ TEST(PolygonIndex, ForgedSectionsAreRefusedOrSafe) {
   }
   EXPECT_GT(refused, 0);
   EXPECT_GT(opened, 0);
+}
+
+// A node nothing reaches may hold anything (the validation walks the tree from the root): an
+// interior node whose children lie far out of range is never read, and answers stay the tree's.
+TEST(PolygonIndex, UnreachedNodesAreNeverRead) {
+  const PolygonLayer layer = shapes();
+  const FlatPolygonIndex good = build_polygon_index(view_of(layer), {2, 8, 1});
+  FlatPolygonIndex bad = good;
+  bad.nodes.push_back({0xFFFFFFF0u, format::kPolygonNodeInterior});
+  const PolygonIndexView want = open_view(layer, good), got = open_view(layer, bad);
+  for (const Double2& p : random_points(layer.bounds, 2000, 23))
+    ASSERT_EQ(got.locate(p), want.locate(p));
 }
 
 // Forged ranges that overlap (every leaf naming all entries, every entry all edges) would make the

@@ -2,6 +2,7 @@
 // holding the point, then decide each listed polygon by its wholly-inside mark or by the parity
 // of its listed edges' crossings with the ray from the point towards +x).
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -9,7 +10,12 @@
 #include "kiln/runtime/error.hpp"
 #include "kiln/runtime/polygon_index.hpp"
 #include "kiln/runtime/predicates2.hpp"
+#include "polygon_index_records.hpp"
 #include "predicates2_inline.hpp"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace kiln {
 
@@ -25,8 +31,8 @@ PolygonIndexView::PolygonIndexView(const PolygonIndexParts& parts, const std::st
   top_ = make_polygon_index_top_grid(parts_);
   if (!top_)
     throw BlobError("polygon index '" + name +
-                    "': leaves share entries or entries share edges (its leaf records would "
-                    "outgrow its sections)");
+                    "': entries share edges, or its leaf records would outgrow 32-bit offsets");
+  record_ = polygon_records::kernel(polygon_records::best_kernel());
 }
 
 namespace {
@@ -136,184 +142,257 @@ bool PolygonIndexView::entry_contains(const PolygonIndexEntry& e, const Box2d& c
 
 namespace {
 
-// The largest j < 2^k with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
-// column the descent reaches (it sends v >= a split line to the upper side). `guess` is the
-// uniform estimate; the split lines are non-decreasing, so the walks end.
-inline std::uint32_t column(const std::vector<double>& lines, double v, double guess) {
-  const auto last = std::uint32_t(lines.size() - 2);
-  std::uint32_t j = guess > 0 ? std::min(last, std::uint32_t(std::min(guess, 4294967295.0))) : 0;
+// A column and a row among the table's fine split lines (level k + kFine).
+struct Fine {
+  std::uint32_t x, y;
+};
+
+// The fine column or row of v's uniform estimate, clamped to [0, last] (NaN: 0), for any v: for
+// v in the bounds, within a rounding of the true one (within kEstimateSlack wherever
+// PolygonIndexTopGrid::clear is used).
+inline Fine estimate(const PolygonIndexTopGrid& g, const Box2d& bounds, const Double2& p) {
+  const double last = double(g.last);
+#if defined(__SSE2__)
+  // Both axes at once; maxpd answers its second operand, 0, where the first is NaN.
+  __m128d e = _mm_mul_pd(_mm_sub_pd(_mm_loadu_pd(&p.x), _mm_loadu_pd(&bounds.min.x)),
+                         _mm_loadu_pd(&g.scale.x));
+  e = _mm_min_pd(_mm_max_pd(e, _mm_setzero_pd()), _mm_set1_pd(last));
+  const __m128i i = _mm_cvttpd_epi32(e);
+  return {std::uint32_t(_mm_cvtsi128_si32(i)),
+          std::uint32_t(_mm_cvtsi128_si32(_mm_srli_si128(i, 4)))};
+#else
+  auto axis = [last](double v, double min, double scale) {
+    double e = (v - min) * scale;
+    e = e > 0 ? e : 0;
+    return std::uint32_t(e < last ? e : last);
+  };
+  return {axis(p.x, bounds.min.x, g.scale.x), axis(p.y, bounds.min.y, g.scale.y)};
+#endif
+}
+
+inline std::size_t table_cell(const PolygonIndexTopGrid& g, Fine f) {
+  constexpr std::uint32_t k = PolygonIndexTopGrid::kFine;
+  return std::size_t(f.y >> k) << g.level | f.x >> k;
+}
+
+// Whether the table says p is in no polygon from its estimated column and row alone.
+inline bool clear(const PolygonIndexTopGrid& g, Fine estimate) {
+  const std::size_t cell = table_cell(g, estimate);
+  return g.clear[cell / 64] >> (cell % 64) & 1;
+}
+
+// The largest j <= last with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
+// column the descent reaches (it sends v >= a split line to the upper side), from the estimate
+// j; the walks correct it (the split lines are non-decreasing, so they end).
+[[gnu::noinline, gnu::cold]] std::uint32_t walk_column(const std::vector<double>& lines, double v,
+                                                       std::uint32_t j, std::uint32_t last) {
   while (j > 0 && lines[j] > v) --j;
   while (j < last && lines[j + 1] <= v) ++j;
   return j;
 }
 
+inline std::uint32_t column(const std::vector<double>& lines, double v, std::uint32_t j,
+                            std::uint32_t last) {
+  if ((lines[j] <= v) & (v < lines[j + 1])) [[likely]]
+    return j;
+  return walk_column(lines, v, j, last);
+}
+
+// p's fine column and row, from their estimates.
+inline Fine fine(const PolygonIndexTopGrid& g, const Double2& p, Fine estimate) {
+  return {column(g.xs, p.x, estimate.x, g.last), column(g.ys, p.y, estimate.y, g.last)};
+}
+
+// Box2d::contains with one branch instead of four.
+inline bool inside(const Box2d& b, const Double2& p) {
+  return (p.x >= b.min.x) & (p.x <= b.max.x) & (p.y >= b.min.y) & (p.y <= b.max.y);
+}
+
+// Child bits of the kFine levels below a table cell, first level most significant, from the
+// fine column's and row's low bits: bit i of x goes to bit 2i, of y to bit 2i + 1.
+constexpr std::uint8_t kSpread[8] = {0, 1, 4, 5, 16, 17, 20, 21};
+static_assert(PolygonIndexTopGrid::kFine == 3);
+
+inline std::uint32_t answer_of(std::uint32_t code) {
+  const std::uint32_t f = code & PolygonIndexTopGrid::kNoFeature;
+  return f == PolygonIndexTopGrid::kNoFeature ? PolygonQueries::kNone : f;
+}
+
+inline bool is_branch(std::uint32_t code) {
+  return (code & (PolygonIndexTopGrid::kAnswer | PolygonIndexTopGrid::kBranch)) ==
+         PolygonIndexTopGrid::kBranch;
+}
+
+// The branch entry a point reaches below `box`: the d levels' child bits, first most significant.
+inline std::uint32_t branch_entry(std::uint32_t code, Box2d& box, const Double2& p) {
+  const std::uint32_t d = 1 + (code >> 28 & 3);
+  std::uint32_t index = 0;
+  for (std::uint32_t l = 0; l < d; ++l) {
+    const std::uint32_t child = format::quadtree_child_of(box, p);
+    box = format::quadtree_child_box(box, child);
+    index = index << 2 | child;
+  }
+  return (code & PolygonIndexTopGrid::kOffset) + index;
+}
+
+// Branches below kFine levels, entered from the fine cell's box.
+[[gnu::noinline, gnu::cold]] std::uint32_t deep_code(const PolygonIndexTopGrid& g,
+                                                     std::uint32_t code, Fine f, const Double2& p) {
+  Box2d box{{g.xs[f.x], g.ys[f.y]}, {g.xs[f.x + 1], g.ys[f.y + 1]}};
+  do code = g.code[branch_entry(code, box, p)];
+  while (is_branch(code));
+  return code;
+}
+
+// The code of the leaf holding p (fine column and row `f`), from its table cell's: a branch's
+// entry from f's low bits, then (below kFine levels) branches again, descending from the fine
+// cell. (Reading the entry without a branch, a cell that is no branch reading itself again,
+// measured slower.)
+inline std::uint32_t leaf_code(const PolygonIndexTopGrid& g, Fine f, const Double2& p) {
+  std::uint32_t code = g.code[table_cell(g, f)];
+  if (!is_branch(code)) return code;
+  const std::uint32_t d = 1 + (code >> 28 & 3);
+  code = g.code[(code & PolygonIndexTopGrid::kOffset) +
+                ((kSpread[f.x & 7] | kSpread[f.y & 7] << 1) >> 2 * (3 - d))];
+  if (is_branch(code)) [[unlikely]]
+    return deep_code(g, code, f, p);
+  return code;
+}
+
 }  // namespace
 
-// The table cell holding p (inside the bounds), its column and row.
-inline std::size_t PolygonIndexView::top_cell(const Double2& p, std::uint32_t& ix,
-                                              std::uint32_t& iy) const {
-  const PolygonIndexTopGrid& g = *top_;
-  const Box2d& b = parts_.bounds;
-  ix = column(g.xs, p.x, (p.x - b.min.x) * g.scale.x);
-  iy = column(g.ys, p.y, (p.y - b.min.y) * g.scale.y);
-  return std::size_t(iy) << g.level | ix;
-}
-
-// The box of the node the table names for cell (ix, iy): apart from top_cell, since most
-// queries end at the cell's code without it.
-inline Box2d PolygonIndexView::top_box(std::size_t cell, std::uint32_t ix, std::uint32_t iy) const {
-  const PolygonIndexTopGrid& g = *top_;
-  const std::uint32_t shift = g.level - g.node_level[cell];
-  const std::uint32_t x0 = ix >> shift << shift, y0 = iy >> shift << shift;
-  return {{g.xs[x0], g.ys[y0]}, {g.xs[x0 + (1u << shift)], g.ys[y0 + (1u << shift)]}};
-}
-
 // Calls visit(entry, cell) for each entry of the leaf holding p, in order, until it returns
-// false.
+// false. The descent runs from the root on the stored nodes (not the table's codes); `cost`
+// counts the table lookup as one node and each level below the table's as one more.
 template <class Visit>
 void PolygonIndexView::visit_leaf(const Double2& p, Visit&& visit, Cost* cost) const {
   if (!parts_.bounds.contains(p)) return;
-  std::uint32_t ix, iy;
-  const std::size_t cell = top_cell(p, ix, iy);  // one lookup for the first levels
-  Box2d box = top_box(cell, ix, iy);
-  const PolygonIndexNode* n = &parts_.nodes[top_->node[cell]];
+  Box2d box = parts_.bounds;
+  const PolygonIndexNode* n = &parts_.nodes[0];
   if (cost) ++cost->nodes;
-  while (!n->is_leaf()) {
+  for (std::uint32_t depth = 1; !n->is_leaf(); ++depth) {
     const std::uint32_t child = format::quadtree_child_of(box, p);
     box = format::quadtree_child_box(box, child);
     n = &parts_.nodes[n->first + child];
-    if (cost) ++cost->nodes;
+    if (cost && depth > top_->level) ++cost->nodes;
   }
   for (const PolygonIndexEntry& e : parts_.entries.subspan(n->first, n->count))
     if (!visit(e, box)) return;
 }
 
-// A leaf record's answer for p: its entries in order, each wholly inside or decided by its
-// inline edges as entry_contains decides it (the same doubles, so the same answers).
-std::uint32_t PolygonIndexView::record_locate(const PolygonIndexTopGrid::Unit* unit,
-                                              std::uint32_t entries, const Box2d& cell,
-                                              const Double2& p) const {
-  const Double2 c = format::quadtree_centre(cell);
-  const Double2 lo{std::min(c.x, p.x), std::min(c.y, p.y)};
-  const Double2 hi{std::max(c.x, p.x), std::max(c.y, p.y)};
-  for (std::uint32_t k = 0; k < entries; ++k) {
-    PolygonIndexTopGrid::Head head;
-    std::memcpy(&head, unit++, sizeof head);
-    if (head.edges == format::kPolygonWhollyInside) return head.feature;
-    const std::uint32_t count = head.edges & ~format::kPolygonCentreInside;
-    bool inside = (head.edges & format::kPolygonCentreInside) != 0;
-    for (std::uint32_t i = 0; i < count; i += 64) {
-      const std::uint32_t n = std::min<std::uint32_t>(64, count - i);
-      std::uint64_t hits = 0;
-      for (std::uint32_t j = 0; j < n; ++j) {
-        const double* e = unit[i + j].v;  // a.x, a.y, b.x, b.y
-        const bool miss = (std::max(e[0], e[2]) < lo.x) | (std::min(e[0], e[2]) > hi.x) |
-                          (std::max(e[1], e[3]) < lo.y) | (std::min(e[1], e[3]) > hi.y);
-        hits |= std::uint64_t(!miss) << j;
-      }
-      for (; hits; hits &= hits - 1) {
-        const double* e = unit[i + std::uint32_t(__builtin_ctzll(hits))].v;
-        inside ^= detail::shifted_segment_crosses_unboxed(c, p, {e[0], e[1]}, {e[2], e[3]});
-      }
-    }
-    if (inside) return head.feature;
-    unit += count;
-  }
-  return PolygonQueries::kNone;
+namespace {
+
+// locate past the clear bits, apart so that the clear path stays a few instructions: the
+// bounds, the leaf's code through at most a branch or two, then its record.
+[[gnu::noinline]] std::uint32_t locate_past_clear(const PolygonIndexTopGrid& g, const Box2d& bounds,
+                                                  PolygonRecordKernel record, const Double2& p,
+                                                  Fine e) {
+  if (!inside(bounds, p)) return PolygonQueries::kNone;
+  const std::uint32_t code = leaf_code(g, fine(g, p, e), p);
+  if (code & PolygonIndexTopGrid::kAnswer) return answer_of(code);
+  return record(&g.records[code], p);
 }
 
-// The hot path: a cell answering alike for all its points ends at the table; else the descent
-// below it and the leaf's entries in order, as visit_leaf does.
-[[gnu::always_inline]] inline std::uint32_t PolygonIndexView::locate_inline(
-    const Double2& p) const {
-  if (!parts_.bounds.contains(p)) return PolygonQueries::kNone;
-  std::uint32_t ix, iy;
-  const std::size_t cell = top_cell(p, ix, iy);
-  // A bit per cell (8 KB at k = 8, cached) settles empty space without loading the code.
-  if (top_->empty[cell / 64] >> (cell % 64) & 1) return PolygonQueries::kNone;
-  const std::uint32_t code = top_->code[cell];
-  if (code & PolygonIndexTopGrid::kAnswer) {
-    const std::uint32_t f = code & PolygonIndexTopGrid::kNoFeature;
-    return f == PolygonIndexTopGrid::kNoFeature ? PolygonQueries::kNone : f;
-  }
-  Box2d box = top_box(cell, ix, iy);
-  const auto& nodes = top_->nodes;
-  const PolygonIndexNode* n = &nodes[code];
-  while (!n->is_leaf()) {
-    const std::uint32_t child = format::quadtree_child_of(box, p);
-    box = format::quadtree_child_box(box, child);
-    n = &nodes[n->first + child];
-  }
-  return record_locate(&top_->units[n->first], n->count, box, p);
-}
+}  // namespace
 
+// The hot path: a bit per cell (32 KB at k = 9) settles most empty space from the estimates
+// alone, before the bounds (a point outside them is in no polygon either); a cell answering
+// alike for all its points ends at its code.
 std::uint32_t PolygonIndexView::locate(const Double2& p) const {
-  return locate_inline(p);
+  const PolygonIndexTopGrid& g = *top_;
+  const Fine e = estimate(g, parts_.bounds, p);
+  if (clear(g, e)) return PolygonQueries::kNone;
+  return locate_past_clear(g, parts_.bounds, record_, p, e);
 }
 
-// Groups of 32 points go through each stage together (table lookups, then the descent one
-// level at a time, then the records), each stage prefetching what the next one reads: the
-// group's cache misses overlap instead of forming one dependent chain per point. Answers are
-// locate's: the same steps on the same doubles.
+// A batch in groups of 16 points, software-pipelined over four stages: while group g computes
+// its table cells, group g - 1 reads its codes, g - 2 its branch entries and g - 3 its leaf
+// records, each stage prefetching what the next one reads, so a group's cache misses are served
+// while three other groups work. Answers are locate's: the same steps on the same doubles.
 void PolygonIndexView::locate_many(std::span<const Double2> points,
                                    std::span<std::uint32_t> out) const {
-  constexpr std::size_t kGroup = 32;
+  constexpr std::size_t kGroup = 16, kStages = 4;
+  struct Group {
+    std::size_t size = 0;        // points still open
+    std::uint32_t at[kGroup];    // their index in the batch
+    Fine f[kGroup];              // fine column and row
+    std::uint32_t code[kGroup];  // table cell, then code, then (stage 3) record
+  };
   const std::size_t n = std::min(points.size(), out.size());
   const PolygonIndexTopGrid& g = *top_;
-  std::uint32_t ix[kGroup], iy[kGroup], node[kGroup], active[kGroup];
-  std::size_t cell[kGroup];
-  Box2d box[kGroup];
-  for (std::size_t base = 0; base < n; base += kGroup) {
-    const std::size_t m = std::min(kGroup, n - base);
-    std::size_t live = 0;
-    for (std::size_t k = 0; k < m; ++k) {
-      out[base + k] = PolygonQueries::kNone;
-      if (!parts_.bounds.contains(points[base + k])) continue;
-      cell[k] = top_cell(points[base + k], ix[k], iy[k]);
-      __builtin_prefetch(&g.code[cell[k]]);
-      active[live++] = std::uint32_t(k);
+  Group ring[kStages];
+  const std::size_t groups = (n + kGroup - 1) / kGroup;
+  for (std::size_t step = 0; step < groups + kStages - 1; ++step) {
+    // Stage 3: records (group step - 3).
+    if (step >= 3 && step - 3 < groups) {
+      const Group& r = ring[(step - 3) % kStages];
+      for (std::size_t i = 0; i < r.size; ++i)
+        out[r.at[i]] = r.code[i] & PolygonIndexTopGrid::kAnswer
+                           ? answer_of(r.code[i])
+                           : record_(&g.records[r.code[i]], points[r.at[i]]);
     }
-    std::size_t next = 0;
-    for (std::size_t a = 0; a < live; ++a) {
-      const std::uint32_t k = active[a];
-      if (g.empty[cell[k] / 64] >> (cell[k] % 64) & 1) continue;
-      const std::uint32_t code = g.code[cell[k]];
-      if (code & PolygonIndexTopGrid::kAnswer) {
-        const std::uint32_t f = code & PolygonIndexTopGrid::kNoFeature;
-        out[base + k] = f == PolygonIndexTopGrid::kNoFeature ? PolygonQueries::kNone : f;
-        continue;
-      }
-      box[k] = top_box(cell[k], ix[k], iy[k]);
-      node[k] = code;
-      __builtin_prefetch(&g.nodes[code]);
-      active[next++] = k;
-    }
-    live = next;
-    // Descend one level per pass; a point reaching its leaf prefetches its record's head.
-    std::size_t descending = live;
-    while (descending > 0) {
-      descending = 0;
-      for (std::size_t a = 0; a < live; ++a) {
-        const std::uint32_t k = active[a];
-        const PolygonIndexNode& nd = g.nodes[node[k]];
-        if (nd.is_leaf()) continue;
-        const std::uint32_t child = format::quadtree_child_of(box[k], points[base + k]);
-        box[k] = format::quadtree_child_box(box[k], child);
-        node[k] = nd.first + child;
-        const PolygonIndexNode& next_node = g.nodes[node[k]];
-        __builtin_prefetch(&next_node);
-        ++descending;
+    // Stage 2: branch entries (group step - 2); deeper branches resolved on the spot.
+    if (step >= 2 && step - 2 < groups) {
+      Group& r = ring[(step - 2) % kStages];
+      for (std::size_t i = 0; i < r.size; ++i) {
+        std::uint32_t code = r.code[i];
+        if (is_branch(code)) {
+          code = g.code[code & PolygonIndexTopGrid::kOffset];
+          if (is_branch(code)) {
+            const Double2& p = points[r.at[i]];
+            code = deep_code(g, code, r.f[i], p);
+          }
+          r.code[i] = code;
+        }
+        if (!(code & PolygonIndexTopGrid::kAnswer)) {
+          const char* record = reinterpret_cast<const char*>(&g.records[code]);
+          __builtin_prefetch(record);
+          __builtin_prefetch(record + 64);
+          __builtin_prefetch(record + 128);
+        }
       }
     }
-    for (std::size_t a = 0; a < live; ++a) {
-      const std::uint32_t k = active[a];
-      const PolygonIndexNode& nd = g.nodes[node[k]];
-      if (nd.count) __builtin_prefetch(&g.units[nd.first]);
+    // Stage 1: codes (group step - 1). A branch's code becomes the offset of its entry (flagged
+    // as a branch still).
+    if (step >= 1 && step - 1 < groups) {
+      Group& r = ring[(step - 1) % kStages];
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < r.size; ++i) {
+        std::uint32_t code = g.code[r.code[i]];
+        if (is_branch(code)) {
+          const std::uint32_t d = 1 + (code >> 28 & 3);
+          const std::uint32_t entry =
+              (code & PolygonIndexTopGrid::kOffset) +
+              ((kSpread[r.f[i].x & 7] | kSpread[r.f[i].y & 7] << 1) >> 2 * (3 - d));
+          __builtin_prefetch(&g.code[entry]);
+          code = PolygonIndexTopGrid::kBranch | entry;
+        } else if (code & PolygonIndexTopGrid::kAnswer) {
+          out[r.at[i]] = answer_of(code);
+          continue;
+        } else {
+          __builtin_prefetch(&g.records[code]);
+        }
+        r.at[kept] = r.at[i], r.f[kept] = r.f[i];
+        r.code[kept++] = code;
+      }
+      r.size = kept;
     }
-    for (std::size_t a = 0; a < live; ++a) {
-      const std::uint32_t k = active[a];
-      const PolygonIndexNode& nd = g.nodes[node[k]];
-      out[base + k] = record_locate(&g.units[nd.first], nd.count, box[k], points[base + k]);
+    // Stage 0: table cells (group step).
+    if (step < groups) {
+      Group& r = ring[step % kStages];
+      r.size = 0;
+      const std::size_t end = std::min(n, (step + 1) * kGroup);
+      for (std::size_t k = step * kGroup; k < end; ++k) {
+        const Double2& p = points[k];
+        out[k] = PolygonQueries::kNone;
+        const Fine e = estimate(g, parts_.bounds, p);
+        if (clear(g, e) || !inside(parts_.bounds, p)) continue;
+        const Fine f = fine(g, p, e);
+        const std::size_t cell = table_cell(g, f);
+        __builtin_prefetch(&g.code[cell]);
+        r.at[r.size] = std::uint32_t(k), r.f[r.size] = f;
+        r.code[r.size++] = std::uint32_t(cell);
+      }
     }
   }
 }

@@ -35,43 +35,51 @@ struct PolygonIndexLevel {
   std::uint64_t leaves = 0, interior = 0, boundary_leaves = 0, edge_refs = 0, entries = 0;
 };
 
-/// The quadtree's cells at one level k as a flat 2^k x 2^k table, derived from the validated
-/// nodes at open: a query finds its cell by one lookup, then descends only below level k.
-/// `xs` / `ys` hold the 2^k + 1 split coordinates of level k exactly as the descent computes
-/// them (each a midpoint of its two neighbours of the level above), so the lookup lands in the
-/// cell the descent would. A cell whose leaf lies above level k names that leaf and its level.
-/// A cell whose leaf answers every point of it alike (no entry, or a first entry wholly inside)
-/// holds that answer instead, so most points far from any boundary end at the lookup.
+/// What the view derives at open from the validated sections for `locate` and `locate_many`
+/// (docs/FORMAT.md, "Polygon index", "Top-level table" and "Leaf records"): the quadtree's cells
+/// at one level k as a flat 2^k x 2^k table of codes, so that a query finds its cell by one
+/// lookup, then reads at most a branch entry (or, deeper, a few) and one leaf record.
 struct PolygonIndexTopGrid {
-  /// `code` bit 31 set: the answer for every point of the cell (low 31 bits: the feature, or
-  /// kNoFeature); clear: the node index (in `nodes` below).
+  /// Code bit 31 set: the answer for every point of the cell (low 31 bits: the feature, or
+  /// kNoFeature). Else bit 30 clear: the leaf record at word `code` of `records`; set: a branch,
+  /// 4^d codes at `code[code & kOffset]`, d = 1 + (code >> 28 & 3) <= kFine, indexed by the
+  /// child bits of d descent levels interleaved (first level most significant).
   static constexpr std::uint32_t kAnswer = 0x80000000u, kNoFeature = 0x7FFFFFFFu;
-  std::uint32_t level = 0;               ///< k
-  format::Double2 scale;                 ///< 2^k / (bounds' side), the lookup's estimate
-  std::vector<double> xs, ys;            ///< split lines, 2^k + 1 each, non-decreasing
-  std::vector<std::uint32_t> code;       ///< per cell (row-major, y outer): answer or node
-  std::vector<std::uint32_t> node;       ///< per cell: the node (for walks over every entry)
-  std::vector<std::uint64_t> empty;      ///< per cell, one bit: no polygon holds a point of it
-  std::vector<std::uint8_t> node_level;  ///< per cell: the named node's depth (<= k)
-  std::vector<std::uint32_t> feature;    ///< per polygon: its feature (no search per answer)
-
-  /// One 32-byte unit of a leaf record: an entry's head (`head()`: its feature, and its edge
-  /// count with format::kPolygonCentreInside, or format::kPolygonWhollyInside), or one of its
-  /// edges' endpoints copied from the layer (a.x, a.y, b.x, b.y).
-  struct Unit {
-    double v[4];
-  };
-  struct Head {
-    std::uint32_t feature, edges;
-  };
-  /// The nodes again, each leaf's `first` naming its record in `units`: per entry, in order,
-  /// its head, then its edges. A point query reads one contiguous record instead of entries,
-  /// edge indices and scattered vertices (three dependent loads fewer).
-  std::vector<format::PolygonIndexNode> nodes;
-  std::vector<Unit> units;
+  static constexpr std::uint32_t kBranch = 0x40000000u, kOffset = 0x0FFFFFFFu;
+  static constexpr std::uint32_t kRecordOffset = 0x3FFFFFFFu;
+  /// A record group holds at most this many polygons (one bit each in its masks).
+  static constexpr std::uint32_t kGroupPolygons = 31;
+  /// Branches below the table span at most this many levels; the split lines go as deep, so
+  /// that one column lookup per axis gives both the table cell and the branch entry.
+  static constexpr std::uint32_t kFine = 3;
+  /// How far (in fine columns) a split line's uniform estimate may lie from its index for the
+  /// clear bits to be set.
+  static constexpr double kEstimateSlack = 2;
+  std::uint32_t level = 0;  ///< k
+  std::uint32_t last = 0;   ///< 2^(k + kFine) - 1: the last fine column and row
+  format::Double2 scale;    ///< 2^(k + kFine) / (bounds' side), the uniform estimate's
+  /// The split lines of level k + kFine (2^(k + kFine) + 1 per axis) exactly as the descent
+  /// computes them (each a midpoint of its two neighbours of the level above), non-decreasing:
+  /// the column of p is the last line <= p.x, the one the descent reaches.
+  std::vector<double> xs, ys;
+  /// Codes: per table cell (row-major, y outer), then the branches' entries.
+  std::vector<std::uint32_t> code;
+  /// Per table cell, one bit: the cell and its eight neighbours code "none". Set only where
+  /// every split line lies within kEstimateSlack of its uniform estimate (checked here), so that
+  /// a point whose estimated cell is clear is in no polygon.
+  std::vector<std::uint64_t> clear;
+  std::vector<std::uint32_t> feature;  ///< per polygon: its feature (no search per answer)
+  /// Leaf records in 8-byte words (layout: docs/FORMAT.md; answered by
+  /// runtime/src/polygon_index_records.cpp).
+  std::vector<std::uint64_t> records;
 };
 
-/// The top-level table of a validated index (O(4^k + nodes above level k)).
+/// A leaf record's answer for a point: the lowest feature holding it, or PolygonQueries::kNone.
+using PolygonRecordKernel = std::uint32_t (*)(const std::uint64_t* record,
+                                              const format::Double2& p);
+
+/// The table, branches and leaf records of a validated index (O(4^k + nodes + entries + edge
+/// references x log)); null when entries share edges or the records would outgrow their offsets.
 std::shared_ptr<const PolygonIndexTopGrid> make_polygon_index_top_grid(
     const PolygonIndexParts& parts);
 
@@ -114,14 +122,11 @@ class PolygonIndexView {
   bool entry_contains(const format::PolygonIndexEntry& e, const format::Box2d& cell,
                       const format::Double2& p, Cost* cost) const;
   void validate(const std::string& name) const;
-  std::uint32_t locate_inline(const format::Double2& p) const;
-  std::uint32_t record_locate(const PolygonIndexTopGrid::Unit* unit, std::uint32_t entries,
-                              const format::Box2d& cell, const format::Double2& p) const;
-  std::size_t top_cell(const format::Double2& p, std::uint32_t& ix, std::uint32_t& iy) const;
-  format::Box2d top_box(std::size_t cell, std::uint32_t ix, std::uint32_t iy) const;
 
   PolygonIndexParts parts_;
   std::shared_ptr<const PolygonIndexTopGrid> top_;  // shared: views copy cheaply
+  // A leaf record's answer (runtime/src/polygon_index_records.cpp), the kernel for this CPU.
+  PolygonRecordKernel record_ = nullptr;
 };
 
 }  // namespace kiln
