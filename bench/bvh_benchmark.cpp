@@ -18,9 +18,9 @@
 //           camera, for the meshes named after it (--camera=none: frame the bounds again)
 //   --only=NAME,...  (--rounds) only the contestants of these names (e.g. "sbvh w8 avx2,embree
 //           high"); --one-thread: (--rounds) skip the all-threads passes
-//   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF[:LARGEST_FIRST]] or LABEL:greedy
-//           (--rounds, repeatable) one more
-//           contestant "sbvh w8 LABEL" (default kernel): the SBVH collapsed with these costs
+//   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF[:ORDER]] or LABEL:greedy
+//           (--rounds, repeatable) one more contestant "sbvh w8 LABEL" (default kernel): the
+//           SBVH collapsed with these costs and slot order (0 tree, 1 largest area, 2 occlusion)
 //
 // Every benchmark times itself with std::chrono (manual time) and keeps its fastest iteration,
 // which feeds the counters and the Markdown tables printed at the end: on a small, shared machine

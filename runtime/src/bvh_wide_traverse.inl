@@ -230,7 +230,7 @@ KILN_SIMD void prefetch_children(const Node& n, unsigned mask, const std::byte* 
   }
 }
 
-/// The one traversal: kAny stops at the first hit and leaves children unordered.
+/// The one traversal: kAny stops at the first hit and takes the entered children in slot order.
 template <class Node, int W, bool kAny, bool kCount>
 KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost) {
   using V = typename NodeVec<W>::V;
