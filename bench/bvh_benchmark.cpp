@@ -18,9 +18,9 @@
 //           camera, for the meshes named after it (--camera=none: frame the bounds again)
 //   --only=NAME,...  (--rounds) only the contestants of these names (e.g. "sbvh w8 avx2,embree
 //           high"); --one-thread: (--rounds) skip the all-threads passes
-//   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF[:LARGEST_FIRST]] or LABEL:greedy
-//           (--rounds, repeatable) one more
-//           contestant "sbvh w8 LABEL" (default kernel): the SBVH collapsed with these costs
+//   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF[:ORDER]] or LABEL:greedy
+//           (--rounds, repeatable) one more contestant "sbvh w8 LABEL" (default kernel): the
+//           SBVH collapsed with these costs and slot order (0 tree, 1 largest area, 2 occlusion)
 //
 // Every benchmark times itself with std::chrono (manual time) and keeps its fastest iteration,
 // which feeds the counters and the Markdown tables printed at the end: on a small, shared machine
@@ -798,10 +798,15 @@ struct Contestant {
 };
 
 // Kiln's layouts, kept alive for the views the contestants hold.
-struct KilnLayouts {
-  std::map<std::string, kiln::FlatWideBvh> wide;
-  std::map<std::string, kiln::AlignedBuffer> nodes;  // 64-byte aligned, as in a blob
-};
+// The arenas of the Kiln contestants, 64-byte aligned as in a blob.
+using KilnArenas = std::map<std::string, kiln::AlignedBuffer>;
+
+const kiln::AlignedBuffer& arena_copy(KilnArenas& arenas, const std::string& name,
+                                      const std::vector<std::byte>& arena) {
+  auto& buffer = arenas.emplace(name, kiln::AlignedBuffer(arena.size(), 64)).first->second;
+  std::memcpy(buffer.data(), arena.data(), arena.size());
+  return buffer;
+}
 
 template <class View>
 Contestant kiln_contestant(std::string name, View view, double bytes_per_triangle) {
@@ -829,28 +834,24 @@ bool wanted(const std::string& prefix) {
 }
 
 // The --collapse variants of the SBVH's 8-wide layout, default kernel.
-void add_collapse_variants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Contestant>& out) {
+void add_collapse_variants(MeshCase& mesh, KilnArenas& arenas, std::vector<Contestant>& out) {
   const std::size_t triangles = mesh.scene.triangles.size();
   for (const auto& [label, options] : g_settings.collapses) {
     const std::string key = "sbvh w8 " + label;
     const std::string name = key + " " + kiln::bvh_kernel_name(kiln::bvh_auto_kernel());
     if (!wanted(name)) continue;
     const kiln::FlatBvh& flat = bvh_for(mesh, kiln::BvhBuilder::kSpatial);
-    const auto& w =
-        layouts.wide.emplace(key, kiln::collapse_bvh(flat, 8, triangles, false, nullptr, options))
-            .first->second;
-    auto& nodes = layouts.nodes.emplace(key, kiln::AlignedBuffer(w.nodes.size(), 64)).first->second;
-    std::memcpy(nodes.data(), w.nodes.data(), w.nodes.size());
+    const kiln::FlatWideBvh w = kiln::collapse_bvh(flat, 8, triangles, false, nullptr, options);
     std::printf("- %s: %llu nodes, %llu packets, fill %.3f, %.1f B/tri\n", key.c_str(),
                 (unsigned long long)w.stats.node_count, (unsigned long long)w.stats.packet_count,
                 w.stats.packet_fill, w.stats.bytes_per_triangle);
     out.push_back(kiln_contestant(
-        name, kiln::BvhWideView(8, false, nodes.bytes(), w.packets, w.prim_ids, key),
+        name, kiln::BvhWideView(8, false, arena_copy(arenas, name, w.arena).bytes(), key),
         w.stats.bytes_per_triangle));
   }
 }
 
-void add_kiln_contestants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Contestant>& out) {
+void add_kiln_contestants(MeshCase& mesh, KilnArenas& arenas, std::vector<Contestant>& out) {
   const std::size_t triangles = mesh.scene.triangles.size();
   for (const auto builder : {kiln::BvhBuilder::kSpatial, kiln::BvhBuilder::kBinned}) {
     const std::string b = builder == kiln::BvhBuilder::kSpatial ? "sbvh" : "bvh";
@@ -864,23 +865,21 @@ void add_kiln_contestants(MeshCase& mesh, KilnLayouts& layouts, std::vector<Cont
          {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
       const std::string key = b + " w" + std::to_string(width) + (quantized ? "q" : "");
       if (!wanted(key + " ")) continue;
-      const auto& w =
-          layouts.wide.emplace(key, kiln::collapse_bvh(flat, width, triangles, quantized))
-              .first->second;
-      auto& nodes =
-          layouts.nodes.emplace(key, kiln::AlignedBuffer(w.nodes.size(), 64)).first->second;
-      std::memcpy(nodes.data(), w.nodes.data(), w.nodes.size());
+      const kiln::FlatWideBvh w = kiln::collapse_bvh(flat, width, triangles, quantized);
       for (const auto kernel : {kiln::BvhKernel::kScalar, kiln::BvhKernel::kSse,
                                 kiln::BvhKernel::kAvx2, kiln::BvhKernel::kAvx512}) {
         if (!kiln::bvh_kernel_supported(kernel)) continue;
         // Every kernel on the SBVH's 8-wide layout; the others with the default kernel.
         const bool all_kernels = builder == kiln::BvhBuilder::kSpatial && width == 8 && !quantized;
         if (!all_kernels && kernel != kiln::bvh_auto_kernel()) continue;
-        if (!wanted(key + " " + kiln::bvh_kernel_name(kernel))) continue;
-        out.push_back(kiln_contestant(key + " " + kiln::bvh_kernel_name(kernel),
-                                      kiln::BvhWideView(width, w.quantized, nodes.bytes(),
-                                                        w.packets, w.prim_ids, key, kernel),
-                                      w.stats.bytes_per_triangle));
+        const std::string name = key + " " + kiln::bvh_kernel_name(kernel);
+        if (!wanted(name)) continue;
+        // Each kernel traces its own copy, so none finds the caches warmed by another's pass.
+        out.push_back(kiln_contestant(
+            name,
+            kiln::BvhWideView(width, quantized, arena_copy(arenas, name, w.arena).bytes(), key,
+                              kernel),
+            w.stats.bytes_per_triangle));
       }
     }
   }
@@ -938,7 +937,9 @@ Times run_rounds(const std::vector<Contestant>& contestants, const std::vector<k
   Times times(contestants.size());
   std::vector<kiln::Hit> hits(rays.size());
   for (int round = 0; round < g_settings.rounds; ++round)
-    for (std::size_t c = 0; c < contestants.size(); ++c) {
+    for (std::size_t i = 0; i < contestants.size(); ++i) {
+      // Odd rounds in reverse order: no contestant always follows the same one.
+      const std::size_t c = round % 2 ? contestants.size() - 1 - i : i;
       // One thread: its CPU time, which time slices lost to other work on a shared machine do
       // not inflate; all threads: wall time (throughput).
       const double cpu_start = thread_cpu_seconds();
@@ -1007,13 +1008,16 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
   std::vector<std::string> kiln_names = {"sbvh w8", "sbvh w8q", "bvh w8",
                                          "bvh w8q", "sbvh w4",  "sbvh w2"};
   for (const auto& variant : g_settings.collapses) kiln_names.push_back("sbvh w8 " + variant.first);
+  // Against Embree, and against Kiln's default layout (for the --collapse variants).
+  const std::string kiln_default = "sbvh w8 " + auto_kernel;
   for (const std::string& kiln_name : kiln_names)
-    for (const char* embree_name : {"embree medium", "embree high", "embree high robust"}) {
+    for (const std::string& embree_name : {std::string("embree medium"), std::string("embree high"),
+                                           std::string("embree high robust"), kiln_default}) {
       std::string name = kiln_name;
       if (name.back() != '2') name += " " + auto_kernel;
       const std::size_t a = find(name), b = find(embree_name);
-      if (a == contestants.size() || b == contestants.size()) continue;
-      std::printf("| %s | %s |", name.c_str(), embree_name);
+      if (a == contestants.size() || b == contestants.size() || a == b) continue;
+      std::printf("| %s | %s |", name.c_str(), embree_name.c_str());
       for (std::size_t k = 0; k < kRayKinds.size(); ++k)
         for (int t : {0, 1})
           std::printf(" %s |", format("%.2f×", median_ratio(times[k][t], a, b)).c_str());
@@ -1023,9 +1027,9 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
 
 void run_alternating(MeshCase& mesh) {
   std::vector<Contestant> contestants;
-  KilnLayouts layouts;
-  add_kiln_contestants(mesh, layouts, contestants);
-  add_collapse_variants(mesh, layouts, contestants);
+  KilnArenas arenas;
+  add_kiln_contestants(mesh, arenas, contestants);
+  add_collapse_variants(mesh, arenas, contestants);
 #ifdef KILN_BENCH_EMBREE
   std::vector<std::shared_ptr<EmbreeScene>> scenes;
   add_embree_contestants(mesh, scenes, contestants);
@@ -1043,7 +1047,8 @@ void run_alternating(MeshCase& mesh) {
   print_alternating(mesh, contestants, times, count);
 }
 
-// LABEL:NODE:PACKET:MAXREFS or LABEL:greedy.
+// LABEL:NODE:PACKET:MAXREFS[:LEAF[:ORDER]] or LABEL:greedy; ORDER 0 tree, 1 largest area,
+// 2 occlusion (the default).
 std::optional<std::pair<std::string, kiln::WideCollapseOptions>> parse_collapse(
     const std::string& text) {
   const std::size_t colon = text.find(':');
@@ -1052,15 +1057,16 @@ std::optional<std::pair<std::string, kiln::WideCollapseOptions>> parse_collapse(
   const std::string rest = text.substr(colon + 1);
   if (rest == "greedy") {
     o.greedy = true;
-    o.largest_first = false;  // the collapse as it was
+    o.order = kiln::WideSlotOrder::kTree;  // the collapse as it was
   } else {
     unsigned max_refs = 0;
-    int largest_first = 1;
+    int order = int(o.order);
     if (std::sscanf(rest.c_str(), "%lf:%lf:%u:%lf:%d", &o.node_cost, &o.packet_cost, &max_refs,
-                    &o.leaf_cost, &largest_first) < 3)
+                    &o.leaf_cost, &order) < 3 ||
+        order < 0 || order > 2)
       return std::nullopt;
     o.max_leaf_refs = max_refs;
-    o.largest_first = largest_first != 0;
+    o.order = kiln::WideSlotOrder(order);
   }
   return std::pair{text.substr(0, colon), o};
 }
@@ -1101,7 +1107,7 @@ int main(int argc, char** argv) {
       if (!c) {
         std::fprintf(
             stderr,
-            "bad collapse in '%s' (LABEL:NODE:PACKET:MAXREFS[:LEAF[:0|1]] or LABEL:greedy)\n",
+            "bad collapse in '%s' (LABEL:NODE:PACKET:MAXREFS[:LEAF[:ORDER 0-2]] or LABEL:greedy)\n",
             arg.c_str());
         return 2;
       }

@@ -203,7 +203,7 @@ TEST(BvhEvh, WideLeavesStoreATriangleOnce) {
     std::vector<bool> present(scene.triangles.size(), false);
     std::size_t distinct = 0;
     for (std::size_t p = 0; p < wide.packets.size(); ++p) {
-      const std::uint32_t* id = wide.prim_ids.data() + p * format::kBvhPacketSize;
+      const std::uint32_t* id = wide.packets[p].prim;
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
         present[id[lane]] = true;
         const bool repeated = std::find(id, id + lane, id[lane]) != id + lane;

@@ -40,7 +40,7 @@ FlatWideBvh wide_of(const Scene& scene, BvhBuilder builder, std::uint32_t width,
 }
 
 BvhWideView view_of(const FlatWideBvh& w, BvhKernel kernel) {
-  return BvhWideView(w.width, w.quantized, w.nodes, w.packets, w.prim_ids, "test", kernel);
+  return BvhWideView(w.width, w.quantized, w.arena, "test", kernel);
 }
 
 // Runs `check(view)` for each width, box encoding, builder and kernel this CPU has (saying
@@ -94,7 +94,23 @@ TEST(WideBvh, EveryKernelIsWatertightThroughVerticesAndEdges) {
   });
 }
 
-// Every node's used slots by non-increasing surface area (WideCollapseOptions::largest_first).
+// The primitive ids of every packet lane in the arena, leaf by leaf in depth-first order.
+std::vector<std::uint32_t> lane_ids(const BvhWideView& view) {
+  std::vector<std::uint32_t> ids;
+  auto collect = [&](const auto& n) {
+    for (int k = 0; k < int(view.width()); ++k)
+      if (n.child[k] & format::kBvhLeafFlag)
+        for (const format::BvhTrianglePacket& p : view.leaf(n.child[k], n.packets[k]))
+          ids.insert(ids.end(), p.prim, p.prim + format::kBvhPacketSize);
+  };
+  if (view.width() == 8)
+    view.for_each_node<format::BvhNode8>(collect);
+  else
+    view.for_each_node<format::BvhNode4>(collect);
+  return ids;
+}
+
+// Every node's used slots by non-increasing surface area (WideSlotOrder::kLargestArea).
 template <int W>
 void expect_largest_first(const FlatWideBvh& w) {
   for (std::size_t i = 0; i < w.stats.node_count; ++i) {
@@ -123,11 +139,12 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
       for (const bool greedy : {false, true}) {
         WideCollapseOptions c;
         c.greedy = greedy;
-        c.largest_first = !greedy;
+        c.order = greedy ? WideSlotOrder::kTree : WideSlotOrder::kLargestArea;
         const FlatWideBvh wide =
             collapse_bvh(binary, width, scene.triangles.size(), false, nullptr, c);
-        ASSERT_EQ(wide.prim_ids.size(), wide.packets.size() * format::kBvhPacketSize);
-        std::vector<std::uint32_t> a = binary.prim_ids, b = wide.prim_ids;
+        const BvhWideView view = view_of(wide, BvhKernel::kScalar);
+        std::vector<std::uint32_t> a = binary.prim_ids, b = lane_ids(view);
+        ASSERT_EQ(b.size(), wide.packets.size() * format::kBvhPacketSize);
         std::sort(a.begin(), a.end());
         std::sort(b.begin(), b.end());
         b.erase(std::unique(b.begin(), b.end()), b.end());
@@ -135,9 +152,12 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
         EXPECT_EQ(a, b);
         EXPECT_GT(wide.stats.packet_fill, 0.5);
         EXPECT_LE(wide.stats.max_depth, binary.stats.max_depth);
-        EXPECT_NO_THROW(view_of(wide, BvhKernel::kScalar));  // the view's structural walk
-        if (c.largest_first && width == 8) expect_largest_first<8>(wide);
-        if (c.largest_first && width == 4) expect_largest_first<4>(wide);
+        if (!greedy && width == 8) expect_largest_first<8>(wide);
+        if (!greedy && width == 4) expect_largest_first<4>(wide);
+        // The arena holds the same tree: every node and packet.
+        EXPECT_EQ(view.node_count(), wide.stats.node_count);
+        EXPECT_EQ(view.packet_count(), wide.packets.size());
+        EXPECT_EQ(wide.arena.size(), wide.stats.arena_bytes);
       }
   }
   EXPECT_THROW(collapse_bvh(build_bvh(scene, {}), 3, scene.triangles.size()),
@@ -232,62 +252,78 @@ TEST(WideBvh, ProximityQueriesEqualTheBinaryBvh) {
   }
 }
 
-// Nodes rewritten by hand: each forgery must be refused when the view is created.
-TEST(WideBvh, ForgedNodesAreRefused) {
+// Arenas rewritten by hand: each forgery must be refused when the view is created.
+TEST(WideBvh, ForgedArenasAreRefused) {
   const Scene scene = test::icosphere(3);
   const FlatWideBvh wide = wide_of(scene, BvhBuilder::kBinned, 4);
-  ASSERT_GT(wide.nodes.size() / sizeof(format::BvhNode4), 2u);
-  auto node = [](FlatWideBvh& w, std::size_t i) {
-    return reinterpret_cast<format::BvhNode4*>(w.nodes.data()) + i;
-  };
-  auto expect_refused = [&](const char* what, auto&& forge) {
-    FlatWideBvh bad = wide;
-    forge(bad);
-    EXPECT_THROW(view_of(bad, BvhKernel::kScalar), BlobError) << what;
-  };
-  auto interior_slot = [&](FlatWideBvh& w) {
-    for (int k = 0; k < 4; ++k)
-      if (!(node(w, 0)->child[k] & format::kBvhLeafFlag)) return k;
-    return -1;
-  };
-  expect_refused("child out of range", [&](FlatWideBvh& w) { node(w, 0)->child[0] = 0x7FFFFFF0u; });
-  expect_refused("cycle to the root", [&](FlatWideBvh& w) { node(w, 0)->child[0] = 0; });
-  expect_refused("packets on an interior child",
-                 [&](FlatWideBvh& w) { node(w, 0)->packets[interior_slot(w)] = 1; });
-  expect_refused("leaf range out of range", [&](FlatWideBvh& w) {
-    for (std::size_t i = 0;; ++i)
-      for (int k = 0; k < 4; ++k)
-        if (node(w, i)->child[k] & format::kBvhLeafFlag && node(w, i)->packets[k] > 0) {
-          node(w, i)->packets[k] = 255;
-          return;
-        }
+  ASSERT_GT(wide.stats.node_count, 2u);
+  const BvhWideView clean = view_of(wide, BvhKernel::kScalar);
+  using Bytes = std::vector<std::byte>;
+  using Node = format::BvhNode4;
+  // The root's first interior slot; the first node (in depth-first order) with a leaf, and that
+  // slot.
+  int interior = -1, leaf = -1;
+  std::size_t leaf_node = 0;
+  for (int k = 0; k < 4 && interior < 0; ++k)
+    if (!(clean.node<Node>(0).child[k] & format::kBvhLeafFlag)) interior = k;
+  clean.for_each_node<Node>([&](const Node& n) {
+    for (int k = 0; k < 4 && leaf < 0; ++k)
+      if ((n.child[k] & format::kBvhLeafFlag) && n.packets[k] > 0) {
+        leaf = k;
+        leaf_node = std::size_t(reinterpret_cast<const std::byte*>(&n) - clean.arena().data());
+      }
   });
-  expect_refused("a packet in no leaf", [&](FlatWideBvh& w) {
-    w.packets.push_back(w.packets.back());
-    for (int lane = 0; lane < 4; ++lane) w.prim_ids.push_back(0);
-  });
-  expect_refused("unreachable node", [&](FlatWideBvh& w) {
-    w.nodes.resize(w.nodes.size() + sizeof(format::BvhNode4));
-  });
-  expect_refused("primitive ids short", [&](FlatWideBvh& w) { w.prim_ids.pop_back(); });
-  // A chain deeper than the traversal stack allows: node i's only child is node i + 1.
-  FlatWideBvh deep;
-  deep.width = 4;
-  deep.nodes.resize((format::kBvhMaxDepth + 1) * sizeof(format::BvhNode4));
-  deep.packets.resize(1);
-  deep.prim_ids.assign(4, 0);
-  for (std::uint32_t i = 0; i <= format::kBvhMaxDepth; ++i) {
-    auto* n = node(deep, i);
-    for (int k = 0; k < 4; ++k) n->child[k] = format::kBvhLeafFlag;
-    n->child[0] = i + 1;
-  }
-  node(deep, format::kBvhMaxDepth)->child[0] = format::kBvhLeafFlag;
-  node(deep, format::kBvhMaxDepth)->packets[0] = 1;
-  EXPECT_THROW(view_of(deep, BvhKernel::kScalar), BlobError) << "too deep";
-  deep.nodes.resize(format::kBvhMaxDepth * sizeof(format::BvhNode4));  // exactly the limit
-  node(deep, format::kBvhMaxDepth - 1)->child[0] = format::kBvhLeafFlag;
-  node(deep, format::kBvhMaxDepth - 1)->packets[0] = 1;
-  EXPECT_NO_THROW(view_of(deep, BvhKernel::kScalar));
+  ASSERT_GE(interior, 0);
+  ASSERT_GE(leaf, 0);
+  auto expect_refused = [&](const char* what, std::size_t at, auto&& forge) {
+    Bytes bad = wide.arena;
+    forge(bad, *reinterpret_cast<Node*>(bad.data() + at));
+    EXPECT_THROW(BvhWideView(4, false, bad, "test", BvhKernel::kScalar), BlobError) << what;
+  };
+  expect_refused("child out of range", 0,
+                 [&](Bytes&, Node& n) { n.child[interior] = 0x7FFFFFF0u; });
+  expect_refused("cycle to the root", 0, [&](Bytes&, Node& n) { n.child[interior] = 0; });
+  expect_refused("a child one line late", 0, [&](Bytes&, Node& n) { n.child[interior] += 4; });
+  expect_refused("a wrong prefetch hint", 0, [&](Bytes&, Node& n) { n.packets[interior] ^= 1; });
+  expect_refused("the arena cut short", 0, [&](Bytes& b, Node&) { b.resize(b.size() - 64); });
+  expect_refused("a line after the last node", 0,
+                 [&](Bytes& b, Node&) { b.resize(b.size() + 64); });
+  expect_refused("leaf packets out of range", leaf_node,
+                 [&](Bytes&, Node& n) { n.packets[leaf] = 255; });
+  expect_refused("leaf packets not after the node", leaf_node,
+                 [&](Bytes&, Node& n) { n.child[leaf] += 10; });
+  expect_refused("an empty slot with an offset", leaf_node,
+                 [&](Bytes&, Node& n) { n.packets[leaf] = 0; });
+  const Bytes part(wide.arena.begin(), wide.arena.begin() + 64);
+  EXPECT_THROW(BvhWideView(4, false, part, "test", BvhKernel::kScalar), BlobError) << "a part";
+  EXPECT_THROW(BvhWideView(4, false, {}, "test", BvhKernel::kScalar), BlobError) << "empty";
+
+  // A chain of nodes deeper than the traversal stack allows: node i's only child is node i + 1,
+  // the last one's a leaf of one packet right after it.
+  auto chain = [](std::uint32_t depth) {
+    constexpr std::size_t kNode = sizeof(Node), kPacket = sizeof(format::BvhTrianglePacket);
+    std::vector<std::byte> arena(depth * kNode + 192);  // the packet, padded to the line
+    for (std::uint32_t i = 0; i < depth; ++i) {
+      Node n{};
+      for (int a = 0; a < 3; ++a)
+        for (int k = 0; k < 4; ++k) n.bounds[a][0][k] = INFINITY, n.bounds[a][1][k] = -INFINITY;
+      for (int k = 0; k < 4; ++k) n.child[k] = format::kBvhLeafFlag;
+      if (i + 1 < depth) {
+        n.child[0] = (i + 1) * kNode / format::kBvhArenaUnit;
+        n.packets[0] = i + 2 == depth ? (kPacket + 63) / 64 : 0;  // the last node's leaf lines
+      } else {
+        n.child[0] = format::kBvhLeafFlag | depth * kNode / format::kBvhArenaUnit;
+        n.packets[0] = 1;
+      }
+      std::memcpy(arena.data() + i * kNode, &n, sizeof n);
+    }
+    return arena;
+  };
+  const std::vector<std::byte> too_deep = chain(format::kBvhMaxDepth + 1),
+                               deepest = chain(format::kBvhMaxDepth);
+  EXPECT_THROW(BvhWideView(4, false, too_deep, "test", BvhKernel::kScalar), BlobError)
+      << "too deep";
+  EXPECT_NO_THROW(BvhWideView(4, false, deepest, "test", BvhKernel::kScalar));
 }
 
 // The same forgery through a blob with valid checksums: open cannot see it, the view refuses it.
@@ -299,10 +335,34 @@ TEST(WideBvh, ForgedNodeInABlobIsRefusedWhenViewed) {
   const auto& d = desc_of<schema::BvhDesc>(original, original.structures()[0]);
   ASSERT_EQ(d.width(), 8u);
   const AlignedBuffer forged =
-      test::forged_copy(blob, d.wide_nodes(), offsetof(format::BvhNode8, child), 0u);
+      test::forged_copy(blob, d.wide_arena(), offsetof(format::BvhNode8, child), 0u);
   const Blob b = Blob::open_memory(forged.bytes(), "forged.kiln");
   EXPECT_THROW(BvhWideView::from_blob(b, "bvh"), BlobError);
   EXPECT_THROW(BvhView::from_blob(original, "bvh"), BlobError) << "a binary view of a wide BVH";
+}
+
+// A wide BVH of the layout before the arena (its description names BVWN/BVWT sections) is
+// refused at open with the way out, in one line. Forged here by pointing the manifest's
+// `wide_nodes` field at the stored arena index (the vtable entry), checksums recomputed.
+TEST(WideBvh, TheLayoutBeforeTheArenaIsRefusedWithAMessage) {
+  const Scene scene = test::icosphere(2);
+  const auto blob = test::blob_with(scene, "sbvh:width=8", 2);
+  const AlignedBuffer clean = test::aligned_copy(blob);
+  const Blob original = Blob::open_memory(clean.bytes());
+  const auto& d = desc_of<schema::BvhDesc>(original, original.structures()[0]);
+  const auto* vtable = reinterpret_cast<const flatbuffers::Table&>(d).GetVTable();
+  const std::uint16_t arena_field =
+      flatbuffers::ReadScalar<std::uint16_t>(vtable + schema::BvhDesc::VT_WIDE_ARENA);
+  ASSERT_NE(arena_field, 0);
+  ASSERT_LT(schema::BvhDesc::VT_WIDE_NODES, flatbuffers::ReadScalar<std::uint16_t>(vtable));
+  const std::size_t at =
+      std::size_t(vtable + schema::BvhDesc::VT_WIDE_NODES -
+                  reinterpret_cast<const std::uint8_t*>(original.section_bytes(0).data()));
+  const std::string error = test::open_only(
+      test::with_patched_section(blob, 0, at, std::as_bytes(std::span(&arena_field, 1))));
+  EXPECT_NE(error.find("layout before the node arena"), std::string::npos) << error;
+  EXPECT_NE(error.find("rebuild it with kiln build"), std::string::npos) << error;
+  EXPECT_EQ(error.find('\n'), std::string::npos) << error;
 }
 
 TEST(WideBvh, KernelChoiceFollowsTheEnvironment) {

@@ -149,6 +149,7 @@ struct Collapser {
   std::uint64_t lanes_used = 0;                   // packet lanes holding a distinct reference
   std::vector<std::uint32_t> leaf_refs;           // scratch: the leaf being packed
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
+  std::vector<double> triangle_area;              // under each binary node (kOcclusion)
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
       : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
@@ -160,6 +161,43 @@ struct Collapser {
       refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
     }
     if (!options.greedy) programme.emplace(bin, refs, options);
+    if (options.order == WideSlotOrder::kOcclusion) {
+      triangle_area.resize(bin.nodes.size());
+      for (std::size_t i = bin.nodes.size(); i-- > 0;) {
+        const auto& n = bin.nodes[i];
+        if (n.count == 0) {
+          triangle_area[i] = triangle_area[i + 1] + triangle_area[n.offset];
+          continue;
+        }
+        double sum = 0;
+        for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r) sum += area_of(corners_of(r));
+        triangle_area[i] = sum;
+      }
+    }
+  }
+
+  static double area_of(const format::RayTriangle& t) {
+    const format::Double3 a = to_d(t.v0), e1 = to_d(t.v1) - a, e2 = to_d(t.v2) - a;
+    const format::Double3 n = cross(e1, e2);
+    return 0.5 * std::sqrt(dot(n, n));
+  }
+
+  // Slots are ordered by decreasing score (any-hit traversal visits them in that order).
+  double slot_score(std::uint32_t i) const {
+    const double area = half_area(bin.nodes[i]);
+    switch (options.order) {
+      case WideSlotOrder::kLargestArea:
+        return area;
+      case WideSlotOrder::kOcclusion: {
+        // P / C with P = min(1, triangle area / area) and C = cost / area: min(area, tri) / cost.
+        // The greedy collapse has no programme: a rough cost instead.
+        const double cost =
+            programme ? programme->cost[std::size_t(i) * W] : area * (1.0 + double(refs[i]) * 0.25);
+        return cost > 0 ? std::min(area, triangle_area[i]) / cost : 0.0;
+      }
+      default:
+        return 0.0;
+    }
   }
 
   bool is_leaf(std::uint32_t i) const {
@@ -212,7 +250,7 @@ struct Collapser {
         const format::Float3 corners[3] = {t.v0, t.v1, t.v2};
         for (int c = 0; c < 3; ++c)
           for (int a = 0; a < 3; ++a) packet.v[c][a][lane] = format::at(corners[c], a);
-        out.prim_ids.push_back(bin.prim_ids[r]);
+        packet.prim[lane] = bin.prim_ids[r];
       }
       out.packets.push_back(packet);
     }
@@ -258,9 +296,9 @@ struct Collapser {
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
     auto kids = gather(i);
-    if (options.largest_first)  // stable: equal areas keep the tree's order (deterministic)
+    if (options.order != WideSlotOrder::kTree)  // stable: ties keep the tree's order
       std::stable_sort(kids.begin(), kids.end(), [&](std::uint32_t a, std::uint32_t b) {
-        return half_area(bin.nodes[a]) > half_area(bin.nodes[b]);
+        return slot_score(a) > slot_score(b);
       });
     for (std::size_t k = 0; k < kids.size(); ++k) {
       const auto& b = bin.nodes[kids[k]];
@@ -276,6 +314,58 @@ struct Collapser {
     return index;
   }
 };
+
+// Lays the tree by index out as the arena (kiln/formats/bvh_wide.hpp): each node, its leaf
+// packets, zeros to the next line, then its interior children's subtrees.
+template <class Node, int W>
+struct ArenaWriter {
+  const FlatWideBvh& wide;
+  std::vector<std::byte> out;
+
+  void pad_to_line() {
+    out.resize((out.size() + format::kBvhArenaLine - 1) / format::kBvhArenaLine *
+               format::kBvhArenaLine);
+  }
+  static std::uint32_t unit(std::size_t bytes) {
+    if (bytes / format::kBvhArenaUnit >= format::kBvhLeafFlag)
+      throw std::invalid_argument("BVH too large for 32-bit arena offsets");
+    return std::uint32_t(bytes / format::kBvhArenaUnit);
+  }
+
+  // Writes node `index` and its subtree at the end of `out`; returns its offset and sets
+  // `leaf_lines` to the lines its own leaf packets span.
+  std::uint32_t write(std::uint32_t index, std::size_t& leaf_lines) {
+    Node n;
+    std::memcpy(&n, wide.nodes.data() + std::size_t(index) * sizeof n, sizeof n);
+    const std::size_t at = out.size();
+    out.resize(at + sizeof n);
+    for (int k = 0; k < W; ++k) {
+      if (!(n.child[k] & format::kBvhLeafFlag) || n.packets[k] == 0) continue;
+      const std::uint32_t first = n.child[k] & ~format::kBvhLeafFlag;
+      n.child[k] = format::kBvhLeafFlag | unit(out.size());
+      const auto* p = reinterpret_cast<const std::byte*>(wide.packets.data() + first);
+      out.insert(out.end(), p, p + n.packets[k] * sizeof(format::BvhTrianglePacket));
+    }
+    leaf_lines = (out.size() - at - sizeof n + format::kBvhArenaLine - 1) / format::kBvhArenaLine;
+    pad_to_line();
+    for (int k = 0; k < W; ++k) {
+      if (n.child[k] & format::kBvhLeafFlag) continue;
+      std::size_t child_lines = 0;
+      n.child[k] = write(n.child[k], child_lines);
+      n.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
+    }
+    std::memcpy(out.data() + at, &n, sizeof n);
+    return unit(at);
+  }
+};
+
+template <class Node, int W>
+std::vector<std::byte> write_arena(const FlatWideBvh& wide) {
+  ArenaWriter<Node, W> writer{wide, {}};
+  std::size_t root_lines = 0;
+  writer.write(0, root_lines);
+  return std::move(writer.out);
+}
 
 }  // namespace
 
@@ -300,13 +390,17 @@ FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t
   const std::size_t node_size = width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
   s.node_count = out.nodes.size() / node_size;
   if (quantized) out.nodes = width == 4 ? quantize_all<4>(out.nodes) : quantize_all<8>(out.nodes);
+  if (quantized)
+    out.arena = width == 4 ? write_arena<format::BvhQNode4, 4>(out)
+                           : write_arena<format::BvhQNode8, 8>(out);
+  else
+    out.arena =
+        width == 4 ? write_arena<format::BvhNode4, 4>(out) : write_arena<format::BvhNode8, 8>(out);
   s.packet_count = out.packets.size();
   s.packet_fill =
       s.packet_count ? double(lanes_used) / double(s.packet_count * format::kBvhPacketSize) : 0;
-  s.bytes_per_triangle =
-      double(out.nodes.size() + out.packets.size() * sizeof(format::BvhTrianglePacket) +
-             out.prim_ids.size() * sizeof(std::uint32_t)) /
-      double(std::max<std::size_t>(triangle_count, 1));
+  s.arena_bytes = out.arena.size();
+  s.bytes_per_triangle = double(s.arena_bytes) / double(std::max<std::size_t>(triangle_count, 1));
   return out;
 }
 

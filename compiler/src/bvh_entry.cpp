@@ -115,7 +115,7 @@ double parse_presplit_fraction(const std::string& canonical) {  // "evh=FRACTION
 }
 
 // The BvhDesc of either layout: `index` the blob's sections (binary: nodes, triangles, ids; wide:
-// wide nodes, packets, ids), `wide` null for the binary layout.
+// the arena), `wide` null for the binary layout.
 std::pair<std::uint8_t, std::uint32_t> write_desc(flatbuffers::FlatBufferBuilder& fbb,
                                                   const BvhBuildOptions& o, const BvhStatistics& s,
                                                   std::span<const std::uint32_t> index,
@@ -126,12 +126,13 @@ std::pair<std::uint8_t, std::uint32_t> write_desc(flatbuffers::FlatBufferBuilder
   const auto desc = schema::CreateBvhDescDirect(
       fbb, bvh_builder_name(o.builder), o.bins, o.traversal_cost, o.intersection_cost,
       o.max_leaf_size, o.sbvh_alpha, o.sbvh_max_duplication, wide ? kAbsent : index[0],
-      wide ? kAbsent : index[1], index[2], s.node_count, s.leaf_count, s.reference_count,
-      s.max_depth, s.max_leaf_size, s.average_leaf_size, s.duplication_factor, s.sah_cost,
-      wide ? w.bytes_per_triangle : s.bytes_per_triangle, wide ? o.width : 2,
-      wide ? index[0] : kAbsent, wide ? index[1] : kAbsent, w.node_count, w.leaf_count,
-      w.packet_count, w.max_depth, w.packet_fill, wide && o.quantized, evh ? "evh" : nullptr,
-      evh ? o.evh_threshold : 0.0, evh ? o.evh_max_refs : 0, s.presplit_references);
+      wide ? kAbsent : index[1], wide ? kAbsent : index[2], s.node_count, s.leaf_count,
+      s.reference_count, s.max_depth, s.max_leaf_size, s.average_leaf_size, s.duplication_factor,
+      s.sah_cost, wide ? w.bytes_per_triangle : s.bytes_per_triangle, wide ? o.width : 2, kAbsent,
+      kAbsent, w.node_count, w.leaf_count, w.packet_count, w.max_depth, w.packet_fill,
+      wide && o.quantized, evh ? "evh" : nullptr, evh ? o.evh_threshold : 0.0,
+      evh ? o.evh_max_refs : 0, s.presplit_references, wide ? index[0] : kAbsent,
+      wide ? w.arena_bytes / format::kBvhArenaUnit : 0);
   return {std::uint8_t(schema::StructureDesc::BvhDesc), desc.o};
 }
 
@@ -151,19 +152,18 @@ BuiltStructure binary_structure(std::shared_ptr<FlatBvh> flat, const BvhBuildOpt
   return built;
 }
 
-// The wide layout: BVWN, BVWT, BVHP (one id per packet lane).
+// The wide layout: one BVWA section, the arena (the tree by index is dropped here).
 BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, const Scene& scene) {
-  auto wide = std::make_shared<FlatWideBvh>(
-      collapse_bvh(flat, o.width, scene.triangles.size(), o.quantized, &scene));
+  FlatWideBvh collapsed = collapse_bvh(flat, o.width, scene.triangles.size(), o.quantized, &scene);
+  const WideBvhStatistics w = collapsed.stats;
+  auto arena = std::make_shared<std::vector<std::byte>>(std::move(collapsed.arena));
+  collapsed = {};
   BuiltStructure built;
-  SectionPayload nodes = raw_section(
-      o.quantized ? format::kSectionBvhQuantizedNodes : format::kSectionBvhWideNodes, wide->nodes);
-  nodes.element_size = std::uint32_t(wide->nodes.size() / wide->stats.node_count);
-  nodes.element_count = wide->stats.node_count;
-  built.sections = {nodes, raw_section(format::kSectionBvhPackets, wide->packets),
-                    raw_section(format::kSectionBvhPrimIds, wide->prim_ids)};
+  SectionPayload section = raw_section(format::kSectionBvhWideArena, *arena);
+  section.element_size = format::kBvhArenaUnit;
+  section.element_count = arena->size() / format::kBvhArenaUnit;
+  built.sections = {section};
   const BvhStatistics s = flat.stats;
-  const WideBvhStatistics w = wide->stats;
   built.describe = [o, s, w](flatbuffers::FlatBufferBuilder& fbb,
                              std::span<const std::uint32_t> index) {
     return write_desc(fbb, o, s, index, &w);
@@ -173,7 +173,7 @@ BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, con
       printf_like(o.quantized ? ", %u-wide (8-bit boxes): %llu nodes, %.0f%% packet fill"
                               : ", %u-wide: %llu nodes, %.0f%% packet fill",
                   o.width, (unsigned long long)w.node_count, 100.0 * w.packet_fill);
-  built.storage = std::move(wide);
+  built.storage = std::move(arena);
   return built;
 }
 

@@ -19,22 +19,21 @@ namespace kiln {
 
 namespace {
 
+// The layout before the arena (BVWN/BVQN, BVWT, BVHP) stays listed, so such a blob is refused
+// with the message below rather than as one written by a newer tool.
 constexpr std::uint32_t kSections[] = {
-    format::kSectionBvhNodes,     format::kSectionBvhTriangles, format::kSectionBvhPrimIds,
-    format::kSectionBvhWideNodes, format::kSectionBvhPackets,   format::kSectionBvhQuantizedNodes};
+    format::kSectionBvhNodes,         format::kSectionBvhTriangles, format::kSectionBvhPrimIds,
+    format::kSectionBvhWideArena,     format::kSectionBvhWideNodes, format::kSectionBvhPackets,
+    format::kSectionBvhQuantizedNodes};
 
 void check_wide(const Blob& blob, const schema::BvhDesc& d, const std::string& where) {
-  const bool q = d.quantized();
-  const std::uint32_t node_size =
-      q ? (d.width() == 4 ? sizeof(format::BvhQNode4) : sizeof(format::BvhQNode8))
-        : (d.width() == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8));
-  blob.check_section(where + "wide nodes", d.wide_nodes(),
-                     q ? format::kSectionBvhQuantizedNodes : format::kSectionBvhWideNodes,
-                     node_size, d.wide_node_count(), false);
-  blob.check_section(where + "packets", d.packets(), format::kSectionBvhPackets,
-                     sizeof(format::BvhTrianglePacket), d.packet_count(), false);
-  blob.check_section(where + "primitive ids", d.prim_ids(), format::kSectionBvhPrimIds,
-                     sizeof(std::uint32_t), d.packet_count() * format::kBvhPacketSize, false);
+  if (d.wide_nodes() != kNoSection || d.packets() != kNoSection)
+    blob.fail(where + "is a " + std::to_string(d.width()) +
+              "-wide BVH in the layout before the node arena (nodes, packets and ids apart, "
+              "written before 2026-11-27), which this reader no longer traces: rebuild it with "
+              "kiln build and the same inputs");
+  blob.check_section(where + "arena", d.wide_arena(), format::kSectionBvhWideArena,
+                     format::kBvhArenaUnit, d.wide_arena_units(), false);
   if (d.wide_node_count() == 0) blob.fail_section(0, where + "has no nodes");
 }
 
@@ -70,19 +69,18 @@ bool contains(const format::BvhNode& outer, const format::BvhNode& inner) {
   return true;
 }
 
-// Every reference names a stored triangle and carries a bitwise copy of its corners.
-void check_reference(const Blob& blob, const schema::BvhDesc& d, const std::string& name,
-                     std::size_t r, std::uint32_t prim, const format::RayTriangle& stored) {
+// A reference names a stored triangle and carries a bitwise copy of its corners.
+void check_reference(const Blob& blob, std::uint32_t section, const std::string& name,
+                     const std::string& where, std::uint32_t prim,
+                     const format::RayTriangle& stored) {
   const auto positions = blob.positions();
   const auto triangles = blob.triangles();
   if (prim >= triangles.size())
-    blob.fail_section(d.prim_ids(), name + " reference " + std::to_string(r) + " names triangle " +
-                                        std::to_string(prim));
+    blob.fail_section(section, name + " " + where + " names triangle " + std::to_string(prim));
   const auto& t = triangles[prim];
   const format::RayTriangle expected{positions[t.v[0]], positions[t.v[1]], positions[t.v[2]]};
   if (std::memcmp(&expected, &stored, sizeof(expected)) != 0)
-    blob.fail_section(d.prim_ids(), name + " reference " + std::to_string(r) +
-                                        " does not match its triangle's corners");
+    blob.fail_section(section, name + " " + where + " does not match its triangle's corners");
 }
 
 // Child boxes inside the box their parent slot gave them (the root's children are unchecked).
@@ -98,45 +96,50 @@ float slack(const format::BvhQuantizedNode<W>& n, int axis, float at) {
   return format::bvh_quantized_scale(n.exponent[axis]) + std::fabs(at) * 0x1p-21f;
 }
 
-template <int W, class Node>
+template <class Node>
 void verify_wide_nodes(const Blob& blob, const schema::BvhDesc& d, const std::string& name,
-                       std::span<const Node> nodes) {
-  for (std::size_t i = 0; i < nodes.size(); ++i)
+                       const BvhWideView& bvh) {
+  constexpr int W = int(sizeof(Node::child) / sizeof(Node::child[0]));
+  std::size_t index = 0;
+  bvh.for_each_node<Node>([&](const Node& n) {
     for (int k = 0; k < W; ++k) {
-      if (nodes[i].child[k] & format::kBvhLeafFlag) continue;
+      if (n.child[k] & format::kBvhLeafFlag) {
+        for (const auto& p : bvh.leaf(n.child[k], n.packets[k]))
+          for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
+            const format::RayTriangle stored{{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]},
+                                             {p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]},
+                                             {p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]}};
+            check_reference(blob, d.wide_arena(), name, "node " + std::to_string(index),
+                            p.prim[lane], stored);
+          }
+        continue;
+      }
       float lo[3], hi[3];
-      format::bvh_child_box(nodes[i], k, lo, hi);
-      const auto& c = nodes[nodes[i].child[k]];
+      format::bvh_child_box(n, k, lo, hi);
+      const Node& c = bvh.node<Node>(n.child[k]);
       for (int j = 0; j < W; ++j) {
         if (c.child[j] == format::kBvhLeafFlag && c.packets[j] == 0) continue;  // empty slot
         float clo[3], chi[3];
         format::bvh_child_box(c, j, clo, chi);
         for (int a = 0; a < 3; ++a)
           if (!(lo[a] - slack(c, a, lo[a]) <= clo[a] && chi[a] <= hi[a] + slack(c, a, hi[a])))
-            blob.fail_section(d.wide_nodes(), name + " node " + std::to_string(i) +
+            blob.fail_section(d.wide_arena(), name + " node " + std::to_string(index) +
                                                   " does not contain its children");
       }
     }
+    index += 1;
+  });
 }
 
 void verify_wide(const Blob& blob, const StructureInfo& info) {
   const auto& d = desc_of<schema::BvhDesc>(blob, info);
   const BvhWideView bvh = BvhWideView::from_blob(blob, info.name, BvhKernel::kScalar);
   if (bvh.quantized())
-    bvh.width() == 4 ? verify_wide_nodes<4>(blob, d, info.name, bvh.qnodes4())
-                     : verify_wide_nodes<8>(blob, d, info.name, bvh.qnodes8());
+    bvh.width() == 4 ? verify_wide_nodes<format::BvhQNode4>(blob, d, info.name, bvh)
+                     : verify_wide_nodes<format::BvhQNode8>(blob, d, info.name, bvh);
   else
-    bvh.width() == 4 ? verify_wide_nodes<4>(blob, d, info.name, bvh.nodes4())
-                     : verify_wide_nodes<8>(blob, d, info.name, bvh.nodes8());
-  const auto prims = bvh.prim_ids();
-  for (std::size_t r = 0; r < prims.size(); ++r) {
-    const auto& p = bvh.packets()[r / format::kBvhPacketSize];
-    const std::size_t lane = r % format::kBvhPacketSize;
-    const format::RayTriangle stored{{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]},
-                                     {p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]},
-                                     {p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]}};
-    check_reference(blob, d, info.name, r, prims[r], stored);
-  }
+    bvh.width() == 4 ? verify_wide_nodes<format::BvhNode4>(blob, d, info.name, bvh)
+                     : verify_wide_nodes<format::BvhNode8>(blob, d, info.name, bvh);
 }
 
 // Beyond the view's structural walk: every box inside its parent's, every reference naming a

@@ -33,16 +33,13 @@ format::RayTriangle lane_triangle(const format::BvhTrianglePacket& p, std::uint3
 template <class Visit>
 void for_each_lane(const BvhWideView& bvh, std::uint32_t word, std::uint32_t packets,
                    Visit&& visit) {
-  const std::uint32_t first = word & ~format::kBvhLeafFlag;
-  for (std::uint32_t p = first; p < first + packets; ++p)
+  for (const format::BvhTrianglePacket& p : bvh.leaf(word, packets))
     for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane)
-      visit(lane_triangle(bvh.packets()[p], lane),
-            bvh.prim_ids()[p * format::kBvhPacketSize + lane]);
+      visit(lane_triangle(p, lane), p.prim[lane]);
 }
 
 template <int W, class Node>
-ClosestPoint closest_wide(const BvhWideView& bvh, std::span<const Node> nodes,
-                          const format::Float3& point, float max_distance) {
+ClosestPoint closest_wide(const BvhWideView& bvh, const format::Float3& point, float max_distance) {
   const format::Double3 p = to_d(point);
   double best = double(max_distance) * double(max_distance);
   ClosestPoint result;
@@ -63,7 +60,7 @@ ClosestPoint closest_wide(const BvhWideView& bvh, std::span<const Node> nodes,
       });
       continue;
     }
-    const auto& n = nodes[e.word];
+    const auto& n = bvh.node<Node>(e.word);
     Entry kids[W];
     int count = 0;
     for (int k = 0; k < W; ++k) {
@@ -84,8 +81,7 @@ ClosestPoint closest_wide(const BvhWideView& bvh, std::span<const Node> nodes,
 // Sorted, distinct primitive ids of the lanes in every leaf whose box passes `enter` (from the
 // root down) and that pass `keep`.
 template <int W, class Node, class Enter, class Keep>
-void collect_wide(const BvhWideView& bvh, std::span<const Node> nodes, Enter enter, Keep keep,
-                  std::vector<std::uint32_t>& out) {
+void collect_wide(const BvhWideView& bvh, Enter enter, Keep keep, std::vector<std::uint32_t>& out) {
   out.clear();
   struct Entry {
     std::uint32_t word, packets;
@@ -101,7 +97,7 @@ void collect_wide(const BvhWideView& bvh, std::span<const Node> nodes, Enter ent
       });
       continue;
     }
-    const auto& n = nodes[e.word];
+    const auto& n = bvh.node<Node>(e.word);
     for (int k = 0; k < W; ++k) {
       if (n.child[k] == format::kBvhLeafFlag && n.packets[k] == 0) continue;
       const ChildBox b = child_box(n, k);
@@ -114,21 +110,21 @@ void collect_wide(const BvhWideView& bvh, std::span<const Node> nodes, Enter ent
 template <class Enter, class Keep>
 void collect(const BvhWideView& bvh, Enter enter, Keep keep, std::vector<std::uint32_t>& out) {
   if (bvh.quantized())
-    bvh.width() == 4 ? collect_wide<4>(bvh, bvh.qnodes4(), enter, keep, out)
-                     : collect_wide<8>(bvh, bvh.qnodes8(), enter, keep, out);
+    bvh.width() == 4 ? collect_wide<4, format::BvhQNode4>(bvh, enter, keep, out)
+                     : collect_wide<8, format::BvhQNode8>(bvh, enter, keep, out);
   else
-    bvh.width() == 4 ? collect_wide<4>(bvh, bvh.nodes4(), enter, keep, out)
-                     : collect_wide<8>(bvh, bvh.nodes8(), enter, keep, out);
+    bvh.width() == 4 ? collect_wide<4, format::BvhNode4>(bvh, enter, keep, out)
+                     : collect_wide<8, format::BvhNode8>(bvh, enter, keep, out);
 }
 
 }  // namespace
 
 ClosestPoint closest_point(const BvhWideView& bvh, const format::Float3& p, float max_distance) {
   if (bvh.quantized())
-    return bvh.width() == 4 ? closest_wide<4>(bvh, bvh.qnodes4(), p, max_distance)
-                            : closest_wide<8>(bvh, bvh.qnodes8(), p, max_distance);
-  return bvh.width() == 4 ? closest_wide<4>(bvh, bvh.nodes4(), p, max_distance)
-                          : closest_wide<8>(bvh, bvh.nodes8(), p, max_distance);
+    return bvh.width() == 4 ? closest_wide<4, format::BvhQNode4>(bvh, p, max_distance)
+                            : closest_wide<8, format::BvhQNode8>(bvh, p, max_distance);
+  return bvh.width() == 4 ? closest_wide<4, format::BvhNode4>(bvh, p, max_distance)
+                          : closest_wide<8, format::BvhNode8>(bvh, p, max_distance);
 }
 
 void triangles_in_box(const BvhWideView& bvh, const format::Float3& lo_f,

@@ -44,7 +44,24 @@ KILN_SIMD BoxLanes<V> box_lanes(const BoxRay& r) {
   return b;
 }
 
-// Entry distances of all W children into `dist`; returns the bits of the children entered.
+/// Per-ray constants of the triangle test, splatted once per ray rather than per leaf.
+struct TriLanes {
+  F4::T org[3], shear[3];  // origin on the permuted axes kx, ky, kz; sx, sy, sz
+  std::size_t row[3];      // byte offset of axis kx, ky, kz in a corner's rows (v[c][axis])
+};
+
+KILN_SIMD TriLanes tri_lanes(const WatertightRay& r) {
+  TriLanes t;
+  const int axis[3] = {r.kx, r.ky, r.kz};
+  const float shear[3] = {r.sx, r.sy, r.sz};
+  for (int i = 0; i < 3; ++i) {
+    t.org[i] = F4::set1(r.org[axis[i]]);
+    t.shear[i] = F4::set1(shear[i]);
+    t.row[i] = std::size_t(axis[i]) * sizeof(float) * format::kBvhPacketSize;
+  }
+  return t;
+}
+
 // One box plane of every child: side 0 min, 1 max.
 template <class V, int W>
 KILN_SIMD typename V::T plane(const format::BvhWideNode<W>& n, int axis, int side) {
@@ -56,6 +73,7 @@ KILN_SIMD typename V::T plane(const format::BvhQuantizedNode<W>& n, int axis, in
   return V::add(V::set1(n.origin[axis]), V::mul(V::load_u8(n.q[axis][side]), scale));
 }
 
+// Entry distances of all W children into `dist`; returns the bits of the children entered.
 template <class Node, class V>
 KILN_SIMD unsigned test_children(const Node& n, const BoxLanes<V>& r, typename V::T tmin,
                                  typename V::T tmax, float* dist) {
@@ -73,17 +91,18 @@ KILN_SIMD unsigned test_children(const Node& n, const BoxLanes<V>& r, typename V
 
 // The closest (or, kAny, the first) lane of a packet hit in (tmin, tmax); -1 when none.
 template <bool kAny>
-KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRay& r, float tmin,
-                          float tmax, float& t_out, float& u_out, float& v_out) {
+KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRay& r,
+                          const TriLanes& l, float tmin, float tmax, float& t_out, float& u_out,
+                          float& v_out) {
   using T = F4::T;
-  const T ox = F4::set1(r.org[r.kx]), oy = F4::set1(r.org[r.ky]), oz = F4::set1(r.org[r.kz]);
-  const T sx = F4::set1(r.sx), sy = F4::set1(r.sy), sz = F4::set1(r.sz);
   T x[3], y[3], z[3];
   for (int c = 0; c < 3; ++c) {
-    const T px = F4::sub(F4::load(p.v[c][r.kx]), ox), py = F4::sub(F4::load(p.v[c][r.ky]), oy);
-    z[c] = F4::sub(F4::load(p.v[c][r.kz]), oz);
-    x[c] = F4::sub(px, F4::mul(sx, z[c]));
-    y[c] = F4::sub(py, F4::mul(sy, z[c]));
+    const char* rows = reinterpret_cast<const char*>(p.v[c]);
+    const T px = F4::sub(F4::load(reinterpret_cast<const float*>(rows + l.row[0])), l.org[0]);
+    const T py = F4::sub(F4::load(reinterpret_cast<const float*>(rows + l.row[1])), l.org[1]);
+    z[c] = F4::sub(F4::load(reinterpret_cast<const float*>(rows + l.row[2])), l.org[2]);
+    x[c] = F4::sub(px, F4::mul(l.shear[0], z[c]));
+    y[c] = F4::sub(py, F4::mul(l.shear[1], z[c]));
   }
   const T u = F4::sub(F4::mul(x[2], y[1]), F4::mul(y[2], x[1]));
   const T v = F4::sub(F4::mul(x[0], y[2]), F4::mul(y[0], x[2]));
@@ -97,6 +116,7 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
   if ((ok | exact) == 0) return -1;  // most packets: every lane outside an edge, no division
   const T det = F4::add(F4::add(u, v), w);
   ok &= ~F4::eq(det, zero);
+  const T sz = l.shear[2];
   const T t_scaled = F4::add(F4::add(F4::mul(u, F4::mul(sz, z[0])), F4::mul(v, F4::mul(sz, z[1]))),
                              F4::mul(w, F4::mul(sz, z[2])));
   const T t = F4::div(t_scaled, det);
@@ -125,7 +145,7 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
   return best;
 }
 
-/// A child to visit: its word, packet count and entry distance.
+/// A child to visit: its word, packet count (or, interior, prefetch lines) and entry distance.
 struct WideEntry {
   std::uint32_t word, packets;
   float t;
@@ -140,7 +160,7 @@ KILN_SIMD std::uint32_t sortable(float f) {
 
 // Of the entered children of `n` (bits `mask`, at least one), returns the one to visit next and
 // pushes the others: kOrdered, nearest next and the rest farthest first (so nearer ones pop
-// first); otherwise the lowest slot next and the rest unordered.
+// first); otherwise in slot order (the collapse orders slots for any-hit rays).
 template <int W, bool kOrdered, class Node>
 KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, WideEntry* stack,
                                std::uint32_t& top) {
@@ -172,87 +192,94 @@ KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, 
     }
     slot = int(keys[count - 1] & 0xFu);
   } else {
-    for (; mask != 0; mask &= mask - 1) {
-      const int s = __builtin_ctz(mask);
+    // Pushed highest slot first, so they pop in slot order after the lowest.
+    while (mask != 0) {
+      const int s = 31 - __builtin_clz(mask);
+      mask &= ~(1u << s);
       stack[top++] = {n.child[s], n.packets[s], dist[s]};
     }
   }
   return {n.child[slot], n.packets[slot], dist[slot]};
 }
 
-// Starts loading every entered child (node or first packet) while the others are sorted and
-// visited: on meshes larger than the caches, traversal waits on memory more than it computes.
+/// The nodes' lines, and at most this many lines of an interior child's leaf packets, are loaded
+/// ahead when a child is entered.
+inline constexpr std::uint32_t kPrefetchLeafLines = 4;
+
+// Starts loading every entered child while the others are sorted and visited: a node with the
+// first lines of its own leaf packets, which follow it in the arena (so a node's leaves are on
+// their way one level before they are reached), or a leaf's first two packets. On meshes larger
+// than the caches, traversal waits on memory more than it computes.
 template <class Node>
-KILN_SIMD void prefetch_children(const Node& n, unsigned mask, const Node* nodes,
-                                 const format::BvhTrianglePacket* packets) {
+KILN_SIMD void prefetch_children(const Node& n, unsigned mask, const std::byte* arena) {
   for (; mask != 0; mask &= mask - 1) {
     const int slot = __builtin_ctz(mask);
     const std::uint32_t word = n.child[slot];
-    const char* p = (word & format::kBvhLeafFlag)
-                        ? reinterpret_cast<const char*>(packets + (word & ~format::kBvhLeafFlag))
-                        : reinterpret_cast<const char*>(nodes + word);
-    for (std::size_t line = 0; line < sizeof(Node); line += 64) __builtin_prefetch(p + line);
+    const char* p = reinterpret_cast<const char*>(arena) +
+                    std::size_t(word & ~format::kBvhLeafFlag) * format::kBvhArenaUnit;
+    std::size_t bytes;
+    if (word & format::kBvhLeafFlag) {
+      bytes = std::min<std::size_t>(n.packets[slot], 2) * sizeof(format::BvhTrianglePacket);
+      __builtin_prefetch(p + bytes - 1);  // a leaf need not start on a line
+    } else {
+      bytes = sizeof(Node) +
+              format::kBvhArenaLine * std::min<std::uint32_t>(n.packets[slot], kPrefetchLeafLines);
+    }
+    for (std::size_t line = 0; line < bytes; line += format::kBvhArenaLine)
+      __builtin_prefetch(p + line);
   }
 }
 
-// Tests a leaf's packets; on a closer hit (kAny: any hit) updates `hit` and `best_ref` and
-// returns true.
-template <bool kAny, bool kCount>
-KILN_SIMD bool test_leaf(const format::BvhTrianglePacket* packets, std::uint32_t first,
-                         std::uint32_t count, const WatertightRay& tri_ray, float tmin, Hit& hit,
-                         std::uint32_t& best_ref, Cost* cost) {
-  bool found = false;
-  for (std::uint32_t p = first; p < first + count; ++p) {
-    if constexpr (kCount) cost->tests += format::kBvhPacketSize;
-    const int lane = test_packet<kAny>(packets[p], tri_ray, tmin, hit.t, hit.t, hit.u, hit.v);
-    if (lane < 0) continue;
-    best_ref = p * format::kBvhPacketSize + std::uint32_t(lane);
-    found = true;
-    if constexpr (kAny) return true;
-  }
-  return found;
-}
-
-/// The one traversal: kAny stops at the first hit and leaves children unordered.
+/// The one traversal: kAny stops at the first hit and takes the entered children in slot order.
 template <class Node, int W, bool kAny, bool kCount>
 KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost) {
   using V = typename NodeVec<W>::V;
-  const auto* nodes = reinterpret_cast<const Node*>(view.node_bytes().data());
-  const format::BvhTrianglePacket* packets = view.packets().data();
+  const std::byte* arena = view.arena().data();
   const BoxLanes<V> box = box_lanes<V>(prepare_box_ray(ray));
   const WatertightRay tri_ray = prepare_watertight(ray);
+  const TriLanes tri = tri_lanes(tri_ray);
   const typename V::T tmin = V::set1(ray.tmin);
   Hit hit;
   hit.t = ray.tmax;
-  std::uint32_t best_ref = kNoHit;
+  const format::BvhTrianglePacket* best_packet = nullptr;
+  int best_lane = 0;
   WideEntry stack[(W - 1) * format::kBvhMaxDepth + 1];
   std::uint32_t top = 0;
   alignas(32) float dist[W];
   WideEntry e{0, 0, ray.tmin};
   for (;;) {
     while ((e.word & format::kBvhLeafFlag) == 0) {
-      const auto& n = nodes[e.word];
+      const auto& n =
+          *reinterpret_cast<const Node*>(arena + std::size_t(e.word) * format::kBvhArenaUnit);
       if constexpr (kCount) cost->nodes += 1;
       const unsigned mask = test_children<Node, V>(n, box, tmin, V::set1(hit.t), dist);
       if (mask == 0) goto pop;
-      prefetch_children(n, mask, nodes, packets);
+      prefetch_children(n, mask, arena);
       e = next_child<W, !kAny>(n, mask, dist, stack, top);
     }
-    if (test_leaf<kAny, kCount>(packets, e.word & ~format::kBvhLeafFlag, e.packets, tri_ray,
-                                ray.tmin, hit, best_ref, cost) &&
-        kAny) {
-      hit.prim = view.prim_ids()[best_ref];
-      return hit;
+    {
+      const auto* p = reinterpret_cast<const format::BvhTrianglePacket*>(
+          arena + std::size_t(e.word & ~format::kBvhLeafFlag) * format::kBvhArenaUnit);
+      for (const auto* end = p + e.packets; p < end; ++p) {
+        if constexpr (kCount) cost->tests += format::kBvhPacketSize;
+        const int lane = test_packet<kAny>(*p, tri_ray, tri, ray.tmin, hit.t, hit.t, hit.u, hit.v);
+        if (lane < 0) continue;
+        best_packet = p, best_lane = lane;
+        if constexpr (kAny) {
+          hit.prim = p->prim[lane];
+          return hit;
+        }
+      }
     }
   pop:  // the next subtree that can still hold a closer hit
     do {
       if (top == 0) {
-        if (best_ref == kNoHit) return Hit{};
-        hit.prim = view.prim_ids()[best_ref];
+        if (best_packet == nullptr) return Hit{};
+        hit.prim = best_packet->prim[best_lane];
         return hit;
       }
       e = stack[--top];
-    } while (e.t > hit.t);
+    } while (!kAny && e.t > hit.t);
   }
 }
 

@@ -1,6 +1,8 @@
 // The wide BVH view's structural check, its view of a blob's structure, and the choice of
 // traversal kernel (run-time CPU dispatch; KILN_BVH_KERNEL forces one).
+#include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -82,73 +84,70 @@ const BvhWideKernel* kernel_table(BvhKernel kernel, std::uint32_t width, bool qu
   }
 }
 
-std::size_t node_size(std::uint32_t width, bool quantized) {
-  if (quantized) return width == 4 ? sizeof(format::BvhQNode4) : sizeof(format::BvhQNode8);
-  return width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
-}
-
-// Pre-order walk: the n-th node reached must be node n (no sharing, cycles or unreachable
-// nodes), leaves take the packets in order, nothing deeper than the kernels' stacks allow.
-template <int W, class Node>
-void check_nodes(std::span<const Node> nodes, std::size_t packet_count, const std::string& name) {
+// The depth-first walk that fixes where everything lies: each node where the cursor stands (a
+// line boundary), its leaves' packets right after it in slot order, padding to the next line,
+// then its interior children's subtrees in slot order; nothing deeper than the kernels' stacks
+// allow, and nothing left over. Counts the nodes and packets.
+template <class Node>
+void check_arena(std::span<const std::byte> arena, std::size_t& node_count,
+                 std::size_t& packet_count, const std::string& name) {
+  constexpr int W = int(sizeof(Node::child) / sizeof(Node::child[0]));
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
   struct Pending {
-    std::uint32_t word, packets, depth;
+    std::uint32_t word, hint, depth;
   };
   std::vector<Pending> stack{{0, 0, 1}};
-  std::uint64_t next_node = 0, next_packet = 0;
+  std::size_t at = 0;  // the cursor, in bytes
+  const std::size_t size = arena.size();
   while (!stack.empty()) {
     const Pending p = stack.back();
     stack.pop_back();
-    if (p.word & format::kBvhLeafFlag) {
-      const std::uint32_t first = p.word & ~format::kBvhLeafFlag;
-      if (p.packets == 0 && first == 0) continue;  // an empty slot
-      if (p.packets == 0 || first != next_packet || p.packets > packet_count - next_packet)
-        fail("a leaf's packets [" + std::to_string(first) + ", +" + std::to_string(p.packets) +
-             ") are out of order or out of range");
-      next_packet += p.packets;
-      continue;
-    }
-    if (p.word != next_node || p.word >= nodes.size())
-      fail("node " + std::to_string(p.word) + " is not where depth-first order puts it");
+    if (std::size_t(p.word) * format::kBvhArenaUnit != at)
+      fail("node at unit " + std::to_string(p.word) + " is not where depth-first order puts it");
+    if (sizeof(Node) > size - at) fail("a node runs past the end of the arena");
     if (p.depth > format::kBvhMaxDepth) fail("deeper than " + std::to_string(format::kBvhMaxDepth));
-    next_node += 1;
-    const auto& n = nodes[p.word];
-    for (int k = W - 1; k >= 0; --k) {
-      const bool leaf = (n.child[k] & format::kBvhLeafFlag) != 0;
-      if (!leaf && n.packets[k] != 0)
-        fail("node " + std::to_string(p.word) + " has packets on an interior child");
-      stack.push_back({n.child[k], n.packets[k], p.depth + 1});
+    Node n;
+    std::memcpy(&n, arena.data() + at, sizeof n);
+    at += sizeof n;
+    node_count += 1;
+    const std::size_t leaves = at;
+    for (int k = 0; k < W; ++k) {
+      if (!(n.child[k] & format::kBvhLeafFlag)) continue;
+      const std::uint32_t first = n.child[k] & ~format::kBvhLeafFlag, packets = n.packets[k];
+      if (packets == 0 && first == 0) continue;  // an empty slot
+      if (packets == 0 || std::size_t(first) * format::kBvhArenaUnit != at ||
+          packets * sizeof(format::BvhTrianglePacket) > size - at)
+        fail("a leaf's packets at unit " + std::to_string(first) + " (" + std::to_string(packets) +
+             ") are out of order or out of range");
+      at += packets * sizeof(format::BvhTrianglePacket);
+      packet_count += packets;
     }
+    const std::size_t lines = (at - leaves + format::kBvhArenaLine - 1) / format::kBvhArenaLine;
+    if (p.depth > 1 && p.hint != std::min<std::size_t>(lines, 255))
+      fail("node at unit " + std::to_string(p.word) + " has a wrong prefetch hint");
+    at = leaves + lines * format::kBvhArenaLine;
+    if (at > size) fail("the arena ends inside a node's padding");
+    for (int k = W - 1; k >= 0; --k)
+      if (!(n.child[k] & format::kBvhLeafFlag))
+        stack.push_back({n.child[k], n.packets[k], p.depth + 1});
   }
-  if (next_node != nodes.size())
-    fail(std::to_string(nodes.size() - next_node) + " nodes are unreachable");
-  if (next_packet != packet_count)
-    fail(std::to_string(packet_count - next_packet) + " packets are in no leaf");
+  if (at != size) fail(std::to_string(size - at) + " bytes after the last node");
 }
 
 }  // namespace
 
-BvhWideView::BvhWideView(std::uint32_t width, bool quantized, std::span<const std::byte> nodes,
-                         std::span<const format::BvhTrianglePacket> packets,
-                         std::span<const std::uint32_t> prim_ids, const std::string& name,
-                         BvhKernel kernel)
-    : width_(width), quantized_(quantized), nodes_(nodes), packets_(packets), prim_ids_(prim_ids) {
+BvhWideView::BvhWideView(std::uint32_t width, bool quantized, std::span<const std::byte> arena,
+                         const std::string& name, BvhKernel kernel)
+    : width_(width), quantized_(quantized), arena_(arena) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
   if (width != 4 && width != 8) fail("width " + std::to_string(width) + " is not 4 or 8");
-  const std::size_t size = node_size(width, quantized);
-  if (nodes.empty() || nodes.size() % size != 0) fail("no whole nodes");
-  node_count_ = nodes.size() / size;
-  if (node_count_ >= format::kBvhLeafFlag) fail("too many nodes");
-  if (prim_ids.size() != packets.size() * format::kBvhPacketSize)
-    fail(std::to_string(packets.size()) + " packets but " + std::to_string(prim_ids.size()) +
-         " primitive ids");
+  if (arena.empty()) fail("no nodes");
   if (quantized)
-    width == 4 ? check_nodes<4>(qnodes4(), packets.size(), name)
-               : check_nodes<8>(qnodes8(), packets.size(), name);
+    width == 4 ? check_arena<format::BvhQNode4>(arena, node_count_, packet_count_, name)
+               : check_arena<format::BvhQNode8>(arena, node_count_, packet_count_, name);
   else
-    width == 4 ? check_nodes<4>(nodes4(), packets.size(), name)
-               : check_nodes<8>(nodes8(), packets.size(), name);
+    width == 4 ? check_arena<format::BvhNode4>(arena, node_count_, packet_count_, name)
+               : check_arena<format::BvhNode8>(arena, node_count_, packet_count_, name);
   kernel_id_ = kernel == BvhKernel::kAuto ? bvh_auto_kernel() : kernel;
   if (!bvh_kernel_supported(kernel_id_))
     throw std::invalid_argument(std::string("BVH kernel ") + bvh_kernel_name(kernel_id_) +
@@ -163,11 +162,14 @@ BvhWideView BvhWideView::from_blob(const Blob& blob, const std::string& name, Bv
   if (d == nullptr) blob.fail("structure '" + name + "' is a " + info->kind + ", not a BVH");
   if (d->width() != 4 && d->width() != 8)
     blob.fail("structure '" + name + "' is a " + std::to_string(d->width()) + "-wide BVH");
-  // Blob::open checked kinds, sizes and counts of these sections.
-  return BvhWideView(d->width(), d->quantized(), blob.section_bytes(d->wide_nodes()),
-                     blob.section_view<format::BvhTrianglePacket>(d->packets()),
-                     blob.section_view<std::uint32_t>(d->prim_ids()), blob.name() + ": " + name,
-                     kernel);
+  // Blob::open checked the arena section's kind and size (and refused the layout before it).
+  const BvhWideView view(d->width(), d->quantized(), blob.section_bytes(d->wide_arena()),
+                         blob.name() + ": " + name, kernel);
+  if (view.node_count() != d->wide_node_count() || view.packet_count() != d->packet_count())
+    blob.fail("structure '" + name + "' holds " + std::to_string(view.node_count()) +
+              " nodes and " + std::to_string(view.packet_count()) + " packets, its description " +
+              std::to_string(d->wide_node_count()) + " and " + std::to_string(d->packet_count()));
+  return view;
 }
 
 }  // namespace kiln

@@ -1,5 +1,6 @@
 // Collapse of a binary BVH (FlatBvh, kiln/compiler/bvh_builder.hpp) into the wide layout of
-// kiln/formats/bvh_wide.hpp: 4 or 8 children per node, leaf triangles in packets of four.
+// kiln/formats/bvh_wide.hpp: 4 or 8 children per node, leaf triangles in packets of four, laid
+// out as one arena.
 #pragma once
 
 #include <cstdint>
@@ -15,19 +16,36 @@ struct WideBvhStatistics {
   std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0;
   std::uint32_t max_depth = 0;
   double packet_fill = 0;         ///< distinct references per leaf / (packets x 4)
-  double bytes_per_triangle = 0;  ///< nodes + packets + per-lane primitive ids
+  std::uint64_t arena_bytes = 0;  ///< the stored arena: nodes, packets (with ids), padding
+  double bytes_per_triangle = 0;  ///< arena_bytes / triangles
 };
 
-/// A collapsed BVH ready for the blob: `nodes` holds node_count nodes of `width` children as raw
-/// bytes (BvhNode4/8, or BvhQNode4/8 when quantized), `prim_ids` one original triangle id per
-/// packet lane.
+/// A collapsed BVH. `arena` is what the blob stores (the BVWA section, kiln/formats/bvh_wide.hpp).
+/// The same tree by index, for tests and tools: `nodes` holds node_count nodes of `width`
+/// children as raw bytes (BvhNode4/8, or BvhQNode4/8 when quantized) in depth-first pre-order,
+/// whose child words are node indices and leaf packet indices into `packets` instead of arena
+/// offsets (interior children's `packets` 0).
 struct FlatWideBvh {
   std::uint32_t width = 8;
   bool quantized = false;  ///< nodes are BvhQNode4/8 (8-bit child boxes) instead of float ones
+  std::vector<std::byte> arena;
   std::vector<std::byte> nodes;
   std::vector<format::BvhTrianglePacket> packets;
-  std::vector<std::uint32_t> prim_ids;
   WideBvhStatistics stats;
+};
+
+/// The order of a wide node's child slots. Closest-hit traversal sorts the entered children by
+/// distance; any-hit traversal (shadow rays) visits them in slot order, so the order decides how
+/// soon an occluder is found.
+enum class WideSlotOrder {
+  kTree,         ///< the binary tree's order (left before right)
+  kLargestArea,  ///< by decreasing surface area
+  /// By decreasing P / C: P = min(1, triangle area / half the box area), a crude chance that a
+  /// ray through the child's box hits a triangle in it, over C = the child's SAH cost per ray
+  /// entering it (Ylitie's programme; with the greedy collapse, area x (1 + references / 4)), the
+  /// expected work to find out. Finds occluders sooner than either above, inside and outside
+  /// Crytek Sponza alike (docs/BENCHMARKS.md).
+  kOcclusion,
 };
 
 /// How the binary tree is cut into wide nodes and leaves.
@@ -39,11 +57,7 @@ struct WideCollapseOptions {
   double leaf_cost = 0.0;    ///< SAH cost of entering a leaf, beyond its packets
   /// A binary subtree of at most this many references may become one leaf.
   std::uint32_t max_leaf_refs = 16;
-  /// A wide node's slots by decreasing surface area, as Embree orders its children "for faster
-  /// shadow rays": the any-hit traversal enters the lowest slot first, and the largest child is
-  /// the likeliest to hold an occluder (closest-hit rays sort by distance anyway). false: the
-  /// binary tree's order.
-  bool largest_first = true;
+  WideSlotOrder order = WideSlotOrder::kOcclusion;
 };
 
 /// Collapses `binary` into `width` (4 or 8) children per node. Default: the dynamic programme of
@@ -57,8 +71,10 @@ struct WideCollapseOptions {
 /// and serial. `triangle_count` is the scene's (for bytes per triangle). `quantized`: child boxes
 /// as bytes relative to the node (BvhQuantizedNode), each containing the float box. Corners come
 /// from `binary.triangles`, or, when it is empty (built with BvhBuildOptions::leaf_triangles off),
-/// from `scene` through the primitive ids. Throws std::invalid_argument for another width, a leaf
-/// over 1020 references, (quantized) coordinates beyond 1e38, or no source of corners.
+/// from `scene` through the primitive ids. The result holds the tree twice: laid out as the
+/// arena, and by index. Throws std::invalid_argument for another width, a leaf over 1020
+/// references, (quantized) coordinates beyond 1e38, an arena beyond 32 GiB, or no source of
+/// corners.
 FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
                          bool quantized = false, const Scene* scene = nullptr,
                          const WideCollapseOptions& options = {});

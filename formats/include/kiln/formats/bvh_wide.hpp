@@ -1,7 +1,9 @@
-// On-disk layout of the wide BVH (kinds bvh and sbvh with width 4 or 8): a depth-first array of
-// wide nodes whose child boxes are stored structure-of-arrays (one SIMD slab test covers every
-// child), and leaf triangles in SIMD packets of four, structure-of-arrays. The bytes do not depend
-// on the CPU that built or reads them; the runtime picks a kernel (scalar, SSE, AVX2, AVX-512).
+// On-disk layout of the wide BVH (kinds bvh and sbvh with width 4 or 8): one arena of wide nodes
+// whose child boxes are stored structure-of-arrays (one SIMD slab test covers every child), each
+// followed by the triangle packets of its leaf children (four triangles per packet,
+// structure-of-arrays, with their primitive ids), so that a node and its leaves share cache lines
+// and memory pages. The bytes do not depend on the CPU that built or reads them; the runtime
+// picks a kernel (scalar, SSE, AVX2, AVX-512).
 #pragma once
 
 #include <cstddef>
@@ -12,20 +14,33 @@
 
 namespace kiln::format {
 
+/// The wide BVH's arena: nodes and leaf packets in 16-byte units (see BvhWideNode).
+inline constexpr std::uint32_t kSectionBvhWideArena = fourcc('B', 'V', 'W', 'A');
+/// The sections of the layout before the arena (nodes, packets and, in BVHP, one primitive id
+/// per lane, apart): no longer written; a reader refuses such a BVH with a message to rebuild it.
 inline constexpr std::uint32_t kSectionBvhWideNodes = fourcc('B', 'V', 'W', 'N');
 inline constexpr std::uint32_t kSectionBvhPackets = fourcc('B', 'V', 'W', 'T');
 inline constexpr std::uint32_t kSectionBvhQuantizedNodes = fourcc('B', 'V', 'Q', 'N');
+
+/// Arena offsets count units of this many bytes.
+inline constexpr std::uint32_t kBvhArenaUnit = 16;
+/// Nodes start on cache lines of this many bytes (as do the node's interior children).
+inline constexpr std::uint32_t kBvhArenaLine = 64;
 
 /// Triangles per leaf packet (SIMD lanes of the triangle test).
 inline constexpr std::uint32_t kBvhPacketSize = 4;
 /// Set in a child word when the child is a leaf; the other bits are its first packet.
 inline constexpr std::uint32_t kBvhLeafFlag = 0x80000000u;
 
-/// A wide node of W children (W = 4 or 8). Nodes are stored in depth-first pre-order with the
-/// children visited in slot order; node 0 is the root. Child slot i:
-/// - interior: `child[i]` is the node's index (bit 31 clear), `packets[i]` is 0;
-/// - leaf: `child[i]` is kBvhLeafFlag | first packet, `packets[i]` its packet count (1..255);
-///   leaves consume the packets in depth-first order;
+/// A wide node of W children (W = 4 or 8), stored in the arena at a 64-byte boundary. The arena
+/// is the tree in depth-first pre-order: each node, then the packets of its leaf children (slot
+/// order, consecutive), zero bytes up to the next 64-byte boundary, then the subtrees of its
+/// interior children (slot order). The root is at offset 0. Child slot i:
+/// - interior: `child[i]` is the child node's offset in kBvhArenaUnit units (bit 31 clear);
+///   `packets[i]` is how many 64-byte lines the child's own leaf packets span after it (at most
+///   255): a prefetch hint, fixed by the layout;
+/// - leaf: `child[i]` is kBvhLeafFlag | the offset of its first packet, `packets[i]` its packet
+///   count (1..255);
 /// - empty: `child[i]` is kBvhLeafFlag, `packets[i]` is 0, the box is inverted (+inf / -inf).
 /// `bounds[axis][0][i]` and `bounds[axis][1][i]` are child i's min and max on that axis.
 template <int W>
@@ -89,12 +104,14 @@ void bvh_child_box(const BvhQuantizedNode<W>& n, int k, float lo[3], float hi[3]
 }
 
 /// Four triangles, structure-of-arrays: `v[corner][axis][lane]`, the corners exactly as the
-/// watertight test (Woop et al. 2013) consumes them. A leaf's last packet repeats its last
-/// triangle in the unused lanes (same primitive id), so every lane is a real triangle.
+/// watertight test (Woop et al. 2013) consumes them, and each lane's primitive id. A leaf's last
+/// packet repeats its last triangle in the unused lanes (same primitive id), so every lane is a
+/// real triangle.
 struct BvhTrianglePacket {
   float v[3][3][kBvhPacketSize];
+  std::uint32_t prim[kBvhPacketSize];
 };
-static_assert(sizeof(BvhTrianglePacket) == 144);
+static_assert(sizeof(BvhTrianglePacket) == 160 && sizeof(BvhTrianglePacket) % kBvhArenaUnit == 0);
 
 /// Packets per leaf at most (the count is a byte).
 inline constexpr std::uint32_t kBvhMaxLeafPackets = 255;

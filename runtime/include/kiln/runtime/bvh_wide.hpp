@@ -39,22 +39,22 @@ struct BvhWideKernel {
   Hit (*counting)(const BvhWideView&, const Ray&, Cost&);
 };
 
-/// A validated view of one wide BVH's arrays; a RayStructure (kiln/runtime/ray_structure.hpp).
-/// Creating it walks the nodes once (O(nodes)): every node is reached exactly once in depth-first
-/// order, no deeper than format::kBvhMaxDepth, every child word names a node or a packet range
-/// inside the arrays, and leaves consume the packets in order; so no kernel can read out of
-/// range, loop or overflow its fixed stack, whatever the bytes. Throws BlobError otherwise.
+/// A validated view of one wide BVH's arena (kiln/formats/bvh_wide.hpp); a RayStructure
+/// (kiln/runtime/ray_structure.hpp). Creating it walks the arena once (O(size)): every node and
+/// leaf packet sits exactly where the depth-first layout puts it, no node deeper than
+/// format::kBvhMaxDepth, every interior child's prefetch hint is its leaf packets' line count,
+/// and the nodes, packets and padding fill the arena; so no kernel can read out of range, loop or
+/// overflow its fixed stack, whatever the bytes. Throws BlobError otherwise.
 class BvhWideView {
  public:
   using HitType = Hit;
 
-  /// `nodes` holds BvhNode4 or BvhNode8 (width 4 or 8), or BvhQNode4/8 when `quantized`;
-  /// `prim_ids` one id per packet lane.
-  BvhWideView(std::uint32_t width, bool quantized, std::span<const std::byte> nodes,
-              std::span<const format::BvhTrianglePacket> packets,
-              std::span<const std::uint32_t> prim_ids, const std::string& name = "bvh",
-              BvhKernel kernel = BvhKernel::kAuto);
-  /// The structure named `name` of a blob; throws BlobError when it is not a wide BVH.
+  /// `arena` holds BvhNode4 or BvhNode8 nodes (width 4 or 8), or BvhQNode4/8 when `quantized`,
+  /// and their leaves' BvhTrianglePackets.
+  BvhWideView(std::uint32_t width, bool quantized, std::span<const std::byte> arena,
+              const std::string& name = "bvh", BvhKernel kernel = BvhKernel::kAuto);
+  /// The structure named `name` of a blob; throws BlobError when it is not a wide BVH, or one
+  /// of the layout before the arena (written before 2026-11-27: rebuild it).
   static BvhWideView from_blob(const Blob& blob, const std::string& name,
                                BvhKernel kernel = BvhKernel::kAuto);
 
@@ -73,32 +73,40 @@ class BvhWideView {
   bool quantized() const { return quantized_; }
   BvhKernel kernel() const { return kernel_id_; }
   std::size_t node_count() const { return node_count_; }
-  /// The nodes as the type they are (by width and quantized()); empty for the other types.
-  std::span<const format::BvhNode4> nodes4() const { return nodes_as<format::BvhNode4>(4, false); }
-  std::span<const format::BvhNode8> nodes8() const { return nodes_as<format::BvhNode8>(8, false); }
-  std::span<const format::BvhQNode4> qnodes4() const {
-    return nodes_as<format::BvhQNode4>(4, true);
+  std::size_t packet_count() const { return packet_count_; }
+  std::span<const std::byte> arena() const { return arena_; }
+
+  /// The node a child word names (the root: 0), as `Node` (BvhNode4/8 or BvhQNode4/8, by
+  /// width() and quantized()).
+  template <class Node>
+  const Node& node(std::uint32_t word) const {
+    return *reinterpret_cast<const Node*>(arena_.data() +
+                                          std::size_t(word) * format::kBvhArenaUnit);
   }
-  std::span<const format::BvhQNode8> qnodes8() const {
-    return nodes_as<format::BvhQNode8>(8, true);
+  /// The packets of a leaf child (its word and packet count).
+  std::span<const format::BvhTrianglePacket> leaf(std::uint32_t word, std::uint32_t packets) const {
+    return {reinterpret_cast<const format::BvhTrianglePacket*>(
+                arena_.data() + std::size_t(word & ~format::kBvhLeafFlag) * format::kBvhArenaUnit),
+            packets};
   }
-  std::span<const std::byte> node_bytes() const { return nodes_; }
-  std::span<const format::BvhTrianglePacket> packets() const { return packets_; }
-  std::span<const std::uint32_t> prim_ids() const { return prim_ids_; }
+  /// Calls visit(node) for every node as `Node`, in depth-first pre-order.
+  template <class Node, class Visit>
+  void for_each_node(Visit&& visit) const {
+    std::vector<std::uint32_t> pending{0};
+    while (!pending.empty()) {
+      const Node& n = node<Node>(pending.back());
+      pending.pop_back();
+      visit(n);
+      for (int k = int(sizeof n.child / sizeof n.child[0]) - 1; k >= 0; --k)
+        if (!(n.child[k] & format::kBvhLeafFlag)) pending.push_back(n.child[k]);
+    }
+  }
 
  private:
-  template <class Node>
-  std::span<const Node> nodes_as(std::uint32_t width, bool quantized) const {
-    if (width_ != width || quantized_ != quantized) return {};
-    return {reinterpret_cast<const Node*>(nodes_.data()), node_count_};
-  }
-
   std::uint32_t width_;
   bool quantized_ = false;
-  std::size_t node_count_ = 0;
-  std::span<const std::byte> nodes_;
-  std::span<const format::BvhTrianglePacket> packets_;
-  std::span<const std::uint32_t> prim_ids_;
+  std::size_t node_count_ = 0, packet_count_ = 0;
+  std::span<const std::byte> arena_;
   BvhKernel kernel_id_ = BvhKernel::kScalar;
   const BvhWideKernel* kernel_ = nullptr;
 };
