@@ -125,18 +125,17 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
   alignas(16) float ts[4], vs[4], ws[4], dets[4];
   F4::store(ts, t), F4::store(vs, v), F4::store(ws, w), F4::store(dets, det);
   int best = -1;
-  for (int lane = 0; lane < 4; ++lane) {
+  for (unsigned todo = ok | exact; todo != 0; todo &= todo - 1) {
+    const int lane = __builtin_ctz(todo);
     float lt, lu, lv;
     if (exact >> lane & 1u) {
       const format::Float3 a{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]};
       const format::Float3 b{p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]};
       const format::Float3 c{p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]};
       if (!intersect_watertight(r, a, b, c, tmin, tmax, lt, lu, lv)) continue;
-    } else if (ok >> lane & 1u) {
+    } else {
       if (!(ts[lane] < tmax)) continue;
       lt = ts[lane], lu = vs[lane] / dets[lane], lv = ws[lane] / dets[lane];
-    } else {
-      continue;
     }
     // Lane order, strictly closer: the scalar BVH's order of triangle tests within a leaf.
     tmax = lt, t_out = lt, u_out = lu, v_out = lv, best = lane;
