@@ -32,6 +32,14 @@ struct Avx512F4 {
   KILN_SIMD static unsigned gt(T a, T b) { return _mm_cmp_ps_mask(a, b, _CMP_GT_OQ); }
   KILN_SIMD static unsigned le(T a, T b) { return _mm_cmp_ps_mask(a, b, _CMP_LE_OQ); }
   KILN_SIMD static unsigned eq(T a, T b) { return _mm_cmp_ps_mask(a, b, _CMP_EQ_OQ); }
+  using M = unsigned;  // mask registers already
+  KILN_SIMD static M lt_m(T a, T b) { return lt(a, b); }
+  KILN_SIMD static M gt_m(T a, T b) { return gt(a, b); }
+  KILN_SIMD static M eq_m(T a, T b) { return eq(a, b); }
+  KILN_SIMD static M or_m(M a, M b) { return a | b; }
+  KILN_SIMD static M and_m(M a, M b) { return a & b; }
+  KILN_SIMD static M andnot_m(M a, M b) { return ~a & b; }
+  KILN_SIMD static unsigned bits(M a) { return a & 0xFu; }
 };
 
 struct Avx512F8 {

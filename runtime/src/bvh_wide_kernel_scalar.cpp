@@ -72,6 +72,14 @@ struct ArrayVec {
   static unsigned eq(T a, T b) {
     return bits(a, b, [](float x, float y) { return x == y; });
   }
+  using M = unsigned;
+  static M lt_m(T a, T b) { return lt(a, b); }
+  static M gt_m(T a, T b) { return gt(a, b); }
+  static M eq_m(T a, T b) { return eq(a, b); }
+  static M or_m(M a, M b) { return a | b; }
+  static M and_m(M a, M b) { return a & b; }
+  static M andnot_m(M a, M b) { return ~a & b; }
+  static unsigned bits(M a) { return a & ((1u << N) - 1u); }
 };
 using F4 = ArrayVec<4>;
 using F8 = ArrayVec<8>;

@@ -25,4 +25,13 @@ struct SseF4 {
   KILN_SIMD static unsigned gt(T a, T b) { return unsigned(_mm_movemask_ps(_mm_cmpgt_ps(a, b))); }
   KILN_SIMD static unsigned le(T a, T b) { return unsigned(_mm_movemask_ps(_mm_cmple_ps(a, b))); }
   KILN_SIMD static unsigned eq(T a, T b) { return unsigned(_mm_movemask_ps(_mm_cmpeq_ps(a, b))); }
+  // Lane masks kept in a register, combined there, turned into bits once.
+  using M = __m128;
+  KILN_SIMD static M lt_m(T a, T b) { return _mm_cmplt_ps(a, b); }
+  KILN_SIMD static M gt_m(T a, T b) { return _mm_cmpgt_ps(a, b); }
+  KILN_SIMD static M eq_m(T a, T b) { return _mm_cmpeq_ps(a, b); }
+  KILN_SIMD static M or_m(M a, M b) { return _mm_or_ps(a, b); }
+  KILN_SIMD static M and_m(M a, M b) { return _mm_and_ps(a, b); }
+  KILN_SIMD static M andnot_m(M a, M b) { return _mm_andnot_ps(a, b); }  // ~a & b
+  KILN_SIMD static unsigned bits(M a) { return unsigned(_mm_movemask_ps(a)); }
 };

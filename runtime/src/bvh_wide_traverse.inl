@@ -4,7 +4,9 @@
 //   KILN_SIMD  the attributes of every function here (target instruction set, always_inline),
 //   F4, F8     float vectors of 4 and 8 lanes: T, load, set1, add, sub, mul, div, max, min
 //              (max(a, b) = a > b ? a : b and min(a, b) = a < b ? a : b, as x86 computes them, so
-//              NaN handling equals the scalar slab test's), and lt, gt, le, eq returning lane bits.
+//              NaN handling equals the scalar slab test's), and lt, gt, le, eq returning lane bits;
+//              F4 also has a lane-mask type M: lt_m, gt_m, eq_m, or_m, and_m, andnot_m (~a & b)
+//              and bits(M).
 // Everything here has internal linkage, so each instruction set's copy stays its own.
 //
 // The arithmetic per triangle is that of watertight.hpp operation for operation, per box that of
@@ -108,35 +110,38 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
   const T v = F4::sub(F4::mul(x[0], y[2]), F4::mul(y[0], x[2]));
   const T w = F4::sub(F4::mul(x[1], y[0]), F4::mul(y[1], x[0]));
   const T zero = F4::set1(0.0f);
-  // Lanes with an exact zero edge function take the scalar test (double re-evaluation).
-  const unsigned exact = F4::eq(u, zero) | F4::eq(v, zero) | F4::eq(w, zero);
-  const unsigned negative = F4::lt(u, zero) | F4::lt(v, zero) | F4::lt(w, zero);
-  const unsigned positive = F4::gt(u, zero) | F4::gt(v, zero) | F4::gt(w, zero);
-  unsigned ok = ~(negative & positive) & ~exact & 0xFu;
-  if ((ok | exact) == 0) return -1;  // most packets: every lane outside an edge, no division
+  // Lanes with an exact zero edge function take the scalar test (double re-evaluation). No
+  // branch before the division (whether a lane passes its edges is hard to predict, a division
+  // is cheaper than the mispredicted exit), and the lane masks are combined in registers, then
+  // turned into bits once each.
+  using M = typename F4::M;
+  const M exact_m = F4::or_m(F4::or_m(F4::eq_m(u, zero), F4::eq_m(v, zero)), F4::eq_m(w, zero));
+  const M negative = F4::or_m(F4::or_m(F4::lt_m(u, zero), F4::lt_m(v, zero)), F4::lt_m(w, zero));
+  const M positive = F4::or_m(F4::or_m(F4::gt_m(u, zero), F4::gt_m(v, zero)), F4::gt_m(w, zero));
   const T det = F4::add(F4::add(u, v), w);
-  ok &= ~F4::eq(det, zero);
   const T sz = l.shear[2];
   const T t_scaled = F4::add(F4::add(F4::mul(u, F4::mul(sz, z[0])), F4::mul(v, F4::mul(sz, z[1]))),
                              F4::mul(w, F4::mul(sz, z[2])));
   const T t = F4::div(t_scaled, det);
-  ok &= F4::gt(t, F4::set1(tmin)) & F4::lt(t, F4::set1(tmax));
+  const M out = F4::or_m(F4::or_m(F4::and_m(negative, positive), exact_m), F4::eq_m(det, zero));
+  const M in_range = F4::and_m(F4::gt_m(t, F4::set1(tmin)), F4::lt_m(t, F4::set1(tmax)));
+  const unsigned exact = F4::bits(exact_m);
+  const unsigned ok = F4::bits(F4::andnot_m(out, in_range));
   if ((ok | exact) == 0) return -1;
   alignas(16) float ts[4], vs[4], ws[4], dets[4];
   F4::store(ts, t), F4::store(vs, v), F4::store(ws, w), F4::store(dets, det);
   int best = -1;
-  for (int lane = 0; lane < 4; ++lane) {
+  for (unsigned todo = ok | exact; todo != 0; todo &= todo - 1) {
+    const int lane = __builtin_ctz(todo);
     float lt, lu, lv;
     if (exact >> lane & 1u) {
       const format::Float3 a{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]};
       const format::Float3 b{p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]};
       const format::Float3 c{p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]};
       if (!intersect_watertight(r, a, b, c, tmin, tmax, lt, lu, lv)) continue;
-    } else if (ok >> lane & 1u) {
+    } else {
       if (!(ts[lane] < tmax)) continue;
       lt = ts[lane], lu = vs[lane] / dets[lane], lv = ws[lane] / dets[lane];
-    } else {
-      continue;
     }
     // Lane order, strictly closer: the scalar BVH's order of triangle tests within a leaf.
     tmax = lt, t_out = lt, u_out = lu, v_out = lv, best = lane;
