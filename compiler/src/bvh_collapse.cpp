@@ -3,6 +3,7 @@
 #include "kiln/compiler/bvh_collapse.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -76,61 +77,81 @@ std::vector<std::byte> quantize_all(const std::vector<std::byte>& nodes) {
 // The SAH dynamic programme over the binary tree (Ylitie et al. 2017). cost(i, k): the least
 // SAH cost of binary subtree i spread over at most k child slots of a wide node; with one slot,
 // i is a leaf (area x packets x packet_cost) or a wide node (area x node_cost plus its subtree
-// spread over W slots). Binary leaves stay leaves.
+// spread over W slots). Binary leaves stay leaves. Nodes are visited in reverse pre-order
+// (children before their parent): a node's row of W costs is needed only by its parent, so the
+// rows live on a stack (the left child's on top, the right child's below it) and only cost(i, 1)
+// is kept per node, for the slot order.
+// A wide node's children (binary node indices), at most W.
+template <int W>
+struct Slots {
+  std::uint32_t node[W];
+  int size = 0;
+  void push(std::uint32_t i) { node[size++] = i; }
+};
+
 template <int W>
 struct CollapseProgramme {
-  std::vector<double> cost;         // [node * W + k - 1]
-  std::vector<std::uint8_t> pick;   // k = 1: 1 = leaf; k > 1: 0 = as k - 1, else slots to the left
+  using Row = std::array<double, W>;
+  std::vector<double> cost1;        // [node]: cost(node, 1)
+  std::vector<std::uint8_t> pick;   // [node * W + k - 1] k = 1: 1 = leaf; k > 1: 0 = as k - 1,
+                                    // else slots to the left
   std::vector<std::uint8_t> split;  // a wide node's slots to the left child (of W)
+  std::vector<std::pair<std::uint32_t, Row>> rows;  // pending rows: node, costs
+  const WideCollapseOptions& o;
 
-  CollapseProgramme(const FlatBvh& bin, const std::vector<std::uint32_t>& refs,
-                    const WideCollapseOptions& o)
-      : cost(bin.nodes.size() * W), pick(bin.nodes.size() * W), split(bin.nodes.size()) {
-    // Pre-order: children follow their parent, so a reverse sweep sees them first.
-    for (std::size_t i = bin.nodes.size(); i-- > 0;) {
-      const auto& n = bin.nodes[i];
-      const double area = half_area(n);
-      const double packets =
-          double((refs[i] + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
-      const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
-      double* c = &cost[i * W];
-      std::uint8_t* p = &pick[i * W];
-      if (n.count > 0) {
-        std::fill(c, c + W, leaf);
-        std::fill(p, p + W, std::uint8_t(0));
-        p[0] = 1;
-        continue;
-      }
-      const std::size_t l = i + 1, r = n.offset;
-      double spread[W + 1];  // spread[k]: both children over k slots, k >= 2
-      for (int k = 2; k <= W; ++k) {
-        spread[k] = std::numeric_limits<double>::infinity();
-        for (int left = 1; left < k; ++left) {
-          const double s = cost[l * W + left - 1] + cost[r * W + k - left - 1];
-          if (s < spread[k]) spread[k] = s, p[k - 1] = std::uint8_t(left);
-        }
-      }
-      split[i] = p[W - 1];
-      const double inner = area * o.node_cost + spread[W];
-      const bool as_leaf = refs[i] <= o.max_leaf_refs && leaf <= inner;
-      c[0] = as_leaf ? leaf : inner;
-      p[0] = as_leaf ? 1 : 0;
-      for (int k = 2; k <= W; ++k) {
-        if (c[k - 2] <= spread[k])
-          c[k - 1] = c[k - 2], p[k - 1] = 0;
-        else
-          c[k - 1] = spread[k];
+  CollapseProgramme(std::size_t nodes, const WideCollapseOptions& opt)
+      : cost1(nodes), pick(nodes * W), split(nodes), o(opt) {
+    rows.reserve(128);
+  }
+
+  // Node i, once its children (if any) have been visited.
+  void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs) {
+    const double area = half_area(n);
+    const double packets = double((refs + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
+    const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
+    std::uint8_t* p = &pick[std::size_t(i) * W];
+    Row c;
+    if (n.count > 0) {
+      c.fill(leaf);
+      p[0] = 1;
+      cost1[i] = leaf;
+      rows.push_back({i, c});
+      return;
+    }
+    if (rows.size() < 2 || rows.back().first != i + 1 || rows[rows.size() - 2].first != n.offset)
+      throw std::invalid_argument("collapse_bvh: binary nodes not in depth-first pre-order");
+    const Row l = rows.back().second, r = rows[rows.size() - 2].second;
+    rows.resize(rows.size() - 2);
+    double spread[W + 1];  // spread[k]: both children over k slots, k >= 2
+    for (int k = 2; k <= W; ++k) {
+      spread[k] = std::numeric_limits<double>::infinity();
+      for (int left = 1; left < k; ++left) {
+        const double s = l[left - 1] + r[k - left - 1];
+        if (s < spread[k]) spread[k] = s, p[k - 1] = std::uint8_t(left);
       }
     }
+    split[i] = p[W - 1];
+    const double inner = area * o.node_cost + spread[W];
+    const bool as_leaf = refs <= o.max_leaf_refs && leaf <= inner;
+    c[0] = as_leaf ? leaf : inner;
+    p[0] = as_leaf ? 1 : 0;
+    for (int k = 2; k <= W; ++k) {
+      if (c[k - 2] <= spread[k])
+        c[k - 1] = c[k - 2], p[k - 1] = 0;
+      else
+        c[k - 1] = spread[k];
+    }
+    cost1[i] = c[0];
+    rows.push_back({i, c});
   }
 
   bool is_leaf(std::uint32_t i) const { return pick[std::size_t(i) * W] == 1; }
 
   // The slots subtree i takes when given at most k.
-  void collect(const FlatBvh& bin, std::uint32_t i, int k, std::vector<std::uint32_t>& out) const {
+  void collect(const FlatBvh& bin, std::uint32_t i, int k, Slots<W>& out) const {
     while (k > 1 && pick[std::size_t(i) * W + k - 1] == 0) --k;
     if (k == 1 || bin.nodes[i].count > 0) {
-      out.push_back(i);
+      out.push(i);
       return;
     }
     const int left = pick[std::size_t(i) * W + k - 1];
@@ -155,25 +176,24 @@ struct Collapser {
       : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
+    if (!options.greedy) programme.emplace(bin.nodes.size(), options);
+    const bool occlusion = options.order == WideSlotOrder::kOcclusion;
+    if (occlusion) triangle_area.resize(bin.nodes.size());
     // Pre-order: children follow their parent, so a reverse sweep sees them first.
     for (std::size_t i = bin.nodes.size(); i-- > 0;) {
       const auto& n = bin.nodes[i];
       refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
+      if (occlusion) triangle_area[i] = subtree_triangle_area(n, i);
+      if (programme) programme->visit(std::uint32_t(i), n, refs[i]);
     }
-    if (!options.greedy) programme.emplace(bin, refs, options);
-    if (options.order == WideSlotOrder::kOcclusion) {
-      triangle_area.resize(bin.nodes.size());
-      for (std::size_t i = bin.nodes.size(); i-- > 0;) {
-        const auto& n = bin.nodes[i];
-        if (n.count == 0) {
-          triangle_area[i] = triangle_area[i + 1] + triangle_area[n.offset];
-          continue;
-        }
-        double sum = 0;
-        for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r) sum += area_of(corners_of(r));
-        triangle_area[i] = sum;
-      }
-    }
+  }
+
+  // The triangles' area under node i, its children's already known.
+  double subtree_triangle_area(const format::BvhNode& n, std::size_t i) const {
+    if (n.count == 0) return triangle_area[i + 1] + triangle_area[n.offset];
+    double sum = 0;
+    for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r) sum += area_of(corners_of(r));
+    return sum;
   }
 
   static double area_of(const format::RayTriangle& t) {
@@ -191,8 +211,7 @@ struct Collapser {
       case WideSlotOrder::kOcclusion: {
         // P / C with P = min(1, triangle area / area) and C = cost / area: min(area, tri) / cost.
         // The greedy collapse has no programme: a rough cost instead.
-        const double cost =
-            programme ? programme->cost[std::size_t(i) * W] : area * (1.0 + double(refs[i]) * 0.25);
+        const double cost = programme ? programme->cost1[i] : area * (1.0 + double(refs[i]) * 0.25);
         return cost > 0 ? std::min(area, triangle_area[i]) / cost : 0.0;
       }
       default:
@@ -260,28 +279,48 @@ struct Collapser {
 
   // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
   // the largest child until W.
-  std::vector<std::uint32_t> gather(std::uint32_t i) const {
-    std::vector<std::uint32_t> kids;
-    if (bin.nodes[i].count > 0 || (!programme && is_leaf(i))) return {i};
+  Slots<W> gather(std::uint32_t i) const {
+    Slots<W> kids;
+    if (bin.nodes[i].count > 0 || (!programme && is_leaf(i))) {
+      kids.push(i);
+      return kids;
+    }
     if (programme) {
       const int left = programme->split[i];
       programme->collect(bin, i + 1, left, kids);
       programme->collect(bin, bin.nodes[i].offset, W - left, kids);
       return kids;
     }
-    kids = {i + 1, bin.nodes[i].offset};
-    while (kids.size() < std::size_t(W)) {
+    kids.push(i + 1), kids.push(bin.nodes[i].offset);
+    while (kids.size < W) {
       int best = -1;
       float best_area = -1;
-      for (std::size_t k = 0; k < kids.size(); ++k)
-        if (!is_leaf(kids[k]) && half_area(bin.nodes[kids[k]]) > best_area)
-          best = int(k), best_area = half_area(bin.nodes[kids[k]]);
+      for (int k = 0; k < kids.size; ++k)
+        if (!is_leaf(kids.node[k]) && half_area(bin.nodes[kids.node[k]]) > best_area)
+          best = k, best_area = half_area(bin.nodes[kids.node[k]]);
       if (best < 0) break;
-      const std::uint32_t open = kids[best];
-      kids[best] = open + 1;
-      kids.insert(kids.begin() + best + 1, bin.nodes[open].offset);
+      const std::uint32_t open = kids.node[best];
+      std::copy_backward(kids.node + best + 1, kids.node + kids.size, kids.node + kids.size + 1);
+      kids.node[best] = open + 1, kids.node[best + 1] = bin.nodes[open].offset;
+      kids.size += 1;
     }
     return kids;
+  }
+
+  // Orders the slots by decreasing score, ties in the tree's order (a stable insertion sort,
+  // each score computed once).
+  void order_slots(Slots<W>& kids) const {
+    if (options.order == WideSlotOrder::kTree) return;
+    double score[W];
+    for (int k = 0; k < kids.size; ++k) score[k] = slot_score(kids.node[k]);
+    for (int k = 1; k < kids.size; ++k) {
+      const std::uint32_t node = kids.node[k];
+      const double key = score[k];
+      int j = k;
+      for (; j > 0 && key > score[j - 1]; --j)
+        kids.node[j] = kids.node[j - 1], score[j] = score[j - 1];
+      kids.node[j] = node, score[j] = key;
+    }
   }
 
   std::uint32_t emit(std::uint32_t i, std::uint32_t depth) {
@@ -295,19 +334,16 @@ struct Collapser {
         node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
-    auto kids = gather(i);
-    if (options.order != WideSlotOrder::kTree)  // stable: ties keep the tree's order
-      std::stable_sort(kids.begin(), kids.end(), [&](std::uint32_t a, std::uint32_t b) {
-        return slot_score(a) > slot_score(b);
-      });
-    for (std::size_t k = 0; k < kids.size(); ++k) {
-      const auto& b = bin.nodes[kids[k]];
+    Slots<W> kids = gather(i);
+    order_slots(kids);
+    for (int k = 0; k < kids.size; ++k) {
+      const auto& b = bin.nodes[kids.node[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
-      if (is_leaf(kids[k])) {
-        const auto [word, packets] = emit_leaf(kids[k]);
+      if (is_leaf(kids.node[k])) {
+        const auto [word, packets] = emit_leaf(kids.node[k]);
         node.child[k] = word, node.packets[k] = packets;
       } else {
-        node.child[k] = emit(kids[k], depth + 1);
+        node.child[k] = emit(kids.node[k], depth + 1);
       }
     }
     std::memcpy(out.nodes.data() + index * sizeof node, &node, sizeof node);
@@ -359,9 +395,26 @@ struct ArenaWriter {
   }
 };
 
+// The arena's size: each node with its leaf packets, padded to a line.
+template <class Node, int W>
+std::size_t arena_size(const FlatWideBvh& wide) {
+  std::size_t bytes = 0;
+  for (std::size_t i = 0, count = wide.nodes.size() / sizeof(Node); i < count; ++i) {
+    Node n;
+    std::memcpy(&n, wide.nodes.data() + i * sizeof n, sizeof n);
+    std::size_t block = sizeof n;
+    for (int k = 0; k < W; ++k)
+      if (n.child[k] & format::kBvhLeafFlag)
+        block += n.packets[k] * sizeof(format::BvhTrianglePacket);
+    bytes += (block + format::kBvhArenaLine - 1) / format::kBvhArenaLine * format::kBvhArenaLine;
+  }
+  return bytes;
+}
+
 template <class Node, int W>
 std::vector<std::byte> write_arena(const FlatWideBvh& wide) {
   ArenaWriter<Node, W> writer{wide, {}};
+  writer.out.reserve(arena_size<Node, W>(wide));  // written once, no regrowth
   std::size_t root_lines = 0;
   writer.write(0, root_lines);
   return std::move(writer.out);
