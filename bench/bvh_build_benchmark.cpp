@@ -135,7 +135,10 @@ KilnResult kiln_build(const kiln::Scene& scene, kiln::BvhBuilder builder, unsign
   });
   out.stats = flat.stats;
   const double c0 = threads == 1 ? cpu_seconds() : wall_seconds();
-  const kiln::FlatWideBvh wide = kiln::collapse_bvh(flat, 8, scene.triangles.size(), false, &scene);
+  kiln::WideCollapseOptions c;
+  c.threads = threads;
+  const kiln::FlatWideBvh wide =
+      kiln::collapse_bvh(flat, 8, scene.triangles.size(), false, &scene, c);
   out.collapse_seconds = (threads == 1 ? cpu_seconds() : wall_seconds()) - c0;
   (void)wide;
   return out;

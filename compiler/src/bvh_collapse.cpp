@@ -12,6 +12,7 @@
 #include <string>
 
 #include "kiln/formats/vector.hpp"
+#include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
 
@@ -171,6 +172,7 @@ struct Collapser {
   std::vector<std::uint32_t> leaf_refs;           // scratch: the leaf being packed
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
   std::vector<double> triangle_area;              // under each binary node (kOcclusion)
+  std::vector<double> prim_area;                  // each scene triangle's (kOcclusion, no copies)
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
       : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
@@ -178,7 +180,10 @@ struct Collapser {
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
     if (!options.greedy) programme.emplace(bin.nodes.size(), options);
     const bool occlusion = options.order == WideSlotOrder::kOcclusion;
-    if (occlusion) triangle_area.resize(bin.nodes.size());
+    if (occlusion) {
+      triangle_area.resize(bin.nodes.size());
+      if (bin.triangles.empty()) prim_area = scene_triangle_areas(*scene, options.threads);
+    }
     // Pre-order: children follow their parent, so a reverse sweep sees them first.
     for (std::size_t i = bin.nodes.size(); i-- > 0;) {
       const auto& n = bin.nodes[i];
@@ -192,8 +197,21 @@ struct Collapser {
   double subtree_triangle_area(const format::BvhNode& n, std::size_t i) const {
     if (n.count == 0) return triangle_area[i + 1] + triangle_area[n.offset];
     double sum = 0;
-    for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r) sum += area_of(corners_of(r));
+    for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r)
+      sum += prim_area.empty() ? area_of(bin.triangles[r]) : prim_area[bin.prim_ids[r]];
     return sum;
+  }
+
+  // Every scene triangle's area, in scene order (its corners read in sequence, not in the
+  // leaves' scattered order).
+  static std::vector<double> scene_triangle_areas(const Scene& scene, unsigned threads) {
+    std::vector<double> area(scene.triangles.size());
+    parallel_for_batched(area.size(), 65536, threads, [&](std::size_t i) {
+      const auto& t = scene.triangles[i];
+      area[i] =
+          area_of({scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]});
+    });
+    return area;
   }
 
   static double area_of(const format::RayTriangle& t) {

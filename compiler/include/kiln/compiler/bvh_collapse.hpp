@@ -58,6 +58,9 @@ struct WideCollapseOptions {
   /// A binary subtree of at most this many references may become one leaf.
   std::uint32_t max_leaf_refs = 16;
   WideSlotOrder order = WideSlotOrder::kOcclusion;
+  /// Worker threads for the passes that run in parallel (0 = every core); never changes the
+  /// result.
+  unsigned threads = 1;
 };
 
 /// Collapses `binary` into `width` (4 or 8) children per node. Default: the dynamic programme of
