@@ -137,6 +137,7 @@ KilnResult kiln_build(const kiln::Scene& scene, kiln::BvhBuilder builder, unsign
   const double c0 = threads == 1 ? cpu_seconds() : wall_seconds();
   kiln::WideCollapseOptions c;
   c.threads = threads;
+  c.index_tree = false;  // as kiln build: the arena alone
   const kiln::FlatWideBvh wide =
       kiln::collapse_bvh(flat, 8, scene.triangles.size(), false, &scene, c);
   out.collapse_seconds = (threads == 1 ? cpu_seconds() : wall_seconds()) - c0;

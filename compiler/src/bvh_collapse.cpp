@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "kiln/formats/vector.hpp"
 #include "kiln/runtime/parallel.hpp"
@@ -61,27 +62,6 @@ format::BvhQuantizedNode<W> quantize(const format::BvhWideNode<W>& in) {
   return out;
 }
 
-// Rewrites the float nodes as quantised ones, in place order.
-template <int W>
-std::vector<std::byte> quantize_all(const std::vector<std::byte>& nodes) {
-  const std::size_t count = nodes.size() / sizeof(format::BvhWideNode<W>);
-  std::vector<std::byte> out(count * sizeof(format::BvhQuantizedNode<W>));
-  for (std::size_t i = 0; i < count; ++i) {
-    format::BvhWideNode<W> node;
-    std::memcpy(&node, nodes.data() + i * sizeof node, sizeof node);
-    const format::BvhQuantizedNode<W> q = quantize(node);
-    std::memcpy(out.data() + i * sizeof q, &q, sizeof q);
-  }
-  return out;
-}
-
-// The SAH dynamic programme over the binary tree (Ylitie et al. 2017). cost(i, k): the least
-// SAH cost of binary subtree i spread over at most k child slots of a wide node; with one slot,
-// i is a leaf (area x packets x packet_cost) or a wide node (area x node_cost plus its subtree
-// spread over W slots). Binary leaves stay leaves. Nodes are visited in reverse pre-order
-// (children before their parent): a node's row of W costs is needed only by its parent, so the
-// rows live on a stack (the left child's on top, the right child's below it) and only cost(i, 1)
-// is kept per node, for the slot order.
 // A wide node's children (binary node indices), at most W.
 template <int W>
 struct Slots {
@@ -268,8 +248,8 @@ struct Collapser {
     return list;
   }
 
-  // Packs subtree `i`'s references into packets; returns the child word and packet count.
-  std::pair<std::uint32_t, std::uint8_t> emit_leaf(std::uint32_t i) {
+  // Packs subtree `i`'s references into packets at the end of the arena; returns their count.
+  std::uint8_t write_leaf(std::uint32_t i) {
     const std::vector<std::uint32_t>& list = distinct_refs(i);
     const auto count = std::uint32_t(list.size());
     lanes_used += count;
@@ -277,9 +257,10 @@ struct Collapser {
     if (packets > format::kBvhMaxLeafPackets)
       throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
                                   " references does not fit a wide leaf");
-    const auto start = std::uint32_t(out.packets.size());
-    for (std::uint32_t p = 0; p < packets; ++p) {
-      format::BvhTrianglePacket packet{};
+    std::size_t at = out.arena.size();
+    out.arena.resize(at + packets * sizeof(format::BvhTrianglePacket));
+    for (std::uint32_t p = 0; p < packets; ++p, at += sizeof(format::BvhTrianglePacket)) {
+      format::BvhTrianglePacket packet;
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
         // Unused lanes repeat the leaf's last triangle: every lane is a real triangle.
         const std::uint32_t r = list[std::min(p * format::kBvhPacketSize + lane, count - 1)];
@@ -289,10 +270,11 @@ struct Collapser {
           for (int a = 0; a < 3; ++a) packet.v[c][a][lane] = format::at(corners[c], a);
         packet.prim[lane] = bin.prim_ids[r];
       }
-      out.packets.push_back(packet);
+      std::memcpy(out.arena.data() + at, &packet, sizeof packet);
     }
     out.stats.leaf_count += 1;
-    return {format::kBvhLeafFlag | start, std::uint8_t(packets)};
+    out.stats.packet_count += packets;
+    return std::uint8_t(packets);
   }
 
   // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
@@ -341,9 +323,22 @@ struct Collapser {
     }
   }
 
-  std::uint32_t emit(std::uint32_t i, std::uint32_t depth) {
-    const auto index = std::uint32_t(out.nodes.size() / sizeof(format::BvhWideNode<W>));
-    out.nodes.resize(out.nodes.size() + sizeof(format::BvhWideNode<W>));
+  static std::uint32_t unit(std::size_t bytes) {
+    if (bytes / format::kBvhArenaUnit >= format::kBvhLeafFlag)
+      throw std::invalid_argument("BVH too large for 32-bit arena offsets");
+    return std::uint32_t(bytes / format::kBvhArenaUnit);
+  }
+  static std::size_t to_line(std::size_t bytes) {
+    return (bytes + format::kBvhArenaLine - 1) / format::kBvhArenaLine * format::kBvhArenaLine;
+  }
+
+  // The wide node of binary node `i` and its subtree, written at the end of the arena
+  // (kiln/formats/bvh_wide.hpp): the node, its leaf packets, zeros to the next line, then its
+  // interior children's subtrees. Returns its offset; sets `leaf_lines` to the lines its own
+  // leaf packets span.
+  template <class Node>
+  std::uint32_t write(std::uint32_t i, std::uint32_t depth, std::size_t& leaf_lines) {
+    out.stats.node_count += 1;
     out.stats.max_depth = std::max(out.stats.max_depth, depth);
     format::BvhWideNode<W> node{};
     for (int a = 0; a < 3; ++a)
@@ -354,88 +349,88 @@ struct Collapser {
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
     Slots<W> kids = gather(i);
     order_slots(kids);
+    const std::size_t at = out.arena.size();
+    out.arena.resize(at + sizeof(Node));
     for (int k = 0; k < kids.size; ++k) {
       const auto& b = bin.nodes[kids.node[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
+      if (!is_leaf(kids.node[k])) continue;
+      node.child[k] = format::kBvhLeafFlag | unit(out.arena.size());
+      node.packets[k] = write_leaf(kids.node[k]);
+    }
+    leaf_lines = to_line(out.arena.size() - at - sizeof(Node)) / format::kBvhArenaLine;
+    out.arena.resize(to_line(out.arena.size()));
+    for (int k = 0; k < kids.size; ++k) {
+      if (is_leaf(kids.node[k])) continue;
+      std::size_t child_lines = 0;
+      node.child[k] = write<Node>(kids.node[k], depth + 1, child_lines);
+      node.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
+    }
+    if constexpr (std::is_same_v<Node, format::BvhWideNode<W>>) {
+      std::memcpy(out.arena.data() + at, &node, sizeof node);
+    } else {
+      const Node q = quantize(node);
+      std::memcpy(out.arena.data() + at, &q, sizeof q);
+    }
+    return unit(at);
+  }
+
+  // The arena's size, for one allocation: what `write` will write for binary node `i`.
+  std::size_t arena_bytes(std::uint32_t i, std::size_t node_size) {
+    const Slots<W> kids = gather(i);
+    std::size_t block = node_size, below = 0;
+    for (int k = 0; k < kids.size; ++k) {
       if (is_leaf(kids.node[k])) {
-        const auto [word, packets] = emit_leaf(kids.node[k]);
-        node.child[k] = word, node.packets[k] = packets;
+        const std::size_t count = distinct_refs(kids.node[k]).size();
+        block += (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize *
+                 sizeof(format::BvhTrianglePacket);
       } else {
-        node.child[k] = emit(kids.node[k], depth + 1);
+        below += arena_bytes(kids.node[k], node_size);
       }
     }
-    std::memcpy(out.nodes.data() + index * sizeof node, &node, sizeof node);
+    return to_line(block) + below;
+  }
+};
+
+// The tree by index (FlatWideBvh::nodes and packets) read back from the arena: nodes in the
+// order written (pre-order, slots in order), packets in the order a walk in slot order meets
+// them; child words index those, interior children's `packets` 0.
+template <class Node, int W>
+struct IndexTreeReader {
+  FlatWideBvh& wide;
+
+  std::uint32_t read(std::uint32_t offset) {
+    Node n;
+    std::memcpy(&n, wide.arena.data() + std::size_t(offset) * format::kBvhArenaUnit, sizeof n);
+    const auto index = std::uint32_t(wide.nodes.size() / sizeof n);
+    wide.nodes.resize(wide.nodes.size() + sizeof n);
+    for (int k = 0; k < W; ++k) {
+      if (n.child[k] & format::kBvhLeafFlag) {
+        if (n.packets[k] == 0) continue;  // empty slot
+        const auto* p = reinterpret_cast<const format::BvhTrianglePacket*>(
+            wide.arena.data() +
+            std::size_t(n.child[k] & ~format::kBvhLeafFlag) * format::kBvhArenaUnit);
+        n.child[k] = format::kBvhLeafFlag | std::uint32_t(wide.packets.size());
+        wide.packets.insert(wide.packets.end(), p, p + n.packets[k]);
+      } else {
+        n.child[k] = read(n.child[k]);
+        n.packets[k] = 0;
+      }
+    }
+    std::memcpy(wide.nodes.data() + std::size_t(index) * sizeof n, &n, sizeof n);
     return index;
   }
 };
 
-// Lays the tree by index out as the arena (kiln/formats/bvh_wide.hpp): each node, its leaf
-// packets, zeros to the next line, then its interior children's subtrees.
-template <class Node, int W>
-struct ArenaWriter {
-  const FlatWideBvh& wide;
-  std::vector<std::byte> out;
-
-  void pad_to_line() {
-    out.resize((out.size() + format::kBvhArenaLine - 1) / format::kBvhArenaLine *
-               format::kBvhArenaLine);
-  }
-  static std::uint32_t unit(std::size_t bytes) {
-    if (bytes / format::kBvhArenaUnit >= format::kBvhLeafFlag)
-      throw std::invalid_argument("BVH too large for 32-bit arena offsets");
-    return std::uint32_t(bytes / format::kBvhArenaUnit);
-  }
-
-  // Writes node `index` and its subtree at the end of `out`; returns its offset and sets
-  // `leaf_lines` to the lines its own leaf packets span.
-  std::uint32_t write(std::uint32_t index, std::size_t& leaf_lines) {
-    Node n;
-    std::memcpy(&n, wide.nodes.data() + std::size_t(index) * sizeof n, sizeof n);
-    const std::size_t at = out.size();
-    out.resize(at + sizeof n);
-    for (int k = 0; k < W; ++k) {
-      if (!(n.child[k] & format::kBvhLeafFlag) || n.packets[k] == 0) continue;
-      const std::uint32_t first = n.child[k] & ~format::kBvhLeafFlag;
-      n.child[k] = format::kBvhLeafFlag | unit(out.size());
-      const auto* p = reinterpret_cast<const std::byte*>(wide.packets.data() + first);
-      out.insert(out.end(), p, p + n.packets[k] * sizeof(format::BvhTrianglePacket));
-    }
-    leaf_lines = (out.size() - at - sizeof n + format::kBvhArenaLine - 1) / format::kBvhArenaLine;
-    pad_to_line();
-    for (int k = 0; k < W; ++k) {
-      if (n.child[k] & format::kBvhLeafFlag) continue;
-      std::size_t child_lines = 0;
-      n.child[k] = write(n.child[k], child_lines);
-      n.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
-    }
-    std::memcpy(out.data() + at, &n, sizeof n);
-    return unit(at);
-  }
-};
-
-// The arena's size: each node with its leaf packets, padded to a line.
-template <class Node, int W>
-std::size_t arena_size(const FlatWideBvh& wide) {
-  std::size_t bytes = 0;
-  for (std::size_t i = 0, count = wide.nodes.size() / sizeof(Node); i < count; ++i) {
-    Node n;
-    std::memcpy(&n, wide.nodes.data() + i * sizeof n, sizeof n);
-    std::size_t block = sizeof n;
-    for (int k = 0; k < W; ++k)
-      if (n.child[k] & format::kBvhLeafFlag)
-        block += n.packets[k] * sizeof(format::BvhTrianglePacket);
-    bytes += (block + format::kBvhArenaLine - 1) / format::kBvhArenaLine * format::kBvhArenaLine;
-  }
-  return bytes;
-}
-
-template <class Node, int W>
-std::vector<std::byte> write_arena(const FlatWideBvh& wide) {
-  ArenaWriter<Node, W> writer{wide, {}};
-  writer.out.reserve(arena_size<Node, W>(wide));  // written once, no regrowth
+template <int W, class Node>
+std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
+                            const WideCollapseOptions& options, FlatWideBvh& out) {
+  Collapser<W> collapser(binary, scene, out, options);
+  out.arena.reserve(collapser.arena_bytes(0, sizeof(Node)));
   std::size_t root_lines = 0;
-  writer.write(0, root_lines);
-  return std::move(writer.out);
+  collapser.template write<Node>(0, 1, root_lines);
+  if (options.index_tree) IndexTreeReader<Node, W>{out}.read(0);
+  return collapser.lanes_used;
 }
 
 }  // namespace
@@ -446,28 +441,15 @@ FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t
   out.width = width;
   out.quantized = quantized;
   std::uint64_t lanes_used = 0;
-  if (width == 4) {
-    Collapser<4> collapser(binary, scene, out, options);
-    collapser.emit(0, 1);
-    lanes_used = collapser.lanes_used;
-  } else if (width == 8) {
-    Collapser<8> collapser(binary, scene, out, options);
-    collapser.emit(0, 1);
-    lanes_used = collapser.lanes_used;
-  } else {
-    throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4 or 8");
-  }
-  auto& s = out.stats;
-  const std::size_t node_size = width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
-  s.node_count = out.nodes.size() / node_size;
-  if (quantized) out.nodes = width == 4 ? quantize_all<4>(out.nodes) : quantize_all<8>(out.nodes);
-  if (quantized)
-    out.arena = width == 4 ? write_arena<format::BvhQNode4, 4>(out)
-                           : write_arena<format::BvhQNode8, 8>(out);
+  if (width == 4)
+    lanes_used = quantized ? collapse_into<4, format::BvhQNode4>(binary, scene, options, out)
+                           : collapse_into<4, format::BvhNode4>(binary, scene, options, out);
+  else if (width == 8)
+    lanes_used = quantized ? collapse_into<8, format::BvhQNode8>(binary, scene, options, out)
+                           : collapse_into<8, format::BvhNode8>(binary, scene, options, out);
   else
-    out.arena =
-        width == 4 ? write_arena<format::BvhNode4, 4>(out) : write_arena<format::BvhNode8, 8>(out);
-  s.packet_count = out.packets.size();
+    throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4 or 8");
+  auto& s = out.stats;
   s.packet_fill =
       s.packet_count ? double(lanes_used) / double(s.packet_count * format::kBvhPacketSize) : 0;
   s.arena_bytes = out.arena.size();

@@ -156,6 +156,7 @@ BuiltStructure binary_structure(std::shared_ptr<FlatBvh> flat, const BvhBuildOpt
 BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, const Scene& scene) {
   WideCollapseOptions c;
   c.threads = o.threads;
+  c.index_tree = false;  // the blob stores the arena alone
   FlatWideBvh collapsed =
       collapse_bvh(flat, o.width, scene.triangles.size(), o.quantized, &scene, c);
   const WideBvhStatistics w = collapsed.stats;

@@ -61,6 +61,9 @@ struct WideCollapseOptions {
   /// Worker threads for the passes that run in parallel (0 = every core); never changes the
   /// result.
   unsigned threads = 1;
+  /// Also fill FlatWideBvh::nodes and packets (the tree by index, for tests and tools); off,
+  /// only the arena is made (what a blob stores), without a second copy of the tree.
+  bool index_tree = true;
 };
 
 /// Collapses `binary` into `width` (4 or 8) children per node. Default: the dynamic programme of
