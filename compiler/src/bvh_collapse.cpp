@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <type_traits>
 
 #include "kiln/formats/vector.hpp"
@@ -68,6 +69,38 @@ struct Slots {
   std::uint32_t node[W];
   int size = 0;
   void push(std::uint32_t i) { node[size++] = i; }
+};
+
+// What one writer of the arena counts, and its scratch list.
+struct WriteTally {
+  std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0, lanes_used = 0;
+  std::uint32_t max_depth = 0;
+  std::vector<std::uint32_t> scratch;
+  void add(const WriteTally& o) {
+    node_count += o.node_count, leaf_count += o.leaf_count, packet_count += o.packet_count;
+    lanes_used += o.lanes_used, max_depth = std::max(max_depth, o.max_depth);
+  }
+};
+
+// Subtrees written apart (in parallel) below the top levels, in arena order: each one's size,
+// counted first, reserves its place while the top levels are written; its writer fills it.
+struct TopLevels {
+  struct Subtree {
+    std::uint32_t node;
+    std::size_t bytes = 0, leaf_lines = 0, at = 0;
+    std::uint32_t depth = 0;
+  };
+  std::vector<Subtree> subtrees;
+  std::size_t next = 0;  // the next one `write` meets
+  bool has(std::uint32_t node) const {
+    return next < subtrees.size() && subtrees[next].node == node;
+  }
+  const Subtree& place(std::uint32_t node, std::size_t at, std::uint32_t depth) {
+    Subtree& s = subtrees[next++];
+    (void)node;
+    s.at = at, s.depth = depth;
+    return s;
+  }
 };
 
 template <int W>
@@ -148,8 +181,6 @@ struct Collapser {
   FlatWideBvh& out;
   const WideCollapseOptions& options;
   std::vector<std::uint32_t> refs;                // references under each binary node
-  std::uint64_t lanes_used = 0;                   // packet lanes holding a distinct reference
-  std::vector<std::uint32_t> leaf_refs;           // scratch: the leaf being packed
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
   std::vector<double> triangle_area;              // under each binary node (kOcclusion)
   std::vector<double> prim_area;                  // each scene triangle's (kOcclusion, no copies)
@@ -234,10 +265,9 @@ struct Collapser {
     return {scene->positions[t.v[0]], scene->positions[t.v[1]], scene->positions[t.v[2]]};
   }
 
-  // Subtree `i`'s references, one per triangle: binary leaves are deduplicated, but a presplit
-  // (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
-  const std::vector<std::uint32_t>& distinct_refs(std::uint32_t i) {
-    std::vector<std::uint32_t>& list = leaf_refs;
+  // Subtree `i`'s references, one per triangle, into `list`: binary leaves are deduplicated,
+  // but a presplit (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
+  void distinct_refs(std::uint32_t i, std::vector<std::uint32_t>& list) const {
     list.clear();
     for (std::uint32_t r = first_ref(i), end = r + refs[i]; r < end; ++r) {
       const bool seen = std::any_of(list.begin(), list.end(), [&](std::uint32_t k) {
@@ -245,21 +275,16 @@ struct Collapser {
       });
       if (!seen) list.push_back(r);
     }
-    return list;
   }
 
-  // Packs subtree `i`'s references into packets at the end of the arena; returns their count.
-  std::uint8_t write_leaf(std::uint32_t i) {
-    const std::vector<std::uint32_t>& list = distinct_refs(i);
+  // Packs subtree `i`'s references into packets at `dst`; returns their count.
+  std::uint8_t write_leaf(std::uint32_t i, std::byte* dst, WriteTally& tally) const {
+    std::vector<std::uint32_t>& list = tally.scratch;
+    distinct_refs(i, list);
     const auto count = std::uint32_t(list.size());
-    lanes_used += count;
+    tally.lanes_used += count;
     const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
-    if (packets > format::kBvhMaxLeafPackets)
-      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
-                                  " references does not fit a wide leaf");
-    std::size_t at = out.arena.size();
-    out.arena.resize(at + packets * sizeof(format::BvhTrianglePacket));
-    for (std::uint32_t p = 0; p < packets; ++p, at += sizeof(format::BvhTrianglePacket)) {
+    for (std::uint32_t p = 0; p < packets; ++p, dst += sizeof(format::BvhTrianglePacket)) {
       format::BvhTrianglePacket packet;
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
         // Unused lanes repeat the leaf's last triangle: every lane is a real triangle.
@@ -270,11 +295,22 @@ struct Collapser {
           for (int a = 0; a < 3; ++a) packet.v[c][a][lane] = format::at(corners[c], a);
         packet.prim[lane] = bin.prim_ids[r];
       }
-      std::memcpy(out.arena.data() + at, &packet, sizeof packet);
+      std::memcpy(dst, &packet, sizeof packet);
     }
-    out.stats.leaf_count += 1;
-    out.stats.packet_count += packets;
+    tally.leaf_count += 1;
+    tally.packet_count += packets;
     return std::uint8_t(packets);
+  }
+
+  // The packets of a leaf slot, checked against the format's limit.
+  std::uint32_t leaf_packets(std::uint32_t i, std::vector<std::uint32_t>& scratch) const {
+    distinct_refs(i, scratch);
+    const auto count = std::uint32_t(scratch.size());
+    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+    if (packets > format::kBvhMaxLeafPackets)
+      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
+                                  " references does not fit a wide leaf");
+    return packets;
   }
 
   // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
@@ -332,14 +368,16 @@ struct Collapser {
     return (bytes + format::kBvhArenaLine - 1) / format::kBvhArenaLine * format::kBvhArenaLine;
   }
 
-  // The wide node of binary node `i` and its subtree, written at the end of the arena
-  // (kiln/formats/bvh_wide.hpp): the node, its leaf packets, zeros to the next line, then its
-  // interior children's subtrees. Returns its offset; sets `leaf_lines` to the lines its own
-  // leaf packets span.
+  // The wide node of binary node `i` and its subtree, written into the arena (sized and zeroed
+  // before) at byte `at` (kiln/formats/bvh_wide.hpp): the node, its leaf packets, zeros to the
+  // next line, then its interior children's subtrees. Returns the end of the subtree; sets
+  // `leaf_lines` to the lines its own leaf packets span. Interior children listed in `top` are
+  // not written: their places (sized by `top`) are recorded there for writers of their own.
   template <class Node>
-  std::uint32_t write(std::uint32_t i, std::uint32_t depth, std::size_t& leaf_lines) {
-    out.stats.node_count += 1;
-    out.stats.max_depth = std::max(out.stats.max_depth, depth);
+  std::size_t write(std::uint32_t i, std::uint32_t depth, std::size_t at, std::size_t& leaf_lines,
+                    WriteTally& tally, TopLevels* top = nullptr) const {
+    tally.node_count += 1;
+    tally.max_depth = std::max(tally.max_depth, depth);
     format::BvhWideNode<W> node{};
     for (int a = 0; a < 3; ++a)
       for (int k = 0; k < W; ++k) {
@@ -349,46 +387,85 @@ struct Collapser {
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
     Slots<W> kids = gather(i);
     order_slots(kids);
-    const std::size_t at = out.arena.size();
-    out.arena.resize(at + sizeof(Node));
+    std::byte* const arena = out.arena.data();
+    std::size_t end = at + sizeof(Node);
     for (int k = 0; k < kids.size; ++k) {
       const auto& b = bin.nodes[kids.node[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
       if (!is_leaf(kids.node[k])) continue;
-      node.child[k] = format::kBvhLeafFlag | unit(out.arena.size());
-      node.packets[k] = write_leaf(kids.node[k]);
+      node.child[k] = format::kBvhLeafFlag | unit(end);
+      node.packets[k] = write_leaf(kids.node[k], arena + end, tally);
+      end += node.packets[k] * sizeof(format::BvhTrianglePacket);
     }
-    leaf_lines = to_line(out.arena.size() - at - sizeof(Node)) / format::kBvhArenaLine;
-    out.arena.resize(to_line(out.arena.size()));
+    leaf_lines = to_line(end - at - sizeof(Node)) / format::kBvhArenaLine;
+    end = to_line(end);
     for (int k = 0; k < kids.size; ++k) {
       if (is_leaf(kids.node[k])) continue;
       std::size_t child_lines = 0;
-      node.child[k] = write<Node>(kids.node[k], depth + 1, child_lines);
+      node.child[k] = unit(end);
+      if (top && top->has(kids.node[k])) {
+        const TopLevels::Subtree& sub = top->place(kids.node[k], end, depth + 1);
+        child_lines = sub.leaf_lines, end += sub.bytes;
+      } else {
+        end = write<Node>(kids.node[k], depth + 1, end, child_lines, tally, top);
+      }
       node.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
     }
     if constexpr (std::is_same_v<Node, format::BvhWideNode<W>>) {
-      std::memcpy(out.arena.data() + at, &node, sizeof node);
+      std::memcpy(arena + at, &node, sizeof node);
     } else {
       const Node q = quantize(node);
-      std::memcpy(out.arena.data() + at, &q, sizeof q);
+      std::memcpy(arena + at, &q, sizeof q);
     }
-    return unit(at);
+    return end;
   }
 
-  // The arena's size, for one allocation: what `write` will write for binary node `i`.
-  std::size_t arena_bytes(std::uint32_t i, std::size_t node_size) {
+  // What `write` will write for binary node `i`: bytes and the node's own leaf lines.
+  std::pair<std::size_t, std::size_t> subtree_size(std::uint32_t i, std::size_t node_size,
+                                                   std::vector<std::uint32_t>& scratch) const {
     const Slots<W> kids = gather(i);
     std::size_t block = node_size, below = 0;
     for (int k = 0; k < kids.size; ++k) {
-      if (is_leaf(kids.node[k])) {
-        const std::size_t count = distinct_refs(kids.node[k]).size();
-        block += (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize *
-                 sizeof(format::BvhTrianglePacket);
-      } else {
-        below += arena_bytes(kids.node[k], node_size);
-      }
+      if (is_leaf(kids.node[k]))
+        block += leaf_packets(kids.node[k], scratch) * sizeof(format::BvhTrianglePacket);
+      else
+        below += subtree_size(kids.node[k], node_size, scratch).first;
+    }
+    return {to_line(block) + below, (to_line(block) - node_size) / format::kBvhArenaLine};
+  }
+
+  // subtree_size for the top levels, taking the sizes of the subtrees in `top` as counted.
+  std::size_t top_size(std::uint32_t i, std::size_t node_size, const TopLevels& top,
+                       std::size_t& next, std::vector<std::uint32_t>& scratch) const {
+    Slots<W> kids = gather(i);
+    order_slots(kids);
+    std::size_t block = node_size, below = 0;
+    for (int k = 0; k < kids.size; ++k) {
+      const std::uint32_t kid = kids.node[k];
+      if (is_leaf(kid))
+        block += leaf_packets(kid, scratch) * sizeof(format::BvhTrianglePacket);
+      else if (next < top.subtrees.size() && top.subtrees[next].node == kid)
+        below += top.subtrees[next++].bytes;
+      else
+        below += top_size(kid, node_size, top, next, scratch);
     }
     return to_line(block) + below;
+  }
+
+  // The interior slots below the top levels, in the order `write` meets them: each subtree of at
+  // most `limit` references (or a leaf's parent) is written apart.
+  void find_top_subtrees(std::uint32_t i, std::uint32_t limit, TopLevels& top) const {
+    const Slots<W> kids = gather(i);
+    Slots<W> ordered = kids;
+    order_slots(ordered);
+    for (int k = 0; k < ordered.size; ++k) {
+      const std::uint32_t kid = ordered.node[k];
+      if (is_leaf(kid)) continue;
+      if (refs[kid] <= limit)
+        top.subtrees.push_back({kid});
+      else
+        find_top_subtrees(kid, limit, top);
+    }
   }
 };
 
@@ -422,15 +499,42 @@ struct IndexTreeReader {
   }
 };
 
+// Writes the arena: serially, or (threads > 1) the top levels here and the subtrees below them
+// on their own threads, each into its place. The same bytes either way.
 template <int W, class Node>
 std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
                             const WideCollapseOptions& options, FlatWideBvh& out) {
-  Collapser<W> collapser(binary, scene, out, options);
-  out.arena.reserve(collapser.arena_bytes(0, sizeof(Node)));
+  const Collapser<W> collapser(binary, scene, out, options);
+  const unsigned threads = resolve_thread_count(options.threads);
+  WriteTally tally;
   std::size_t root_lines = 0;
-  collapser.template write<Node>(0, 1, root_lines);
+  if (threads == 1 || collapser.is_leaf(0)) {
+    out.arena.resize(collapser.subtree_size(0, sizeof(Node), tally.scratch).first);
+    collapser.template write<Node>(0, 1, 0, root_lines, tally);
+  } else {
+    TopLevels top;
+    const std::uint32_t limit = std::max<std::uint32_t>(collapser.refs[0] / (16 * threads), 64);
+    collapser.find_top_subtrees(0, limit, top);
+    std::vector<WriteTally> tallies(top.subtrees.size());
+    parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
+      auto& sub = top.subtrees[t];
+      std::tie(sub.bytes, sub.leaf_lines) =
+          collapser.subtree_size(sub.node, sizeof(Node), tallies[t].scratch);
+    });
+    std::size_t next = 0;
+    out.arena.resize(collapser.top_size(0, sizeof(Node), top, next, tally.scratch));
+    collapser.template write<Node>(0, 1, 0, root_lines, tally, &top);
+    parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
+      const auto& sub = top.subtrees[t];
+      std::size_t lines = 0;
+      collapser.template write<Node>(sub.node, sub.depth, sub.at, lines, tallies[t]);
+    });
+    for (const WriteTally& t : tallies) tally.add(t);
+  }
+  out.stats.node_count = tally.node_count, out.stats.leaf_count = tally.leaf_count;
+  out.stats.packet_count = tally.packet_count, out.stats.max_depth = tally.max_depth;
   if (options.index_tree) IndexTreeReader<Node, W>{out}.read(0);
-  return collapser.lanes_used;
+  return tally.lanes_used;
 }
 
 }  // namespace
