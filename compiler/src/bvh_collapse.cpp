@@ -110,16 +110,14 @@ struct CollapseProgramme {
   std::vector<std::uint8_t> pick;   // [node * W + k - 1] k = 1: 1 = leaf; k > 1: 0 = as k - 1,
                                     // else slots to the left
   std::vector<std::uint8_t> split;  // a wide node's slots to the left child (of W)
-  std::vector<std::pair<std::uint32_t, Row>> rows;  // pending rows: node, costs
+  using Rows = std::vector<std::pair<std::uint32_t, Row>>;  // pending rows: node, costs
   const WideCollapseOptions& o;
 
   CollapseProgramme(std::size_t nodes, const WideCollapseOptions& opt)
-      : cost1(nodes), pick(nodes * W), split(nodes), o(opt) {
-    rows.reserve(128);
-  }
+      : cost1(nodes), pick(nodes * W), split(nodes), o(opt) {}
 
   // Node i, once its children (if any) have been visited.
-  void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs) {
+  void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs, Rows& rows) {
     const double area = half_area(n);
     const double packets = double((refs + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
     const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
@@ -195,12 +193,68 @@ struct Collapser {
       triangle_area.resize(bin.nodes.size());
       if (bin.triangles.empty()) prim_area = scene_triangle_areas(*scene, options.threads);
     }
-    // Pre-order: children follow their parent, so a reverse sweep sees them first.
-    for (std::size_t i = bin.nodes.size(); i-- > 0;) {
-      const auto& n = bin.nodes[i];
-      refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
-      if (occlusion) triangle_area[i] = subtree_triangle_area(n, i);
-      if (programme) programme->visit(std::uint32_t(i), n, refs[i]);
+    sweep(options.threads);
+  }
+
+  // Node i's reference count, triangle area and programme row, its children's known.
+  void visit(std::uint32_t i, typename CollapseProgramme<W>::Rows& rows) {
+    const auto& n = bin.nodes[i];
+    refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
+    if (!triangle_area.empty()) triangle_area[i] = subtree_triangle_area(n, i);
+    if (programme) programme->visit(i, n, refs[i], rows);
+  }
+
+  // One past the last node of subtree i (pre-order: the end of its rightmost path).
+  std::uint32_t subtree_end(std::uint32_t i) const {
+    while (bin.nodes[i].count == 0) {
+      if (bin.nodes[i].offset <= i || bin.nodes[i].offset >= bin.nodes.size())
+        throw std::invalid_argument("collapse_bvh: binary nodes not in depth-first pre-order");
+      i = bin.nodes[i].offset;
+    }
+    return i + 1;
+  }
+
+  // The binary subtrees swept apart (at most `limit` nodes each) and, in `top`, the nodes above
+  // them, in pre-order.
+  void split_sweep(std::uint32_t i, std::uint32_t limit, std::vector<std::uint32_t>& subtrees,
+                   std::vector<std::uint32_t>& top) const {
+    if (bin.nodes[i].count > 0 || subtree_end(i) - i <= limit) return subtrees.push_back(i);
+    top.push_back(i);
+    split_sweep(i + 1, limit, subtrees, top);
+    split_sweep(bin.nodes[i].offset, limit, subtrees, top);
+  }
+
+  // Visits every node, children first: pre-order reversed. With threads, disjoint subtrees are
+  // swept on their own and the nodes above them after, from their children's rows; every node's
+  // arithmetic is the same either way.
+  void sweep(unsigned threads) {
+    using Rows = typename CollapseProgramme<W>::Rows;
+    const auto n = std::uint32_t(bin.nodes.size());
+    std::vector<std::uint32_t> subtrees, top;
+    if (resolve_thread_count(threads) > 1 && n >= 65536)
+      split_sweep(0, n / (8 * resolve_thread_count(threads)), subtrees, top);
+    else
+      subtrees.push_back(0);
+    std::vector<Rows> done(subtrees.size());
+    parallel_for(subtrees.size(), threads, [&](std::size_t t) {
+      for (std::uint32_t i = subtree_end(subtrees[t]); i-- > subtrees[t];) visit(i, done[t]);
+    });
+    if (top.empty()) return;
+    Rows rows;  // the rows of the subtrees' roots and of the top nodes visited so far
+    for (Rows& d : done) rows.insert(rows.end(), d.begin(), d.end());
+    const auto take = [&](std::uint32_t node) {
+      const auto it =
+          std::find_if(rows.begin(), rows.end(), [&](auto& r) { return r.first == node; });
+      auto row = *it;
+      rows.erase(it);
+      return row;
+    };
+    for (std::size_t j = top.size(); j-- > 0;) {
+      const std::uint32_t i = top[j];
+      Rows children;
+      if (programme) children = {take(bin.nodes[i].offset), take(i + 1)};
+      visit(i, children);
+      rows.insert(rows.end(), children.begin(), children.end());
     }
   }
 
