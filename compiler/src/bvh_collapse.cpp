@@ -578,6 +578,8 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
     std::size_t next = 0;
     out.arena.resize(collapser.top_size(0, sizeof(Node), top, next, tally.scratch));
     collapser.template write<Node>(0, 1, 0, root_lines, tally, &top);
+    if (top.next != top.subtrees.size())  // every place reserved, in the order found
+      throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
     parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
       const auto& sub = top.subtrees[t];
       std::size_t lines = 0;
