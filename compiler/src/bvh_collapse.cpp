@@ -134,13 +134,17 @@ struct CollapseProgramme {
       throw std::invalid_argument("collapse_bvh: binary nodes not in depth-first pre-order");
     const Row l = rows.back().second, r = rows[rows.size() - 2].second;
     rows.resize(rows.size() - 2);
-    double spread[W + 1];  // spread[k]: both children over k slots, k >= 2
-    for (int k = 2; k <= W; ++k) {
-      spread[k] = std::numeric_limits<double>::infinity();
+    double spread[W + 1];           // spread[k]: both children over k slots, k >= 2
+    for (int k = 2; k <= W; ++k) {  // selects, not branches: the winners are data-dependent
+      double best = std::numeric_limits<double>::infinity();
+      std::uint8_t best_left = 0;
       for (int left = 1; left < k; ++left) {
         const double s = l[left - 1] + r[k - left - 1];
-        if (s < spread[k]) spread[k] = s, p[k - 1] = std::uint8_t(left);
+        const bool better = s < best;
+        best = better ? s : best;
+        best_left = better ? std::uint8_t(left) : best_left;
       }
+      spread[k] = best, p[k - 1] = best_left;
     }
     split[i] = p[W - 1];
     const double inner = area * o.node_cost + spread[W];
@@ -148,10 +152,9 @@ struct CollapseProgramme {
     c[0] = as_leaf ? leaf : inner;
     p[0] = as_leaf ? 1 : 0;
     for (int k = 2; k <= W; ++k) {
-      if (c[k - 2] <= spread[k])
-        c[k - 1] = c[k - 2], p[k - 1] = 0;
-      else
-        c[k - 1] = spread[k];
+      const bool fewer = c[k - 2] <= spread[k];  // as good with fewer slots
+      c[k - 1] = fewer ? c[k - 2] : spread[k];
+      p[k - 1] = fewer ? std::uint8_t(0) : p[k - 1];
     }
     cost1[i] = c[0];
     rows.push_back({i, c});
