@@ -75,14 +75,14 @@ struct WideCollapseOptions {
 /// children, and a binary subtree of at most four references becomes one leaf packet. Either way a
 /// triangle in two binary leaves of one wide leaf is stored once (SBVH, presplit). Deterministic:
 /// the same bytes on any `options.threads`. `binary.nodes` must be in depth-first pre-order with
-/// the first child adjacent (as the builders emit them). `triangle_count` is the scene's (for
-/// bytes per triangle). `quantized`: child boxes as bytes relative to the node
+/// the first child adjacent, as the builders emit them (the programme throws
+/// std::invalid_argument where it finds them out of that order). `triangle_count` is the scene's
+/// (for bytes per triangle). `quantized`: child boxes as bytes relative to the node
 /// (BvhQuantizedNode), each containing the float box. Corners come from `binary.triangles`, or,
 /// when it is empty (built with BvhBuildOptions::leaf_triangles off), from `scene` through the
 /// primitive ids. The result holds the arena and, with `options.index_tree`, the same tree by
-/// index. Throws std::invalid_argument for another width, nodes out of pre-order, a leaf over
-/// 1020 references, (quantized) coordinates beyond 1e38, an arena beyond 32 GiB, or no source of
-/// corners.
+/// index. Throws std::invalid_argument for another width, a leaf over 1020 references, (quantized)
+/// coordinates beyond 1e38, an arena beyond 32 GiB, or no source of corners.
 FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
                          bool quantized = false, const Scene* scene = nullptr,
                          const WideCollapseOptions& options = {});
