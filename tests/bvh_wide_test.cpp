@@ -164,6 +164,45 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
                std::invalid_argument);
 }
 
+// Above 65,536 binary nodes the collapse sweeps subtrees on their own threads, and on more than
+// one thread it writes the subtrees below the top levels in parallel: the same arena, tree by
+// index and statistics as one thread.
+TEST(WideBvh, CollapseIsTheSameOnAnyThreadCount) {
+  const Scene scene = test::icosphere(6);  // 81,920 triangles
+  BvhBuildOptions o;
+  o.leaf_triangles = false;
+  const FlatBvh binary = build_bvh(scene, o);
+  ASSERT_GE(binary.nodes.size(), 65536u);
+  for (const auto& [width, quantized] : {std::pair{8u, false}, std::pair{4u, true}}) {
+    std::vector<FlatWideBvh> wide;
+    for (const unsigned threads : {1u, 2u, 8u}) {
+      WideCollapseOptions c;
+      c.threads = threads;
+      wide.push_back(collapse_bvh(binary, width, scene.triangles.size(), quantized, &scene, c));
+    }
+    for (std::size_t i = 1; i < wide.size(); ++i) {
+      EXPECT_EQ(wide[i].arena, wide[0].arena) << width << (quantized ? " u8" : "");
+      EXPECT_EQ(wide[i].nodes, wide[0].nodes);
+      ASSERT_EQ(wide[i].packets.size(), wide[0].packets.size());
+      EXPECT_EQ(0, std::memcmp(wide[i].packets.data(), wide[0].packets.data(),
+                               wide[0].packets.size() * sizeof(format::BvhTrianglePacket)));
+      EXPECT_EQ(wide[i].stats.node_count, wide[0].stats.node_count);
+      EXPECT_EQ(wide[i].stats.packet_fill, wide[0].stats.packet_fill);
+      EXPECT_EQ(wide[i].stats.max_depth, wide[0].stats.max_depth);
+    }
+    // Without the tree by index, the same arena.
+    WideCollapseOptions c;
+    c.threads = 2;
+    c.index_tree = false;
+    const FlatWideBvh arena_only =
+        collapse_bvh(binary, width, scene.triangles.size(), quantized, &scene, c);
+    EXPECT_EQ(arena_only.arena, wide[0].arena);
+    EXPECT_TRUE(arena_only.nodes.empty() && arena_only.packets.empty());
+    EXPECT_EQ(BvhWideView(width, quantized, wide[0].arena, "test", BvhKernel::kScalar).node_count(),
+              wide[0].stats.node_count);
+  }
+}
+
 // The wide tree's SAH cost under the collapse's own model, summed over the stored nodes: every
 // interior child costs its area x node_cost, every leaf its area x packet_cost x its packets.
 template <int W>

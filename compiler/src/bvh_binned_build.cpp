@@ -27,7 +27,7 @@ namespace kiln {
 
 namespace {
 
-constexpr std::size_t kParallelSubtree = 16384;     // fork subtrees at least this large
+constexpr std::size_t kParallelSubtree = 4096;      // fork subtrees at least this large
 constexpr std::size_t kParallelBinning = 1u << 16;  // bin in chunks above this many references
 constexpr std::size_t kBinChunk = 1u << 14;
 constexpr std::uint32_t kMaxBins = 1024;  // as --bvh-bins allows
@@ -143,7 +143,7 @@ struct Split {
 struct Context {
   std::span<BuildRef> refs;
   const BvhBuildOptions& o;
-  unsigned parallel_depth;
+  WorkerSlots& slots;  // threads free for a subtree or a parallel binning
 };
 
 void bin_range(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
@@ -352,10 +352,11 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
     if (const int a = first_spread_axis(t.centroids); a >= 0) return split_pair(ctx, t, a, axis);
   const std::span<BuildRef> refs = ctx.refs.subspan(t.begin, n);
   const BinMap map(t.centroids, std::max<std::uint32_t>(o.bins, 2));
-  const unsigned threads = t.depth < ctx.parallel_depth ? 0u : 1u;
   Split s;
   if (area > 0.0f) {
-    Bins& bins = bin_all(refs, map, threads);
+    const unsigned extra = n >= kParallelBinning ? ctx.slots.take_all() : 0u;
+    Bins& bins = bin_all(refs, map, 1 + extra);
+    ctx.slots.give(extra);
     s = best_split(bins, map, n, area, o);
     bins.clear();
   }
@@ -388,10 +389,11 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
   const auto children = split_task(ctx, t, axis);
   if (!children) return;
   const auto& [left, right] = *children;
-  const bool fork = t.depth < ctx.parallel_depth && left.end - left.begin >= kParallelSubtree &&
-                    right.end - right.begin >= kParallelSubtree;
-  emit_bvh_children(fork, left, right, index, nodes,
-                    [&](const Task& child, auto& out) { emit(ctx, child, out); });
+  const std::size_t right_size = right.end - right.begin;
+  const bool may_fork = left.end - left.begin >= kParallelSubtree && right_size >= kParallelSubtree;
+  emit_bvh_children_on_demand(ctx.slots, may_fork, left, right, right_size + right_size / 4 + 1,
+                              index, nodes,
+                              [&](const Task& child, auto& out) { emit(ctx, child, out); });
   nodes[index].axis = std::uint8_t(axis);
 }
 
@@ -424,7 +426,8 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
     }
   });
   for (std::size_t c = 1; c < chunks; ++c) box[0].grow(box[c]), centroids[0].grow(centroids[c]);
-  const Context ctx{refs, options, fork_depth(options.threads)};
+  WorkerSlots slots(resolve_thread_count(options.threads));
+  const Context ctx{refs, options, slots};
   std::vector<format::BvhNode> nodes;
   // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
   nodes.reserve(refs.size() + refs.size() / 4 + 1);

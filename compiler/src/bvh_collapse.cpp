@@ -3,14 +3,18 @@
 #include "kiln/compiler/bvh_collapse.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <tuple>
+#include <type_traits>
 
 #include "kiln/formats/vector.hpp"
+#include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
 
@@ -59,78 +63,110 @@ format::BvhQuantizedNode<W> quantize(const format::BvhWideNode<W>& in) {
   return out;
 }
 
-// Rewrites the float nodes as quantised ones, in place order.
+// A wide node's children (binary node indices), at most W.
 template <int W>
-std::vector<std::byte> quantize_all(const std::vector<std::byte>& nodes) {
-  const std::size_t count = nodes.size() / sizeof(format::BvhWideNode<W>);
-  std::vector<std::byte> out(count * sizeof(format::BvhQuantizedNode<W>));
-  for (std::size_t i = 0; i < count; ++i) {
-    format::BvhWideNode<W> node;
-    std::memcpy(&node, nodes.data() + i * sizeof node, sizeof node);
-    const format::BvhQuantizedNode<W> q = quantize(node);
-    std::memcpy(out.data() + i * sizeof q, &q, sizeof q);
-  }
-  return out;
-}
+struct Slots {
+  std::uint32_t node[W];
+  int size = 0;
+  void push(std::uint32_t i) { node[size++] = i; }
+};
 
-// The SAH dynamic programme over the binary tree (Ylitie et al. 2017). cost(i, k): the least
-// SAH cost of binary subtree i spread over at most k child slots of a wide node; with one slot,
-// i is a leaf (area x packets x packet_cost) or a wide node (area x node_cost plus its subtree
-// spread over W slots). Binary leaves stay leaves.
+// What one writer of the arena counts, and its scratch list.
+struct WriteTally {
+  std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0, lanes_used = 0;
+  std::uint32_t max_depth = 0;
+  std::vector<std::uint32_t> scratch;
+  void add(const WriteTally& o) {
+    node_count += o.node_count, leaf_count += o.leaf_count, packet_count += o.packet_count;
+    lanes_used += o.lanes_used, max_depth = std::max(max_depth, o.max_depth);
+  }
+};
+
+// Subtrees written apart (in parallel) below the top levels, in arena order: each one's size,
+// counted first, reserves its place while the top levels are written; its writer fills it.
+struct TopLevels {
+  struct Subtree {
+    std::uint32_t node;
+    std::size_t bytes = 0, leaf_lines = 0, at = 0;
+    std::uint32_t depth = 0;
+  };
+  std::vector<Subtree> subtrees;
+  std::size_t next = 0;  // the next one `write` meets
+  bool has(std::uint32_t node) const {
+    return next < subtrees.size() && subtrees[next].node == node;
+  }
+  const Subtree& place(std::uint32_t node, std::size_t at, std::uint32_t depth) {
+    Subtree& s = subtrees[next++];
+    (void)node;
+    s.at = at, s.depth = depth;
+    return s;
+  }
+};
+
 template <int W>
 struct CollapseProgramme {
-  std::vector<double> cost;         // [node * W + k - 1]
-  std::vector<std::uint8_t> pick;   // k = 1: 1 = leaf; k > 1: 0 = as k - 1, else slots to the left
+  using Row = std::array<double, W>;
+  std::vector<double> cost1;        // [node]: cost(node, 1)
+  std::vector<std::uint8_t> pick;   // [node * W + k - 1] k = 1: 1 = leaf; k > 1: 0 = as k - 1,
+                                    // else slots to the left
   std::vector<std::uint8_t> split;  // a wide node's slots to the left child (of W)
+  using Rows = std::vector<std::pair<std::uint32_t, Row>>;  // pending rows: node, costs
+  const WideCollapseOptions& o;
 
-  CollapseProgramme(const FlatBvh& bin, const std::vector<std::uint32_t>& refs,
-                    const WideCollapseOptions& o)
-      : cost(bin.nodes.size() * W), pick(bin.nodes.size() * W), split(bin.nodes.size()) {
-    // Pre-order: children follow their parent, so a reverse sweep sees them first.
-    for (std::size_t i = bin.nodes.size(); i-- > 0;) {
-      const auto& n = bin.nodes[i];
-      const double area = half_area(n);
-      const double packets =
-          double((refs[i] + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
-      const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
-      double* c = &cost[i * W];
-      std::uint8_t* p = &pick[i * W];
-      if (n.count > 0) {
-        std::fill(c, c + W, leaf);
-        std::fill(p, p + W, std::uint8_t(0));
-        p[0] = 1;
-        continue;
-      }
-      const std::size_t l = i + 1, r = n.offset;
-      double spread[W + 1];  // spread[k]: both children over k slots, k >= 2
-      for (int k = 2; k <= W; ++k) {
-        spread[k] = std::numeric_limits<double>::infinity();
-        for (int left = 1; left < k; ++left) {
-          const double s = cost[l * W + left - 1] + cost[r * W + k - left - 1];
-          if (s < spread[k]) spread[k] = s, p[k - 1] = std::uint8_t(left);
-        }
-      }
-      split[i] = p[W - 1];
-      const double inner = area * o.node_cost + spread[W];
-      const bool as_leaf = refs[i] <= o.max_leaf_refs && leaf <= inner;
-      c[0] = as_leaf ? leaf : inner;
-      p[0] = as_leaf ? 1 : 0;
-      for (int k = 2; k <= W; ++k) {
-        if (c[k - 2] <= spread[k])
-          c[k - 1] = c[k - 2], p[k - 1] = 0;
-        else
-          c[k - 1] = spread[k];
-      }
+  CollapseProgramme(std::size_t nodes, const WideCollapseOptions& opt)
+      : cost1(nodes), pick(nodes * W), split(nodes), o(opt) {}
+
+  // Node i, once its children (if any) have been visited.
+  void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs, Rows& rows) {
+    const double area = half_area(n);
+    const double packets = double((refs + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
+    const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
+    std::uint8_t* p = &pick[std::size_t(i) * W];
+    Row c;
+    if (n.count > 0) {
+      c.fill(leaf);
+      p[0] = 1;
+      cost1[i] = leaf;
+      rows.push_back({i, c});
+      return;
     }
+    if (rows.size() < 2 || rows.back().first != i + 1 || rows[rows.size() - 2].first != n.offset)
+      throw std::invalid_argument("collapse_bvh: binary nodes not in depth-first pre-order");
+    const Row l = rows.back().second, r = rows[rows.size() - 2].second;
+    rows.resize(rows.size() - 2);
+    double spread[W + 1];           // spread[k]: both children over k slots, k >= 2
+    for (int k = 2; k <= W; ++k) {  // selects, not branches: the winners are data-dependent
+      double best = std::numeric_limits<double>::infinity();
+      std::uint8_t best_left = 0;
+      for (int left = 1; left < k; ++left) {
+        const double s = l[left - 1] + r[k - left - 1];
+        const bool better = s < best;
+        best = better ? s : best;
+        best_left = better ? std::uint8_t(left) : best_left;
+      }
+      spread[k] = best, p[k - 1] = best_left;
+    }
+    split[i] = p[W - 1];
+    const double inner = area * o.node_cost + spread[W];
+    const bool as_leaf = refs <= o.max_leaf_refs && leaf <= inner;
+    c[0] = as_leaf ? leaf : inner;
+    p[0] = as_leaf ? 1 : 0;
+    for (int k = 2; k <= W; ++k) {
+      const bool fewer = c[k - 2] <= spread[k];  // as good with fewer slots
+      c[k - 1] = fewer ? c[k - 2] : spread[k];
+      p[k - 1] = fewer ? std::uint8_t(0) : p[k - 1];
+    }
+    cost1[i] = c[0];
+    rows.push_back({i, c});
   }
 
   bool is_leaf(std::uint32_t i) const { return pick[std::size_t(i) * W] == 1; }
 
   // The slots subtree i takes when given at most k.
-  void collect(const FlatBvh& bin, std::uint32_t i, int k, std::vector<std::uint32_t>& out) const {
+  void collect(const FlatBvh& bin, std::uint32_t i, int k, Slots<W>& out) const {
     while (k > 1 && pick[std::size_t(i) * W + k - 1] == 0) --k;
     if (k == 1 || bin.nodes[i].count > 0) {
-      out.push_back(i);
+      out.push(i);
       return;
     }
     const int left = pick[std::size_t(i) * W + k - 1];
@@ -146,34 +182,104 @@ struct Collapser {
   FlatWideBvh& out;
   const WideCollapseOptions& options;
   std::vector<std::uint32_t> refs;                // references under each binary node
-  std::uint64_t lanes_used = 0;                   // packet lanes holding a distinct reference
-  std::vector<std::uint32_t> leaf_refs;           // scratch: the leaf being packed
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
   std::vector<double> triangle_area;              // under each binary node (kOcclusion)
+  std::vector<double> prim_area;                  // each scene triangle's (kOcclusion, no copies)
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
       : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
-    // Pre-order: children follow their parent, so a reverse sweep sees them first.
-    for (std::size_t i = bin.nodes.size(); i-- > 0;) {
-      const auto& n = bin.nodes[i];
-      refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
-    }
-    if (!options.greedy) programme.emplace(bin, refs, options);
-    if (options.order == WideSlotOrder::kOcclusion) {
+    if (!options.greedy) programme.emplace(bin.nodes.size(), options);
+    const bool occlusion = options.order == WideSlotOrder::kOcclusion;
+    if (occlusion) {
       triangle_area.resize(bin.nodes.size());
-      for (std::size_t i = bin.nodes.size(); i-- > 0;) {
-        const auto& n = bin.nodes[i];
-        if (n.count == 0) {
-          triangle_area[i] = triangle_area[i + 1] + triangle_area[n.offset];
-          continue;
-        }
-        double sum = 0;
-        for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r) sum += area_of(corners_of(r));
-        triangle_area[i] = sum;
-      }
+      if (bin.triangles.empty()) prim_area = scene_triangle_areas(*scene, options.threads);
     }
+    sweep(options.threads);
+  }
+
+  // Node i's reference count, triangle area and programme row, its children's known.
+  void visit(std::uint32_t i, typename CollapseProgramme<W>::Rows& rows) {
+    const auto& n = bin.nodes[i];
+    refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
+    if (!triangle_area.empty()) triangle_area[i] = subtree_triangle_area(n, i);
+    if (programme) programme->visit(i, n, refs[i], rows);
+  }
+
+  // One past the last node of subtree i (pre-order: the end of its rightmost path).
+  std::uint32_t subtree_end(std::uint32_t i) const {
+    while (bin.nodes[i].count == 0) {
+      if (bin.nodes[i].offset <= i || bin.nodes[i].offset >= bin.nodes.size())
+        throw std::invalid_argument("collapse_bvh: binary nodes not in depth-first pre-order");
+      i = bin.nodes[i].offset;
+    }
+    return i + 1;
+  }
+
+  // The binary subtrees swept apart (at most `limit` nodes each) and, in `top`, the nodes above
+  // them, in pre-order.
+  void split_sweep(std::uint32_t i, std::uint32_t limit, std::vector<std::uint32_t>& subtrees,
+                   std::vector<std::uint32_t>& top) const {
+    if (bin.nodes[i].count > 0 || subtree_end(i) - i <= limit) return subtrees.push_back(i);
+    top.push_back(i);
+    split_sweep(i + 1, limit, subtrees, top);
+    split_sweep(bin.nodes[i].offset, limit, subtrees, top);
+  }
+
+  // Visits every node, children first: pre-order reversed. With threads, disjoint subtrees are
+  // swept on their own and the nodes above them after, from their children's rows; every node's
+  // arithmetic is the same either way.
+  void sweep(unsigned threads) {
+    using Rows = typename CollapseProgramme<W>::Rows;
+    const auto n = std::uint32_t(bin.nodes.size());
+    std::vector<std::uint32_t> subtrees, top;
+    if (resolve_thread_count(threads) > 1 && n >= 65536)
+      split_sweep(0, n / (8 * resolve_thread_count(threads)), subtrees, top);
+    else
+      subtrees.push_back(0);
+    std::vector<Rows> done(subtrees.size());
+    parallel_for(subtrees.size(), threads, [&](std::size_t t) {
+      for (std::uint32_t i = subtree_end(subtrees[t]); i-- > subtrees[t];) visit(i, done[t]);
+    });
+    if (top.empty()) return;
+    Rows rows;  // the rows of the subtrees' roots and of the top nodes visited so far
+    for (Rows& d : done) rows.insert(rows.end(), d.begin(), d.end());
+    const auto take = [&](std::uint32_t node) {
+      const auto it =
+          std::find_if(rows.begin(), rows.end(), [&](auto& r) { return r.first == node; });
+      auto row = *it;
+      rows.erase(it);
+      return row;
+    };
+    for (std::size_t j = top.size(); j-- > 0;) {
+      const std::uint32_t i = top[j];
+      Rows children;
+      if (programme) children = {take(bin.nodes[i].offset), take(i + 1)};
+      visit(i, children);
+      rows.insert(rows.end(), children.begin(), children.end());
+    }
+  }
+
+  // The triangles' area under node i, its children's already known.
+  double subtree_triangle_area(const format::BvhNode& n, std::size_t i) const {
+    if (n.count == 0) return triangle_area[i + 1] + triangle_area[n.offset];
+    double sum = 0;
+    for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r)
+      sum += prim_area.empty() ? area_of(bin.triangles[r]) : prim_area[bin.prim_ids[r]];
+    return sum;
+  }
+
+  // Every scene triangle's area, in scene order (its corners read in sequence, not in the
+  // leaves' scattered order).
+  static std::vector<double> scene_triangle_areas(const Scene& scene, unsigned threads) {
+    std::vector<double> area(scene.triangles.size());
+    parallel_for_batched(area.size(), 65536, threads, [&](std::size_t i) {
+      const auto& t = scene.triangles[i];
+      area[i] =
+          area_of({scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]});
+    });
+    return area;
   }
 
   static double area_of(const format::RayTriangle& t) {
@@ -191,8 +297,7 @@ struct Collapser {
       case WideSlotOrder::kOcclusion: {
         // P / C with P = min(1, triangle area / area) and C = cost / area: min(area, tri) / cost.
         // The greedy collapse has no programme: a rough cost instead.
-        const double cost =
-            programme ? programme->cost[std::size_t(i) * W] : area * (1.0 + double(refs[i]) * 0.25);
+        const double cost = programme ? programme->cost1[i] : area * (1.0 + double(refs[i]) * 0.25);
         return cost > 0 ? std::min(area, triangle_area[i]) / cost : 0.0;
       }
       default:
@@ -217,10 +322,9 @@ struct Collapser {
     return {scene->positions[t.v[0]], scene->positions[t.v[1]], scene->positions[t.v[2]]};
   }
 
-  // Subtree `i`'s references, one per triangle: binary leaves are deduplicated, but a presplit
-  // (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
-  const std::vector<std::uint32_t>& distinct_refs(std::uint32_t i) {
-    std::vector<std::uint32_t>& list = leaf_refs;
+  // Subtree `i`'s references, one per triangle, into `list`: binary leaves are deduplicated,
+  // but a presplit (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
+  void distinct_refs(std::uint32_t i, std::vector<std::uint32_t>& list) const {
     list.clear();
     for (std::uint32_t r = first_ref(i), end = r + refs[i]; r < end; ++r) {
       const bool seen = std::any_of(list.begin(), list.end(), [&](std::uint32_t k) {
@@ -228,21 +332,17 @@ struct Collapser {
       });
       if (!seen) list.push_back(r);
     }
-    return list;
   }
 
-  // Packs subtree `i`'s references into packets; returns the child word and packet count.
-  std::pair<std::uint32_t, std::uint8_t> emit_leaf(std::uint32_t i) {
-    const std::vector<std::uint32_t>& list = distinct_refs(i);
+  // Packs subtree `i`'s references into packets at `dst`; returns their count.
+  std::uint8_t write_leaf(std::uint32_t i, std::byte* dst, WriteTally& tally) const {
+    std::vector<std::uint32_t>& list = tally.scratch;
+    distinct_refs(i, list);
     const auto count = std::uint32_t(list.size());
-    lanes_used += count;
+    tally.lanes_used += count;
     const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
-    if (packets > format::kBvhMaxLeafPackets)
-      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
-                                  " references does not fit a wide leaf");
-    const auto start = std::uint32_t(out.packets.size());
-    for (std::uint32_t p = 0; p < packets; ++p) {
-      format::BvhTrianglePacket packet{};
+    for (std::uint32_t p = 0; p < packets; ++p, dst += sizeof(format::BvhTrianglePacket)) {
+      format::BvhTrianglePacket packet;
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
         // Unused lanes repeat the leaf's last triangle: every lane is a real triangle.
         const std::uint32_t r = list[std::min(p * format::kBvhPacketSize + lane, count - 1)];
@@ -252,42 +352,89 @@ struct Collapser {
           for (int a = 0; a < 3; ++a) packet.v[c][a][lane] = format::at(corners[c], a);
         packet.prim[lane] = bin.prim_ids[r];
       }
-      out.packets.push_back(packet);
+      std::memcpy(dst, &packet, sizeof packet);
     }
-    out.stats.leaf_count += 1;
-    return {format::kBvhLeafFlag | start, std::uint8_t(packets)};
+    tally.leaf_count += 1;
+    tally.packet_count += packets;
+    return std::uint8_t(packets);
+  }
+
+  // The packets of a leaf slot, checked against the format's limit.
+  std::uint32_t leaf_packets(std::uint32_t i, std::vector<std::uint32_t>& scratch) const {
+    distinct_refs(i, scratch);
+    const auto count = std::uint32_t(scratch.size());
+    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+    if (packets > format::kBvhMaxLeafPackets)
+      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
+                                  " references does not fit a wide leaf");
+    return packets;
   }
 
   // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
   // the largest child until W.
-  std::vector<std::uint32_t> gather(std::uint32_t i) const {
-    std::vector<std::uint32_t> kids;
-    if (bin.nodes[i].count > 0 || (!programme && is_leaf(i))) return {i};
+  Slots<W> gather(std::uint32_t i) const {
+    Slots<W> kids;
+    if (bin.nodes[i].count > 0 || (!programme && is_leaf(i))) {
+      kids.push(i);
+      return kids;
+    }
     if (programme) {
       const int left = programme->split[i];
       programme->collect(bin, i + 1, left, kids);
       programme->collect(bin, bin.nodes[i].offset, W - left, kids);
       return kids;
     }
-    kids = {i + 1, bin.nodes[i].offset};
-    while (kids.size() < std::size_t(W)) {
+    kids.push(i + 1), kids.push(bin.nodes[i].offset);
+    while (kids.size < W) {
       int best = -1;
       float best_area = -1;
-      for (std::size_t k = 0; k < kids.size(); ++k)
-        if (!is_leaf(kids[k]) && half_area(bin.nodes[kids[k]]) > best_area)
-          best = int(k), best_area = half_area(bin.nodes[kids[k]]);
+      for (int k = 0; k < kids.size; ++k)
+        if (!is_leaf(kids.node[k]) && half_area(bin.nodes[kids.node[k]]) > best_area)
+          best = k, best_area = half_area(bin.nodes[kids.node[k]]);
       if (best < 0) break;
-      const std::uint32_t open = kids[best];
-      kids[best] = open + 1;
-      kids.insert(kids.begin() + best + 1, bin.nodes[open].offset);
+      const std::uint32_t open = kids.node[best];
+      std::copy_backward(kids.node + best + 1, kids.node + kids.size, kids.node + kids.size + 1);
+      kids.node[best] = open + 1, kids.node[best + 1] = bin.nodes[open].offset;
+      kids.size += 1;
     }
     return kids;
   }
 
-  std::uint32_t emit(std::uint32_t i, std::uint32_t depth) {
-    const auto index = std::uint32_t(out.nodes.size() / sizeof(format::BvhWideNode<W>));
-    out.nodes.resize(out.nodes.size() + sizeof(format::BvhWideNode<W>));
-    out.stats.max_depth = std::max(out.stats.max_depth, depth);
+  // Orders the slots by decreasing score, ties in the tree's order (a stable insertion sort,
+  // each score computed once).
+  void order_slots(Slots<W>& kids) const {
+    if (options.order == WideSlotOrder::kTree) return;
+    double score[W];
+    for (int k = 0; k < kids.size; ++k) score[k] = slot_score(kids.node[k]);
+    for (int k = 1; k < kids.size; ++k) {
+      const std::uint32_t node = kids.node[k];
+      const double key = score[k];
+      int j = k;
+      for (; j > 0 && key > score[j - 1]; --j)
+        kids.node[j] = kids.node[j - 1], score[j] = score[j - 1];
+      kids.node[j] = node, score[j] = key;
+    }
+  }
+
+  static std::uint32_t unit(std::size_t bytes) {
+    if (bytes / format::kBvhArenaUnit >= format::kBvhLeafFlag)
+      throw std::invalid_argument("BVH too large for 32-bit arena offsets");
+    return std::uint32_t(bytes / format::kBvhArenaUnit);
+  }
+  static std::size_t to_line(std::size_t bytes) {
+    return (bytes + format::kBvhArenaLine - 1) / format::kBvhArenaLine * format::kBvhArenaLine;
+  }
+
+  // The wide node of binary node `i` and its subtree, written into the arena (sized and zeroed
+  // before) at byte `at` (kiln/formats/bvh_wide.hpp): the node, its leaf packets, zeros to the
+  // next line, then its interior children's subtrees. Returns the end of the subtree; sets
+  // `leaf_lines` to the lines its own leaf packets span. Interior children listed in `top` are
+  // not written: their places (sized by `top`) are recorded there for writers of their own.
+  template <class Node>
+  std::size_t write(std::uint32_t i, std::uint32_t depth, std::size_t at, std::size_t& leaf_lines,
+                    WriteTally& tally, TopLevels* top = nullptr) const {
+    tally.node_count += 1;
+    tally.max_depth = std::max(tally.max_depth, depth);
     format::BvhWideNode<W> node{};
     for (int a = 0; a < 3; ++a)
       for (int k = 0; k < W; ++k) {
@@ -295,76 +442,158 @@ struct Collapser {
         node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
-    auto kids = gather(i);
-    if (options.order != WideSlotOrder::kTree)  // stable: ties keep the tree's order
-      std::stable_sort(kids.begin(), kids.end(), [&](std::uint32_t a, std::uint32_t b) {
-        return slot_score(a) > slot_score(b);
-      });
-    for (std::size_t k = 0; k < kids.size(); ++k) {
-      const auto& b = bin.nodes[kids[k]];
+    Slots<W> kids = gather(i);
+    order_slots(kids);
+    std::byte* const arena = out.arena.data();
+    std::size_t end = at + sizeof(Node);
+    for (int k = 0; k < kids.size; ++k) {
+      const auto& b = bin.nodes[kids.node[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
-      if (is_leaf(kids[k])) {
-        const auto [word, packets] = emit_leaf(kids[k]);
-        node.child[k] = word, node.packets[k] = packets;
+      if (!is_leaf(kids.node[k])) continue;
+      node.child[k] = format::kBvhLeafFlag | unit(end);
+      node.packets[k] = write_leaf(kids.node[k], arena + end, tally);
+      end += node.packets[k] * sizeof(format::BvhTrianglePacket);
+    }
+    leaf_lines = to_line(end - at - sizeof(Node)) / format::kBvhArenaLine;
+    end = to_line(end);
+    for (int k = 0; k < kids.size; ++k) {
+      if (is_leaf(kids.node[k])) continue;
+      std::size_t child_lines = 0;
+      node.child[k] = unit(end);
+      if (top && top->has(kids.node[k])) {
+        const TopLevels::Subtree& sub = top->place(kids.node[k], end, depth + 1);
+        child_lines = sub.leaf_lines, end += sub.bytes;
       } else {
-        node.child[k] = emit(kids[k], depth + 1);
+        end = write<Node>(kids.node[k], depth + 1, end, child_lines, tally, top);
+      }
+      node.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
+    }
+    if constexpr (std::is_same_v<Node, format::BvhWideNode<W>>) {
+      std::memcpy(arena + at, &node, sizeof node);
+    } else {
+      const Node q = quantize(node);
+      std::memcpy(arena + at, &q, sizeof q);
+    }
+    return end;
+  }
+
+  // What `write` will write for binary node `i`: bytes and the node's own leaf lines.
+  std::pair<std::size_t, std::size_t> subtree_size(std::uint32_t i, std::size_t node_size,
+                                                   std::vector<std::uint32_t>& scratch) const {
+    const Slots<W> kids = gather(i);
+    std::size_t block = node_size, below = 0;
+    for (int k = 0; k < kids.size; ++k) {
+      if (is_leaf(kids.node[k]))
+        block += leaf_packets(kids.node[k], scratch) * sizeof(format::BvhTrianglePacket);
+      else
+        below += subtree_size(kids.node[k], node_size, scratch).first;
+    }
+    return {to_line(block) + below, (to_line(block) - node_size) / format::kBvhArenaLine};
+  }
+
+  // subtree_size for the top levels, taking the sizes of the subtrees in `top` as counted.
+  std::size_t top_size(std::uint32_t i, std::size_t node_size, const TopLevels& top,
+                       std::size_t& next, std::vector<std::uint32_t>& scratch) const {
+    Slots<W> kids = gather(i);
+    order_slots(kids);
+    std::size_t block = node_size, below = 0;
+    for (int k = 0; k < kids.size; ++k) {
+      const std::uint32_t kid = kids.node[k];
+      if (is_leaf(kid))
+        block += leaf_packets(kid, scratch) * sizeof(format::BvhTrianglePacket);
+      else if (next < top.subtrees.size() && top.subtrees[next].node == kid)
+        below += top.subtrees[next++].bytes;
+      else
+        below += top_size(kid, node_size, top, next, scratch);
+    }
+    return to_line(block) + below;
+  }
+
+  // The interior slots below the top levels, in the order `write` meets them: each subtree of at
+  // most `limit` references (or a leaf's parent) is written apart.
+  void find_top_subtrees(std::uint32_t i, std::uint32_t limit, TopLevels& top) const {
+    const Slots<W> kids = gather(i);
+    Slots<W> ordered = kids;
+    order_slots(ordered);
+    for (int k = 0; k < ordered.size; ++k) {
+      const std::uint32_t kid = ordered.node[k];
+      if (is_leaf(kid)) continue;
+      if (refs[kid] <= limit)
+        top.subtrees.push_back({kid});
+      else
+        find_top_subtrees(kid, limit, top);
+    }
+  }
+};
+
+// The tree by index (FlatWideBvh::nodes and packets) read back from the arena: nodes in the
+// order written (pre-order, slots in order), packets in the order a walk in slot order meets
+// them; child words index those, interior children's `packets` 0.
+template <class Node, int W>
+struct IndexTreeReader {
+  FlatWideBvh& wide;
+
+  std::uint32_t read(std::uint32_t offset) {
+    Node n;
+    std::memcpy(&n, wide.arena.data() + std::size_t(offset) * format::kBvhArenaUnit, sizeof n);
+    const auto index = std::uint32_t(wide.nodes.size() / sizeof n);
+    wide.nodes.resize(wide.nodes.size() + sizeof n);
+    for (int k = 0; k < W; ++k) {
+      if (n.child[k] & format::kBvhLeafFlag) {
+        if (n.packets[k] == 0) continue;  // empty slot
+        const auto* p = reinterpret_cast<const format::BvhTrianglePacket*>(
+            wide.arena.data() +
+            std::size_t(n.child[k] & ~format::kBvhLeafFlag) * format::kBvhArenaUnit);
+        n.child[k] = format::kBvhLeafFlag | std::uint32_t(wide.packets.size());
+        wide.packets.insert(wide.packets.end(), p, p + n.packets[k]);
+      } else {
+        n.child[k] = read(n.child[k]);
+        n.packets[k] = 0;
       }
     }
-    std::memcpy(out.nodes.data() + index * sizeof node, &node, sizeof node);
+    std::memcpy(wide.nodes.data() + std::size_t(index) * sizeof n, &n, sizeof n);
     return index;
   }
 };
 
-// Lays the tree by index out as the arena (kiln/formats/bvh_wide.hpp): each node, its leaf
-// packets, zeros to the next line, then its interior children's subtrees.
-template <class Node, int W>
-struct ArenaWriter {
-  const FlatWideBvh& wide;
-  std::vector<std::byte> out;
-
-  void pad_to_line() {
-    out.resize((out.size() + format::kBvhArenaLine - 1) / format::kBvhArenaLine *
-               format::kBvhArenaLine);
-  }
-  static std::uint32_t unit(std::size_t bytes) {
-    if (bytes / format::kBvhArenaUnit >= format::kBvhLeafFlag)
-      throw std::invalid_argument("BVH too large for 32-bit arena offsets");
-    return std::uint32_t(bytes / format::kBvhArenaUnit);
-  }
-
-  // Writes node `index` and its subtree at the end of `out`; returns its offset and sets
-  // `leaf_lines` to the lines its own leaf packets span.
-  std::uint32_t write(std::uint32_t index, std::size_t& leaf_lines) {
-    Node n;
-    std::memcpy(&n, wide.nodes.data() + std::size_t(index) * sizeof n, sizeof n);
-    const std::size_t at = out.size();
-    out.resize(at + sizeof n);
-    for (int k = 0; k < W; ++k) {
-      if (!(n.child[k] & format::kBvhLeafFlag) || n.packets[k] == 0) continue;
-      const std::uint32_t first = n.child[k] & ~format::kBvhLeafFlag;
-      n.child[k] = format::kBvhLeafFlag | unit(out.size());
-      const auto* p = reinterpret_cast<const std::byte*>(wide.packets.data() + first);
-      out.insert(out.end(), p, p + n.packets[k] * sizeof(format::BvhTrianglePacket));
-    }
-    leaf_lines = (out.size() - at - sizeof n + format::kBvhArenaLine - 1) / format::kBvhArenaLine;
-    pad_to_line();
-    for (int k = 0; k < W; ++k) {
-      if (n.child[k] & format::kBvhLeafFlag) continue;
-      std::size_t child_lines = 0;
-      n.child[k] = write(n.child[k], child_lines);
-      n.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
-    }
-    std::memcpy(out.data() + at, &n, sizeof n);
-    return unit(at);
-  }
-};
-
-template <class Node, int W>
-std::vector<std::byte> write_arena(const FlatWideBvh& wide) {
-  ArenaWriter<Node, W> writer{wide, {}};
+// Writes the arena: serially, or (threads > 1) the top levels here and the subtrees below them
+// on their own threads, each into its place. The same bytes either way.
+template <int W, class Node>
+std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
+                            const WideCollapseOptions& options, FlatWideBvh& out) {
+  const Collapser<W> collapser(binary, scene, out, options);
+  const unsigned threads = resolve_thread_count(options.threads);
+  WriteTally tally;
   std::size_t root_lines = 0;
-  writer.write(0, root_lines);
-  return std::move(writer.out);
+  if (threads == 1 || collapser.is_leaf(0)) {
+    out.arena.resize(collapser.subtree_size(0, sizeof(Node), tally.scratch).first);
+    collapser.template write<Node>(0, 1, 0, root_lines, tally);
+  } else {
+    TopLevels top;
+    const std::uint32_t limit = std::max<std::uint32_t>(collapser.refs[0] / (16 * threads), 64);
+    collapser.find_top_subtrees(0, limit, top);
+    std::vector<WriteTally> tallies(top.subtrees.size());
+    parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
+      auto& sub = top.subtrees[t];
+      std::tie(sub.bytes, sub.leaf_lines) =
+          collapser.subtree_size(sub.node, sizeof(Node), tallies[t].scratch);
+    });
+    std::size_t next = 0;
+    out.arena.resize(collapser.top_size(0, sizeof(Node), top, next, tally.scratch));
+    collapser.template write<Node>(0, 1, 0, root_lines, tally, &top);
+    if (top.next != top.subtrees.size())  // every place reserved, in the order found
+      throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
+    parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
+      const auto& sub = top.subtrees[t];
+      std::size_t lines = 0;
+      collapser.template write<Node>(sub.node, sub.depth, sub.at, lines, tallies[t]);
+    });
+    for (const WriteTally& t : tallies) tally.add(t);
+  }
+  out.stats.node_count = tally.node_count, out.stats.leaf_count = tally.leaf_count;
+  out.stats.packet_count = tally.packet_count, out.stats.max_depth = tally.max_depth;
+  if (options.index_tree) IndexTreeReader<Node, W>{out}.read(0);
+  return tally.lanes_used;
 }
 
 }  // namespace
@@ -375,28 +604,15 @@ FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t
   out.width = width;
   out.quantized = quantized;
   std::uint64_t lanes_used = 0;
-  if (width == 4) {
-    Collapser<4> collapser(binary, scene, out, options);
-    collapser.emit(0, 1);
-    lanes_used = collapser.lanes_used;
-  } else if (width == 8) {
-    Collapser<8> collapser(binary, scene, out, options);
-    collapser.emit(0, 1);
-    lanes_used = collapser.lanes_used;
-  } else {
-    throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4 or 8");
-  }
-  auto& s = out.stats;
-  const std::size_t node_size = width == 4 ? sizeof(format::BvhNode4) : sizeof(format::BvhNode8);
-  s.node_count = out.nodes.size() / node_size;
-  if (quantized) out.nodes = width == 4 ? quantize_all<4>(out.nodes) : quantize_all<8>(out.nodes);
-  if (quantized)
-    out.arena = width == 4 ? write_arena<format::BvhQNode4, 4>(out)
-                           : write_arena<format::BvhQNode8, 8>(out);
+  if (width == 4)
+    lanes_used = quantized ? collapse_into<4, format::BvhQNode4>(binary, scene, options, out)
+                           : collapse_into<4, format::BvhNode4>(binary, scene, options, out);
+  else if (width == 8)
+    lanes_used = quantized ? collapse_into<8, format::BvhQNode8>(binary, scene, options, out)
+                           : collapse_into<8, format::BvhNode8>(binary, scene, options, out);
   else
-    out.arena =
-        width == 4 ? write_arena<format::BvhNode4, 4>(out) : write_arena<format::BvhNode8, 8>(out);
-  s.packet_count = out.packets.size();
+    throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4 or 8");
+  auto& s = out.stats;
   s.packet_fill =
       s.packet_count ? double(lanes_used) / double(s.packet_count * format::kBvhPacketSize) : 0;
   s.arena_bytes = out.arena.size();

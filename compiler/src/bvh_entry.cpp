@@ -154,7 +154,11 @@ BuiltStructure binary_structure(std::shared_ptr<FlatBvh> flat, const BvhBuildOpt
 
 // The wide layout: one BVWA section, the arena (the tree by index is dropped here).
 BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, const Scene& scene) {
-  FlatWideBvh collapsed = collapse_bvh(flat, o.width, scene.triangles.size(), o.quantized, &scene);
+  WideCollapseOptions c;
+  c.threads = o.threads;
+  c.index_tree = false;  // the blob stores the arena alone
+  FlatWideBvh collapsed =
+      collapse_bvh(flat, o.width, scene.triangles.size(), o.quantized, &scene, c);
   const WideBvhStatistics w = collapsed.stats;
   auto arena = std::make_shared<std::vector<std::byte>>(std::move(collapsed.arena));
   collapsed = {};

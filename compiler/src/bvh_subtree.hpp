@@ -2,6 +2,10 @@
 // by the binned and sweep builders.
 #pragma once
 
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <thread>
 #include <vector>
 
 #include "kiln/formats/bvh.hpp"
@@ -18,6 +22,77 @@ inline void append_bvh_subtree(std::vector<format::BvhNode>& nodes,
     if (n.count == 0) n.offset += shift;
     nodes.push_back(n);
   }
+}
+
+/// Worker slots for recursive builders that fork on demand: a subtree goes to a new thread when
+/// a slot is free, whatever its depth, so an uneven split near the root does not leave a core
+/// idle (the fixed fork depth did). A thread waiting on its forked half gives its slot back
+/// meanwhile. Where a subtree runs never changes the nodes (emit_bvh_children appends in order).
+class WorkerSlots {
+ public:
+  explicit WorkerSlots(unsigned workers) : free_(int(workers) - 1) {}
+  /// Takes a slot for a new thread, if one is free.
+  bool try_take() {
+    int f = free_.load(std::memory_order_relaxed);
+    while (f > 0 && !free_.compare_exchange_weak(f, f - 1)) {
+    }
+    return f > 0;
+  }
+  /// Takes every free slot (for a parallel loop); returns how many.
+  unsigned take_all() {
+    int f = free_.load(std::memory_order_relaxed);
+    while (f > 0 && !free_.compare_exchange_weak(f, 0)) {
+    }
+    return unsigned(std::max(f, 0));
+  }
+  void give(unsigned n = 1) { free_ += int(n); }
+  /// A running thread blocks (gives its slot) or resumes (takes one back, even if none is free:
+  /// the count may go below zero until a thread ends).
+  void block() { free_ += 1; }
+  void resume() { free_ -= 1; }
+
+ private:
+  std::atomic<int> free_;
+};
+
+/// Emits a node's two children after it with `emit(child, nodes)`; the right one on a new
+/// thread when `slots` has a free one (and both sides are at least `min_fork` large). The left
+/// one is emitted in place, the right one apart (`reserve` nodes reserved) and appended, so the
+/// nodes are the same either way. Links the node at `index` to its second child and makes it
+/// interior.
+template <class Child, class Emit>
+void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child& left,
+                                 const Child& right, std::size_t reserve, std::size_t index,
+                                 std::vector<format::BvhNode>& nodes, const Emit& emit) {
+  std::uint32_t second;
+  if (may_fork && slots.try_take()) {
+    std::vector<format::BvhNode> r;
+    r.reserve(reserve);
+    std::exception_ptr error;
+    {
+      std::jthread worker([&] {
+        try {
+          emit(right, r);
+        } catch (...) {
+          error = std::current_exception();
+        }
+        slots.give();
+      });
+      emit(left, nodes);  // if it throws, the jthread joins on unwinding
+      slots.block();
+      worker.join();
+      slots.resume();
+    }
+    if (error) std::rethrow_exception(error);
+    second = std::uint32_t(nodes.size());
+    append_bvh_subtree(nodes, r);
+  } else {
+    emit(left, nodes);
+    second = std::uint32_t(nodes.size());
+    emit(right, nodes);
+  }
+  nodes[index].offset = second;
+  nodes[index].count = 0;
 }
 
 // Emits a node's two children after it with `emit(child, nodes)`: in turn, or (with `fork`)

@@ -58,6 +58,12 @@ struct WideCollapseOptions {
   /// A binary subtree of at most this many references may become one leaf.
   std::uint32_t max_leaf_refs = 16;
   WideSlotOrder order = WideSlotOrder::kOcclusion;
+  /// Worker threads for the passes that run in parallel (0 = every core); never changes the
+  /// result.
+  unsigned threads = 1;
+  /// Also fill FlatWideBvh::nodes and packets (the tree by index, for tests and tools); off,
+  /// only the arena is made (what a blob stores), without a second copy of the tree.
+  bool index_tree = true;
 };
 
 /// Collapses `binary` into `width` (4 or 8) children per node. Default: the dynamic programme of
@@ -67,14 +73,16 @@ struct WideCollapseOptions {
 /// packet_cost x ceil(refs / 4))), so leaves fill their packets where the SAH allows.
 /// `options.greedy`: each wide node opens the child of largest surface area until it has `width`
 /// children, and a binary subtree of at most four references becomes one leaf packet. Either way a
-/// triangle in two binary leaves of one wide leaf is stored once (SBVH, presplit). Deterministic
-/// and serial. `triangle_count` is the scene's (for bytes per triangle). `quantized`: child boxes
-/// as bytes relative to the node (BvhQuantizedNode), each containing the float box. Corners come
-/// from `binary.triangles`, or, when it is empty (built with BvhBuildOptions::leaf_triangles off),
-/// from `scene` through the primitive ids. The result holds the tree twice: laid out as the
-/// arena, and by index. Throws std::invalid_argument for another width, a leaf over 1020
-/// references, (quantized) coordinates beyond 1e38, an arena beyond 32 GiB, or no source of
-/// corners.
+/// triangle in two binary leaves of one wide leaf is stored once (SBVH, presplit). Deterministic:
+/// the same bytes on any `options.threads`. `binary.nodes` must be in depth-first pre-order with
+/// the first child adjacent, as the builders emit them (the programme throws
+/// std::invalid_argument where it finds them out of that order). `triangle_count` is the scene's
+/// (for bytes per triangle). `quantized`: child boxes as bytes relative to the node
+/// (BvhQuantizedNode), each containing the float box. Corners come from `binary.triangles`, or,
+/// when it is empty (built with BvhBuildOptions::leaf_triangles off), from `scene` through the
+/// primitive ids. The result holds the arena and, with `options.index_tree`, the same tree by
+/// index. Throws std::invalid_argument for another width, a leaf over 1020 references, (quantized)
+/// coordinates beyond 1e38, an arena beyond 32 GiB, or no source of corners.
 FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t triangle_count,
                          bool quantized = false, const Scene* scene = nullptr,
                          const WideCollapseOptions& options = {});
