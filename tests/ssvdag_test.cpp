@@ -41,12 +41,61 @@ struct Both {
   }
 };
 
-Both build_both(const Scene& scene, std::uint32_t resolution) {
+Both build_both(const Scene& scene, std::uint32_t resolution,
+                const SsvdagPointerReach& reach = {}) {
   Both b;
   b.dag = build_dag(scene, resolution);
-  b.ssvdag = build_ssvdag(b.dag.voxels.codes, resolution, 2);
+  b.ssvdag = build_ssvdag(b.dag.voxels.codes, resolution, 2, reach);
   b.firsts = ssvdag_level_first_words(b.ssvdag);
   return b;
+}
+
+// Pointer reaches far below the format's, so that SSVDAGs of 64^3-256^3 take every kind of
+// pointer: absolute, relative and wide into interior levels, narrow and wide into the leaves.
+constexpr SsvdagPointerReach kShortReach{4, 8, 16};
+
+// The pointers of an SSVDAG by kind, read from its words (not from the builder's statistics).
+struct PointerKinds {
+  std::uint64_t absolute = 0, relative = 0, wide = 0, leaf_narrow = 0, leaf_wide = 0;
+};
+
+PointerKinds pointer_kinds(const FlatSsvdag& s) {
+  PointerKinds k;
+  const auto firsts = ssvdag_level_first_words(s);
+  const std::size_t interior = firsts.size();
+  for (std::size_t l = 0; l < interior; ++l) {
+    const std::uint64_t end = l + 1 < interior ? firsts[l + 1] : s.words.size();
+    for (std::uint64_t w = firsts[l]; w < end;) {
+      const std::uint32_t mask = s.words[w] & 0xFFu, wide = s.words[w] >> 8;
+      std::uint64_t at = w + 1;
+      for (std::uint32_t c = 0; c < 8; ++c) {
+        if ((mask >> c & 1) == 0) continue;
+        const bool is_wide = wide >> c & 1, to_leaves = l + 1 == interior;
+        if (to_leaves)
+          ++(is_wide ? k.leaf_wide : k.leaf_narrow);
+        else if (is_wide)
+          ++k.wide;
+        else
+          ++(s.words[at] >> 3 >= format::kSsvdagAbsoluteOffsets ? k.relative : k.absolute);
+        at += is_wide ? 2 : 1;
+      }
+      w = at;
+    }
+  }
+  return k;
+}
+
+void expect_every_pointer_kind(const FlatSsvdag& s, std::uint32_t resolution) {
+  const PointerKinds k = pointer_kinds(s);
+  EXPECT_GT(k.absolute, 0u) << resolution;
+  EXPECT_GT(k.relative, 0u) << resolution;
+  EXPECT_GT(k.wide, 0u) << resolution;
+  EXPECT_GT(k.leaf_narrow, 0u) << resolution;
+  EXPECT_GT(k.leaf_wide, 0u) << resolution;
+  std::uint64_t relative = 0, wide = 0;
+  for (const auto& l : s.level_stats) relative += l.relative_pointers, wide += l.wide_pointers;
+  EXPECT_EQ(relative, k.relative);
+  EXPECT_EQ(wide, k.wide + k.leaf_wide);
 }
 
 Scene mesh_or_icosphere(const char* relative) {
@@ -101,8 +150,12 @@ TEST(Ssvdag, MirrorsAreCoordinateFlips) {
 
 TEST(Ssvdag, ExpandsToTheDagVoxelSetAtSeveralResolutions) {
   const Scene scene = mesh_or_icosphere("stanford/stanford-bunny.obj.zst");
-  for (const std::uint32_t resolution : {8u, 16u, 32u, 64u, 128u, 256u}) {
-    const Both b = build_both(scene, resolution);
+  for (const std::uint32_t resolution : {8u, 16u, 32u, 64u, 128u, 256u, 129u, 257u}) {
+    // 129 and 257: 128 and 256 with short pointer reaches (every kind of pointer).
+    const bool short_reach = resolution % 2 == 1;
+    const Both b = short_reach ? build_both(scene, resolution - 1, kShortReach)
+                               : build_both(scene, resolution);
+    if (short_reach) expect_every_pointer_kind(b.ssvdag, resolution);
     const auto& dag = b.dag.dag;
     EXPECT_EQ(expand_ssvdag(b.ssvdag), expand_voxel_dag(dag.words, dag.levels)) << resolution;
     EXPECT_EQ(expand_ssvdag(b.ssvdag), b.dag.voxels.codes) << resolution;
@@ -114,7 +167,7 @@ TEST(Ssvdag, ExpandsToTheDagVoxelSetAtSeveralResolutions) {
       EXPECT_LE(b.ssvdag.level_stats[l].ssvdag_nodes, dag.level_stats[l].dag_nodes);
     }
     EXPECT_EQ(b.view().count_voxels(), b.dag.voxels.codes.size());
-    if (resolution >= 64) {
+    if (resolution >= 64 && !short_reach) {
       EXPECT_LT(b.ssvdag.ssvdag_bytes, dag.dag_bytes) << resolution;
     }
   }
@@ -122,19 +175,22 @@ TEST(Ssvdag, ExpandsToTheDagVoxelSetAtSeveralResolutions) {
 
 TEST(Ssvdag, OccupancyEqualsTheDagEverywhere) {
   const Scene scene = mesh_or_icosphere("classic/teapot.obj");
-  for (const std::uint32_t resolution : {16u, 64u}) {
-    const Both b = build_both(scene, resolution);
+  for (const std::uint32_t resolution : {16u, 64u, 65u}) {
+    // 65: 64 with short pointer reaches (every kind of pointer).
+    const std::uint32_t n = resolution & ~1u;
+    const Both b = n == resolution ? build_both(scene, n) : build_both(scene, n, kShortReach);
+    if (n != resolution) expect_every_pointer_kind(b.ssvdag, resolution);
     const VoxelDagView dag = b.dag.view();
     const SsvdagView ssvdag = b.view();
     std::size_t set = 0;
-    for (std::uint32_t z = 0; z < resolution; ++z)
-      for (std::uint32_t y = 0; y < resolution; ++y)
-        for (std::uint32_t x = 0; x < resolution; ++x) {
+    for (std::uint32_t z = 0; z < n; ++z)
+      for (std::uint32_t y = 0; y < n; ++y)
+        for (std::uint32_t x = 0; x < n; ++x) {
           ASSERT_EQ(ssvdag.occupied(x, y, z), dag.occupied(x, y, z)) << x << " " << y << " " << z;
           set += dag.occupied(x, y, z);
         }
     EXPECT_EQ(set, b.dag.voxels.codes.size());
-    EXPECT_FALSE(ssvdag.occupied(resolution, 0, 0));
+    EXPECT_FALSE(ssvdag.occupied(n, 0, 0));
   }
 }
 
@@ -152,8 +208,11 @@ TEST(Ssvdag, SolidVoxelsExpandToTheDagSet) {
 TEST(Ssvdag, CastsEqualTheDagHits) {
   const Scene scene = mesh_or_icosphere("classic/teapot.obj");
   const auto rays = rays_for(scene, 4000, 3);
-  for (const std::uint32_t resolution : {32u, 128u}) {
-    const Both b = build_both(scene, resolution);
+  for (const std::uint32_t resolution : {32u, 128u, 129u}) {
+    // 129: 128 with short pointer reaches (every kind of pointer).
+    const std::uint32_t n = resolution & ~1u;
+    const Both b = n == resolution ? build_both(scene, n) : build_both(scene, n, kShortReach);
+    if (n != resolution) expect_every_pointer_kind(b.ssvdag, resolution);
     const VoxelDagView dag = b.dag.view();
     const SsvdagView ssvdag = b.view();
     std::size_t hits = 0;
@@ -298,6 +357,66 @@ TEST(Ssvdag, ForgedWordsAreRefusedOrSafe) {
       for (const Ray& r : rays) view.intersect(r);
       view.count_voxels();
       for (std::uint32_t i = 0; i < 512; ++i) view.occupied(i % 64, i / 8 % 64, i * 7 % 64);
+    } catch (const BlobError&) {
+    }
+  }
+}
+
+// Relative pointers at open: one in a node without a wide pointer (no base), and one whose
+// offset falls before its level, are refused; any word of an SSVDAG with every kind of pointer
+// changed is refused or stays in range.
+TEST(Ssvdag, ForgedRelativePointersAreRefused) {
+  const Both b = build_both(icosphere(3), 128, kShortReach);
+  expect_every_pointer_kind(b.ssvdag, 129);
+  const VoxelGridFrame frame = frame_of(b.dag.voxels.grid);
+  auto open = [&](const std::vector<std::uint16_t>& words) {
+    return SsvdagView(words, b.ssvdag.leaves, frame, b.firsts, b.ssvdag.root_mirror);
+  };
+  const auto& w = b.ssvdag.words;
+  EXPECT_NO_THROW(open(w));
+  bool no_base = false, before_level = false;
+  // Nodes of the levels whose pointers go to interior levels.
+  for (std::uint64_t at = 0; at < b.firsts.back() && !(no_base && before_level);) {
+    const std::uint32_t mask = w[at] & 0xFFu, wide = w[at] >> 8;
+    const std::uint64_t size = 1 + std::popcount(mask) + std::popcount(wide);
+    // The word of child c's pointer.
+    auto word_of = [&](std::uint32_t c) {
+      const std::uint32_t below = (1u << c) - 1;
+      return at + 1 + std::popcount(mask & below) + std::popcount(wide & below);
+    };
+    auto forged = w;
+    const std::uint32_t f = std::countr_zero(wide);  // 32 without a wide pointer
+    const std::uint32_t later = f < 8 ? mask & ~wide & ~((2u << f) - 1) : 0;
+    if (wide == 0 && !no_base) {
+      const std::uint64_t p = word_of(std::countr_zero(mask));
+      forged[p] = std::uint16_t(format::kSsvdagAbsoluteOffsets << 3 | (w[p] & 7u));
+      EXPECT_THROW(open(forged), BlobError) << "relative pointer without a wide one at " << p;
+      no_base = true;
+    } else if (later != 0 && !before_level) {
+      // A narrow pointer after the first wide one, set to 2048 words before that one's offset.
+      const std::uint64_t base_at = word_of(f);
+      const std::uint32_t base = (w[base_at] | std::uint32_t(w[base_at + 1]) << 16) >> 3;
+      if (base < format::kSsvdagRelativeReach) {
+        const std::uint64_t p = word_of(std::countr_zero(later));
+        forged[p] = std::uint16_t(format::kSsvdagAbsoluteOffsets << 3 | (w[p] & 7u));
+        EXPECT_THROW(open(forged), BlobError) << "relative pointer before its level at " << p;
+        before_level = true;
+      }
+    }
+    at += size;
+  }
+  EXPECT_TRUE(no_base);
+  EXPECT_TRUE(before_level);
+  const auto rays = rays_for(icosphere(3), 64, 4);
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 300; ++trial) {
+    auto forged = w;
+    forged[rng() % w.size()] = std::uint16_t(rng());
+    try {
+      const SsvdagView view = open(forged);
+      for (const Ray& r : rays) view.intersect(r);
+      view.count_voxels();
+      for (std::uint32_t i = 0; i < 512; ++i) view.occupied(i % 128, i / 8 % 128, i * 7 % 128);
     } catch (const BlobError&) {
     }
   }

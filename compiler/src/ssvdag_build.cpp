@@ -74,68 +74,93 @@ std::vector<std::vector<std::uint64_t>> reference_counts(const std::vector<Uniqu
   return counts;
 }
 
-// A level's nodes in layout order: most pointers per word first, ties by id. Narrow pointers
-// reach the first 2^13 words of a level; the paper orders by reference count, and dividing by the
-// node's size packs more of the pointers into that window where sizes differ.
+// A level's nodes in layout order: most pointers per word first, ties by id, as long as they
+// start within the first `reach` words (absolute narrow pointers reach them); the paper orders by
+// reference count, and dividing by the node's size packs more pointers into that window. The
+// others follow in id order (first occurrence in Morton order), so that the children of a node
+// and of its neighbours lie side by side, within a relative pointer's reach of each other.
 std::vector<std::uint32_t> layout_order(std::span<const std::uint64_t> count,
-                                        std::span<const std::uint64_t> size) {
+                                        std::span<const std::uint64_t> size, std::uint64_t reach) {
   std::vector<std::uint32_t> order(count.size());
   std::iota(order.begin(), order.end(), 0u);
   std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
     return count[a] * size[b] > count[b] * size[a];
   });
+  std::size_t hot = 0;
+  for (std::uint64_t word = 0; hot < order.size() && word < reach;) word += size[order[hot++]];
+  std::sort(order.begin() + std::ptrdiff_t(hot), order.end());
   return order;
 }
 
-bool narrow(std::uint64_t offset) {
-  return offset < format::kSsvdagNarrowOffsets;
-}
-
-// The words of one node whose children lie at `offsets` (of the level below).
-void emit_node(const Signature& s, std::span<const std::uint64_t> offsets,
-               std::vector<std::uint16_t>& words, SsvdagLevelStats& stats) {
+// The words of one node whose children lie at `offsets` (of the level below; `to_leaves` from
+// the last interior level): narrow absolute where the offset is within reach, else narrow
+// relative to the node's first wide pointer where within reach of it, else wide.
+void emit_node(const Signature& s, std::span<const std::uint64_t> offsets, bool to_leaves,
+               const SsvdagPointerReach& reach, std::vector<std::uint16_t>& words,
+               SsvdagLevelStats& stats) {
   const std::size_t header = words.size();
   words.push_back(0);
   std::uint32_t wide = 0;
+  std::uint64_t base = 0;
   for (std::uint32_t o = 0; o < 8; ++o) {
     const std::uint32_t ref = s.v[1 + o];
     if (ref == kAbsent) continue;
     const std::uint64_t offset = offsets[ref >> 3];
     if (offset >= format::kSsvdagWideOffsets)
       throw std::length_error("SSVDAG level exceeds 2^29 words");
-    const std::uint32_t value = std::uint32_t(offset << 3) | (ref & 7);
-    words.push_back(std::uint16_t(value));
-    if (narrow(offset)) {
-      ++stats.narrow_pointers;
-      continue;
+    const std::int64_t from_base = std::int64_t(offset) - std::int64_t(base);
+    std::uint64_t x = offset;
+    if (!to_leaves && offset >= reach.absolute && wide != 0 && from_base >= -reach.relative &&
+        from_base < reach.relative)
+      x = format::ssvdag_relative_x(offset, base), ++stats.relative_pointers;
+    else if (offset >= (to_leaves ? reach.leaf : reach.absolute)) {
+      if (wide == 0) base = offset;
+      wide |= 1u << o;
     }
-    words.push_back(std::uint16_t(value >> 16));
-    wide |= 1u << o, ++stats.wide_pointers;
+    const std::uint32_t value = std::uint32_t(x << 3) | (ref & 7);
+    words.push_back(std::uint16_t(value));
+    if (wide >> o & 1)
+      words.push_back(std::uint16_t(value >> 16)), ++stats.wide_pointers;
+    else
+      ++stats.narrow_pointers;
   }
   words[header] = std::uint16_t(s.v[0] | wide << 8);
 }
 
+// Each node's size in words, its children lying at `offsets`.
+std::vector<std::uint64_t> node_sizes(std::span<const Signature> nodes,
+                                      std::span<const std::uint64_t> offsets, bool to_leaves,
+                                      const SsvdagPointerReach& reach) {
+  std::vector<std::uint64_t> size(nodes.size());
+  std::vector<std::uint16_t> scratch;
+  SsvdagLevelStats ignored;
+  for (std::size_t id = 0; id < nodes.size(); ++id) {
+    scratch.clear();
+    emit_node(nodes[id], offsets, to_leaves, reach, scratch, ignored);
+    size[id] = scratch.size();
+  }
+  return size;
+}
+
 // Layout: orders and offsets bottom up (a node's size depends on its children's offsets), then
 // the words top down.
-void lay_out(const std::vector<UniqueLevel>& levels, FlatSsvdag& out) {
+void lay_out(const std::vector<UniqueLevel>& levels, const SsvdagPointerReach& reach,
+             FlatSsvdag& out) {
   const std::size_t leaf_level = levels.size() - 1;
   const auto counts = reference_counts(levels);
   std::vector<std::vector<std::uint64_t>> offsets(levels.size());
   std::vector<std::vector<std::uint32_t>> sequence(levels.size());
   sequence[leaf_level] =
-      layout_order(counts[leaf_level], std::vector<std::uint64_t>(counts[leaf_level].size(), 1));
+      layout_order(counts[leaf_level], std::vector<std::uint64_t>(counts[leaf_level].size(), 1),
+                   ~std::uint64_t(0));
   offsets[leaf_level].resize(sequence[leaf_level].size());
   for (std::uint32_t rank = 0; rank < sequence[leaf_level].size(); ++rank) {
     offsets[leaf_level][sequence[leaf_level][rank]] = rank;
     out.leaves.push_back(levels.back().leaves[sequence[leaf_level][rank]]);
   }
   for (std::size_t l = leaf_level; l-- > 0;) {
-    std::vector<std::uint64_t> size(levels[l].nodes.size(), 1);
-    for (std::size_t id = 0; id < size.size(); ++id)
-      for (int o = 0; o < 8; ++o)
-        if (const std::uint32_t ref = levels[l].nodes[id].v[1 + o]; ref != kAbsent)
-          size[id] += narrow(offsets[l + 1][ref >> 3]) ? 1 : 2;
-    sequence[l] = layout_order(counts[l], size);
+    const auto size = node_sizes(levels[l].nodes, offsets[l + 1], l + 1 == leaf_level, reach);
+    sequence[l] = layout_order(counts[l], size, reach.absolute);
     offsets[l].resize(size.size());
     std::uint64_t word = 0;
     for (const std::uint32_t id : sequence[l]) offsets[l][id] = word, word += size[id];
@@ -144,7 +169,7 @@ void lay_out(const std::vector<UniqueLevel>& levels, FlatSsvdag& out) {
     auto& stats = out.level_stats[l];
     stats.first_word = out.words.size();
     for (const std::uint32_t id : sequence[l])
-      emit_node(levels[l].nodes[id], offsets[l + 1], out.words, stats);
+      emit_node(levels[l].nodes[id], offsets[l + 1], l + 1 == leaf_level, reach, out.words, stats);
     stats.bytes = 2 * (out.words.size() - stats.first_word);
   }
   if (out.words.size() > 0xFFFFFFFFull) throw std::length_error("SSVDAG exceeds 2^32 words");
@@ -270,7 +295,12 @@ std::vector<std::uint32_t> merge_dag_level(std::span<const Signature> nodes,
 
 }  // namespace
 
-FlatSsvdag build_ssvdag(const FlatVoxelDag& dag, unsigned threads) {
+FlatSsvdag build_ssvdag(const FlatVoxelDag& dag, unsigned threads,
+                        const SsvdagPointerReach& reach) {
+  if (reach.leaf > format::kSsvdagNarrowOffsets ||
+      reach.absolute > format::kSsvdagAbsoluteOffsets ||
+      reach.relative > format::kSsvdagRelativeReach || reach.relative < 0)
+    throw std::invalid_argument("SSVDAG pointer reach beyond the format's");
   FlatSsvdag out;
   out.levels = dag.levels;
   out.voxel_count = dag.voxel_count;
@@ -293,18 +323,19 @@ FlatSsvdag build_ssvdag(const FlatVoxelDag& dag, unsigned threads) {
   }
   out.root_mirror = refs.at(0) & 7;
   for (const auto& s : out.level_stats) out.symmetry_merges += s.dag_nodes - s.ssvdag_nodes;
-  lay_out(levels, out);
+  lay_out(levels, reach, out);
   return out;
 }
 
 FlatSsvdag build_ssvdag(std::span<const std::uint64_t> codes, std::uint32_t resolution,
-                        unsigned threads) {
-  return build_ssvdag(leaves_of(codes), resolution, threads);
+                        unsigned threads, const SsvdagPointerReach& reach) {
+  return build_ssvdag(leaves_of(codes), resolution, threads, reach);
 }
 
-FlatSsvdag build_ssvdag(const VoxelLeaves& leaves, std::uint32_t resolution, unsigned threads) {
+FlatSsvdag build_ssvdag(const VoxelLeaves& leaves, std::uint32_t resolution, unsigned threads,
+                        const SsvdagPointerReach& reach) {
   if (leaves.keys.empty()) throw std::invalid_argument("an SSVDAG needs at least one voxel");
-  return build_ssvdag(build_voxel_dag(leaves, resolution), threads);
+  return build_ssvdag(build_voxel_dag(leaves, resolution), threads, reach);
 }
 
 std::vector<std::uint64_t> ssvdag_level_first_words(const FlatSsvdag& ssvdag) {
@@ -334,14 +365,14 @@ std::vector<std::uint64_t> expand_ssvdag(const FlatSsvdag& ssvdag) {
       continue;
     }
     const std::uint32_t header = ssvdag.words[p.word];
-    std::uint64_t at = p.word + 1;
     for (std::uint32_t stored = 0; stored < 8; ++stored) {
       if ((header >> stored & 1) == 0) continue;
-      std::uint32_t value = ssvdag.words[at++];
-      if (header >> (8 + stored) & 1) value |= std::uint32_t(ssvdag.words[at++]) << 16;
-      const std::uint64_t offset = value >> 3;
-      stack.push_back({p.level + 1 < leaf_level ? firsts[p.level + 1] + offset : offset,
-                       p.level + 1, p.mirror ^ (value & 7), p.key << 3 | (stored ^ p.mirror)});
+      std::uint32_t mirror;
+      const bool to_leaves = p.level + 1 == leaf_level;
+      const std::uint64_t offset =
+          format::ssvdag_child(&ssvdag.words[p.word], stored, to_leaves, mirror);
+      stack.push_back({to_leaves ? offset : firsts[p.level + 1] + offset, p.level + 1,
+                       p.mirror ^ mirror, p.key << 3 | (stored ^ p.mirror)});
     }
   }
   std::sort(codes.begin(), codes.end());

@@ -55,9 +55,9 @@ auto describe_with(std::shared_ptr<const SsvdagStorage> storage, bool solid) {
         const VoxelGrid& grid = storage->grid;
         std::vector<flatbuffers::Offset<schema::SsvdagLevel>> level_tables;
         for (const auto& l : s.level_stats)
-          level_tables.push_back(schema::CreateSsvdagLevel(fbb, l.svo_nodes, l.dag_nodes,
-                                                           l.ssvdag_nodes, l.bytes, l.first_word,
-                                                           l.wide_pointers, l.narrow_pointers));
+          level_tables.push_back(schema::CreateSsvdagLevel(
+              fbb, l.svo_nodes, l.dag_nodes, l.ssvdag_nodes, l.bytes, l.first_word, l.wide_pointers,
+              l.narrow_pointers, l.relative_pointers));
         const double bits_per_voxel = double(s.ssvdag_bytes) * 8.0 / double(s.voxel_count);
         const auto desc = schema::CreateSsvdagDescDirect(
             fbb, grid.resolution, s.levels, grid.origin[0], grid.origin[1], grid.origin[2],

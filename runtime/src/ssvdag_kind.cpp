@@ -15,11 +15,20 @@ namespace kiln {
 
 namespace {
 
-constexpr std::uint32_t kSections[] = {format::kSectionSsvdagNodes, format::kSectionSsvdagLeaves};
+// The node words before relative pointers (SSVN) stay listed, so such a blob is refused with the
+// message below rather than as one written by a newer tool.
+constexpr std::uint32_t kSections[] = {format::kSectionSsvdagNodes, format::kSectionSsvdagLeaves,
+                                       format::kSectionSsvdagNodesAbsolute};
 
 void check(const Blob& blob, const StructureInfo& info) {
   const auto& d = desc_of<schema::SsvdagDesc>(blob, info);
   const auto where = "structure '" + info.name + "' ";
+  if (d.nodes() < blob.sections().size() &&
+      blob.sections()[d.nodes()].kind == format::kSectionSsvdagNodesAbsolute)
+    blob.fail(where +
+              "is an SSVDAG in the layout before relative pointers (SSVN, written before "
+              "2026-11-27), which this reader no longer reads: rebuild it with kiln build "
+              "and the same inputs");
   blob.check_section(where + "nodes", d.nodes(), format::kSectionSsvdagNodes, sizeof(std::uint16_t),
                      d.node_words(), false);
   blob.check_section(where + "leaves", d.leaves(), format::kSectionSsvdagLeaves,
@@ -45,22 +54,26 @@ void verify(const Blob& blob, const StructureInfo& info) {
 }
 
 void describe_levels(const schema::SsvdagDesc& d, Description& out) {
-  out.lines.push_back(printf_string("%5s %14s %14s %14s %12s %14s %12s", "level", "SVO nodes",
-                                    "DAG nodes", "SSVDAG nodes", "by symmetry", "SSVDAG bytes",
-                                    "wide ptrs"));
-  DescTable table{
-      "levels_table", {"svo_nodes", "dag_nodes", "ssvdag_nodes", "bytes", "wide_pointers"}, {}};
+  out.lines.push_back(printf_string("%5s %14s %14s %14s %12s %14s %12s %12s %12s", "level",
+                                    "SVO nodes", "DAG nodes", "SSVDAG nodes", "by symmetry",
+                                    "SSVDAG bytes", "wide ptrs", "narrow ptrs", "relative"));
+  DescTable table{"levels_table",
+                  {"svo_nodes", "dag_nodes", "ssvdag_nodes", "bytes", "wide_pointers",
+                   "narrow_pointers", "relative_pointers"},
+                  {}};
   const auto& levels = *d.level_stats();
   for (std::uint32_t l = 0; l < levels.size(); ++l) {
     const auto* s = levels.Get(l);
     out.lines.push_back(printf_string(
-        "%5u %14llu %14llu %14llu %12llu %14llu %12llu%s", l, (unsigned long long)s->svo_nodes(),
-        (unsigned long long)s->dag_nodes(), (unsigned long long)s->ssvdag_nodes(),
+        "%5u %14llu %14llu %14llu %12llu %14llu %12llu %12llu %12llu%s", l,
+        (unsigned long long)s->svo_nodes(), (unsigned long long)s->dag_nodes(),
+        (unsigned long long)s->ssvdag_nodes(),
         (unsigned long long)(s->dag_nodes() - std::min(s->dag_nodes(), s->ssvdag_nodes())),
         (unsigned long long)s->bytes(), (unsigned long long)s->wide_pointers(),
+        (unsigned long long)s->narrow_pointers(), (unsigned long long)s->relative_pointers(),
         l + 1 == levels.size() ? "  (4x4x4 leaf masks)" : ""));
-    table.rows.push_back(
-        {s->svo_nodes(), s->dag_nodes(), s->ssvdag_nodes(), s->bytes(), s->wide_pointers()});
+    table.rows.push_back({s->svo_nodes(), s->dag_nodes(), s->ssvdag_nodes(), s->bytes(),
+                          s->wide_pointers(), s->narrow_pointers(), s->relative_pointers()});
   }
   out.tables.push_back(std::move(table));
 }

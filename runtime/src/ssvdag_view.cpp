@@ -61,14 +61,17 @@ SsvdagView::SsvdagView(std::span<const std::uint16_t> words, std::span<const std
   const std::span<const std::uint64_t> first(first_.data(), leaf_level + 1);
   for_each_node(words, first, leaf_level, fail,
                 [&](std::uint32_t, std::uint64_t w, std::uint32_t) { starts[w] = true; });
-  // Every pointer names a node start of the next level, or a leaf from the last interior level.
+  // Every pointer names a node start of the next level, or a leaf from the last interior level;
+  // a relative one needs a wide pointer in its node.
   for_each_node(
       words, first, leaf_level, fail, [&](std::uint32_t l, std::uint64_t w, std::uint32_t header) {
         for (std::uint32_t stored = 0; stored < 8; ++stored) {
           if ((header >> stored & 1) == 0) continue;
           std::uint32_t mirror;
           const std::uint64_t p = child(w, l, stored, mirror);
-          const bool ok = l + 1 < leaf_level ? p < first_[l + 2] && starts[p] : p < leaves.size();
+          // A relative pointer may name a word before its level (or none: kSsvdagNoBase).
+          const bool ok = l + 1 < leaf_level ? p >= first_[l + 1] && p < first_[l + 2] && starts[p]
+                                             : p < leaves.size();
           if (!ok)
             fail("node at word " + std::to_string(w) + " has a child pointer to " +
                  std::to_string(p));
@@ -91,14 +94,9 @@ SsvdagView SsvdagView::from_blob(const Blob& blob, const std::string& name) {
 
 std::uint64_t SsvdagView::child(std::uint64_t word, std::uint32_t level, std::uint32_t stored,
                                 std::uint32_t& mirror) const {
-  const std::uint32_t header = words_[word], before = (1u << stored) - 1;
-  const std::uint64_t at =
-      word + 1 + std::popcount(header & before) + std::popcount(header >> 8 & before);
-  std::uint32_t value = words_[at];
-  if (header >> (8 + stored) & 1) value |= std::uint32_t(words_[at + 1]) << 16;
-  mirror = value & 7;
-  const std::uint64_t offset = value >> 3;
-  return level + 3 < levels_ ? first_[level + 1] + offset : offset;
+  const bool to_leaves = level + 3 >= levels_;
+  const std::uint64_t offset = format::ssvdag_child(&words_[word], stored, to_leaves, mirror);
+  return to_leaves ? offset : first_[level + 1] + offset;
 }
 
 bool SsvdagView::occupied(const format::Float3& point) const {

@@ -18,8 +18,9 @@ class Blob;
 /// A validated view of one SSVDAG (formats/ssvdag.hpp); a RayStructure whose hits are VoxelHits
 /// at the finest level, the same hits as the voxel DAG of the same voxels. Creating it parses
 /// every interior level once (O(words)): headers with a non-empty child mask and a wide mask
-/// inside it, nodes inside their level, one root, every pointer at a node start of the next level
-/// (or at a leaf from the last interior level), so pointers only go down a level: casts cannot
+/// inside it, nodes inside their level, one root, every pointer (absolute, relative or wide) at a
+/// node start of the next level (or at a leaf from the last interior level), a relative one in a
+/// node with a wide pointer, so pointers only go down a level: casts cannot
 /// read out of range or loop, whatever the bytes. Throws BlobError otherwise.
 class SsvdagView {
  public:
