@@ -193,21 +193,24 @@ inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
   return bits & w.valid;
 }
 
-// centres_in [lo, hi] (maybe) and [lo + inset, hi - inset] (sure). The sure interval lies in the
-// maybe interval and the centres ascend, so when the first and last maybe centres are sure (by
-// far the common case), every maybe centre is.
+// centres_in [lo, hi] (maybe) and [lo + inset, hi - inset] (sure), in one pass and without
+// branches on the bounds (which branch a window takes is unpredictable).
 inline void centres_within(const WindowAxis& w, double lo, double hi, double inset, unsigned& maybe,
                            unsigned& sure) {
-  maybe = centres_in(w, lo, hi);
-  if (maybe == 0) {
-    sure = 0;
-    return;
+#if defined(__SSE2__)
+  unsigned m = 0, s = 0;
+  const __m128d l = _mm_set1_pd(lo), h = _mm_set1_pd(hi);
+  const __m128d sl = _mm_set1_pd(lo + inset), sh = _mm_set1_pd(hi - inset);
+  for (int k = 0; k < w.pairs; ++k) {
+    const __m128d x = _mm_loadu_pd(w.c + 2 * k);
+    m |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, l), _mm_cmple_pd(x, h)))) << (2 * k);
+    s |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, sl), _mm_cmple_pd(x, sh))))
+         << (2 * k);
   }
-  const double s_lo = lo + inset, s_hi = hi - inset;
-  if (w.c[std::countr_zero(maybe)] >= s_lo && w.c[31 - std::countl_zero(maybe)] <= s_hi)
-    sure = maybe;
-  else
-    sure = centres_in(w, s_lo, s_hi);
+  maybe = m & w.valid, sure = s & w.valid;
+#else
+  maybe = centres_in(w, lo, hi), sure = centres_in(w, lo + inset, hi - inset);
+#endif
 }
 
 class TriangleColumns {
