@@ -128,7 +128,8 @@ class WindowLeaves {
     for (int k = 0; k < 3; ++k) base_[k] = first[k] >> 2;
   }
   // The voxels (g[u], g[v], g[a] + k) for the bits k of `bits` (g global, within the window).
-  void add(const std::int64_t g[3], int a, int u, int v, unsigned bits) {
+  template <int a, int u = (a + 1) % 3, int v = (a + 2) % 3>
+  void add(const std::int64_t g[3], unsigned bits) {
     constexpr int n = kWindowLeaves, stride[3] = {1, n, n * n};
     const int slot = int((g[u] >> 2) - base_[u]) * stride[u] +
                      int((g[v] >> 2) - base_[v]) * stride[v] +
@@ -255,7 +256,8 @@ class TriangleColumns {
   void fill_v_table(std::int64_t v0, std::int64_t v1);
   // walk for a local range at most kSmallWindow wide on every axis: each test's voxels as bit
   // masks of the window's centres along a (comparisons, no conversions; no v table).
-  template <class Leaf, class Voxel>
+  // (a: the dominant axis, a template argument so that the leaf slots and shifts are constants.)
+  template <int a, class Leaf, class Voxel>
   void walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel);
   // The column walk over the local range r (runs along a, rounded to indices per column).
   template <class Run, class Voxel>
@@ -303,9 +305,9 @@ inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
   }
 }
 
-template <class Leaf, class Voxel>
+template <int a, class Leaf, class Voxel>
 void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
-  const int a = a_, u = u_, v = v_;
+  constexpr int u = (a + 1) % 3, v = (a + 2) % 3;
   const WindowAxis wu = window_axis(r.lo[u], r.hi[u]), wv = window_axis(r.lo[v], r.hi[v]),
                    wa = window_axis(r.lo[a], r.hi[a]);
   unsigned u_maybe, u_sure;
@@ -336,7 +338,7 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
       centres_within(wa, lo, hi, sure_inset_, maybe, sure);
       sure &= 0u - (v_sure >> kv & 1);
       c[v] = r.lo[v] + kv + origin_[v];
-      leaves.add(c, a, u, v, sure);
+      leaves.add<a>(c, sure);
       for (unsigned b = maybe & ~sure; b != 0; b &= b - 1) {  // near a bound: rare
         std::int64_t x[3] = {c[0], c[1], c[2]};
         x[a] += std::countr_zero(b);
@@ -357,7 +359,9 @@ void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel vox
   if (is_empty(r)) return;
   if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
       r.hi[2] - r.lo[2] < kSmallWindow)
-    walk_small(r, leaf, voxel);
+    a_ == 0   ? walk_small<0>(r, leaf, voxel)
+    : a_ == 1 ? walk_small<1>(r, leaf, voxel)
+              : walk_small<2>(r, leaf, voxel);
   else
     walk_columns(r, run, voxel);
 }
