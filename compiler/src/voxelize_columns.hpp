@@ -205,8 +205,7 @@ inline void centres_within(const WindowAxis& w, double lo, double hi, double ins
   for (int k = 0; k < w.pairs; ++k) {
     const __m128d x = _mm_loadu_pd(w.c + 2 * k);
     m |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, l), _mm_cmple_pd(x, h)))) << (2 * k);
-    s |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, sl), _mm_cmple_pd(x, sh))))
-         << (2 * k);
+    s |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, sl), _mm_cmple_pd(x, sh)))) << (2 * k);
   }
   maybe = m & w.valid, sure = s & w.valid;
 #else
@@ -246,8 +245,15 @@ class TriangleColumns {
     }
   };
   bool place(const GridTriangle& t);
+  template <int a>
+  bool add_tests(const GridTriangle& t, const std::array<double, 3>* e,
+                 const std::array<double, 3>& n, PendingTests& pending);
+  template <int a>
   void add_test(const std::array<double, 3>& axis, double margin, PendingTests& pending);
-  void add_edge_test(int i, const std::array<double, 3>& e, double margin, PendingTests& pending);
+  template <int a, int i>
+  void add_edge_test(const GridTriangle& t, int j, const std::array<double, 3>& e, double margin,
+                     PendingTests& pending);
+  template <int a>
   void file_test(const std::array<double, 3>& axis, double lo, double hi, double margin,
                  PendingTests& pending);
   void commit_tests(PendingTests& pending, bool plane_first);
