@@ -59,23 +59,17 @@ VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip) {
 // The corners relative to an integer origin, the candidate range and the extent M; false when
 // the triangle lies outside any grid or its range is empty.
 bool TriangleColumns::place(const GridTriangle& t) {
+  double extent = 0;
   for (int k = 0; k < 3; ++k) {
     const double v[3] = {format::at(t.v[0], k), format::at(t.v[1], k), format::at(t.v[2], k)};
     for (const double x : v)
-      if (!std::isfinite(x) || std::fabs(x) > 0x1p40) return false;  // outside any grid
-  }
-  VoxelRange everything;
-  for (int k = 0; k < 3; ++k)
-    everything.lo[k] = -(std::int64_t{1} << 50), everything.hi[k] = -everything.lo[k];
-  range_ = candidate_range(t, everything);
-  if (is_empty(range_)) return false;
-  double extent = 0;
-  for (int k = 0; k < 3; ++k) {
-    origin_[k] = floor_to_int(
-        std::min({format::at(t.v[0], k), format::at(t.v[1], k), format::at(t.v[2], k)}));
-    const double lo = double(origin_[k]);
+      if (!(std::fabs(x) <= 0x1p40)) return false;  // NaN, infinite or outside any grid
+    // candidate_range's bounds (never clipped nor empty within +-2^40), and the origin.
+    const double lo = std::min({v[0], v[1], v[2]}), hi = std::max({v[0], v[1], v[2]});
+    range_.lo[k] = ceil_to_int(lo) - 1, range_.hi[k] = floor_to_int(hi);
+    origin_[k] = floor_to_int(lo);
     for (int j = 0; j < 3; ++j) {
-      p_[j][std::size_t(k)] = format::at(t.v[j], k) - lo;
+      p_[j][std::size_t(k)] = v[j] - double(origin_[k]);
       extent = std::max(extent, p_[j][std::size_t(k)]);
     }
   }
