@@ -59,28 +59,94 @@ VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip) {
 // The corners relative to an integer origin, the candidate range and the extent M; false when
 // the triangle lies outside any grid or its range is empty.
 bool TriangleColumns::place(const GridTriangle& t) {
+  double extent = 0;
   for (int k = 0; k < 3; ++k) {
     const double v[3] = {format::at(t.v[0], k), format::at(t.v[1], k), format::at(t.v[2], k)};
     for (const double x : v)
-      if (!std::isfinite(x) || std::fabs(x) > 0x1p40) return false;  // outside any grid
-  }
-  VoxelRange everything;
-  for (int k = 0; k < 3; ++k)
-    everything.lo[k] = -(std::int64_t{1} << 50), everything.hi[k] = -everything.lo[k];
-  range_ = candidate_range(t, everything);
-  if (is_empty(range_)) return false;
-  double extent = 0;
-  for (int k = 0; k < 3; ++k) {
-    origin_[k] = floor_to_int(
-        std::min({format::at(t.v[0], k), format::at(t.v[1], k), format::at(t.v[2], k)}));
-    const double lo = double(origin_[k]);
+      if (!(std::fabs(x) <= 0x1p40)) return false;  // NaN, infinite or outside any grid
+    // candidate_range's bounds (never clipped nor empty within +-2^40), and the origin.
+    const double lo = std::min({v[0], v[1], v[2]}), hi = std::max({v[0], v[1], v[2]});
+    range_.lo[k] = ceil_to_int(lo) - 1, range_.hi[k] = floor_to_int(hi);
+    origin_[k] = floor_to_int(lo);
     for (int j = 0; j < 3; ++j) {
-      p_[j][std::size_t(k)] = format::at(t.v[j], k) - lo;
+      p_[j][std::size_t(k)] = v[j] - double(origin_[k]);
       extent = std::max(extent, p_[j][std::size_t(k)]);
     }
   }
   extent_ = extent + 2;
   return true;
+}
+
+// The test "c . axis in [min_j p_j . axis - r, max_j p_j . axis + r]", filed at the finest level
+// whose axis component is non-zero (a: per column, v: per row, u: per triangle).
+template <int a>
+[[gnu::always_inline]] inline void TriangleColumns::add_test(const std::array<double, 3>& axis,
+                                                             double margin, PendingTests& pending) {
+  double lo = INFINITY, hi = -INFINITY;
+  for (int j = 0; j < 3; ++j) {
+    const double p = p_[j][0] * axis[0] + p_[j][1] * axis[1] + p_[j][2] * axis[2];
+    lo = std::min(lo, p), hi = std::max(hi, p);
+  }
+  const double r = 0.5 * (std::fabs(axis[0]) + std::fabs(axis[1]) + std::fabs(axis[2]));
+  file_test<a>(axis, lo - r, hi + r, margin, pending);
+}
+
+// add_test on the edge axis cross(unit i, e) of edge j, whose component along i is exactly zero:
+// each corner's projection is two products (add_test's sum less its zero term, the same value up
+// to the sign of a zero). None when the edge is parallel to axis i (the exact zero axis, which
+// never separates).
+template <int a, int i>
+[[gnu::always_inline]] inline void TriangleColumns::add_edge_test(const GridTriangle& t, int j,
+                                                                  const std::array<double, 3>& e,
+                                                                  double margin,
+                                                                  PendingTests& pending) {
+  constexpr auto p = std::size_t(i + 1) % 3, q = std::size_t(i + 2) % 3;
+  if (format::at(t.v[(j + 1) % 3], int(p)) == format::at(t.v[j], int(p)) &&
+      format::at(t.v[(j + 1) % 3], int(q)) == format::at(t.v[j], int(q)))
+    return;
+  std::array<double, 3> axis = {0, 0, 0};
+  axis[p] = -e[q], axis[q] = e[p];
+  double lo = INFINITY, hi = -INFINITY;
+  for (int k = 0; k < 3; ++k) {
+    const double d = p_[k][p] * axis[p] + p_[k][q] * axis[q];
+    lo = std::min(lo, d), hi = std::max(hi, d);
+  }
+  const double r = 0.5 * (std::fabs(axis[p]) + std::fabs(axis[q]));
+  file_test<a>(axis, lo - r, hi + r, margin, pending);
+}
+
+template <int a>
+[[gnu::always_inline]] inline void TriangleColumns::file_test(const std::array<double, 3>& axis,
+                                                              double lo, double hi, double margin,
+                                                              PendingTests& pending) {
+  const double ka = axis[a], ku = axis[(a + 1) % 3], kv = axis[(a + 2) % 3];
+  if (ka != 0)
+    pending.add(lo, hi, ka, ku, kv, margin, 2);
+  else if (kv != 0)
+    pending.add(lo, hi, kv, ku, 0, margin, 1);
+  else if (ku != 0)
+    pending.add(lo, hi, ku, 0, 0, margin, 0);
+  else if (0 < lo - margin || 0 > hi + margin)
+    empty_ = true;  // separates every voxel
+  else if (!(lo + margin <= 0 && 0 <= hi - margin))
+    uncertain_all_ = true;
+}
+
+// The plane test and the nine edge tests, pending, for the dominant axis a (a template argument,
+// so that where each test is filed is mostly known at compile time); true when the plane test is
+// the first pending one and bounds the a index.
+template <int a>
+bool TriangleColumns::add_tests(const GridTriangle& t, const std::array<double, 3>* e,
+                                const std::array<double, 3>& n, PendingTests& pending) {
+  const double m = extent_;
+  add_test<a>(n, 2048 * kRoundoff * m * m * m, pending);
+  const bool plane_first = pending.count == 1 && pending.level[0] == 2;
+  for (int j = 0; j < 3; ++j) {
+    add_edge_test<a, 0>(t, j, e[j], 256 * kRoundoff * m * m, pending);
+    add_edge_test<a, 1>(t, j, e[j], 256 * kRoundoff * m * m, pending);
+    add_edge_test<a, 2>(t, j, e[j], 256 * kRoundoff * m * m, pending);
+  }
+  return plane_first;
 }
 
 bool TriangleColumns::setup(const GridTriangle& t) {
@@ -102,19 +168,10 @@ bool TriangleColumns::setup(const GridTriangle& t) {
   std::fill(std::begin(count_), std::end(count_), 0);
   sure_inset_ = 0;
   uncertain_all_ = empty_ = has_plane_ = false;
-  const double m = extent_;
   PendingTests pending;
-  add_test(n, 2048 * kRoundoff * m * m * m, pending);
-  const bool plane_first = pending.count == 1 && pending.level[0] == 2;
-  for (int j = 0; j < 3; ++j)
-    for (int i = 0; i < 3; ++i) {
-      // An edge parallel to axis i gives the exact zero axis, which never separates.
-      const int p = (i + 1) % 3, q = (i + 2) % 3;
-      if (format::at(t.v[(j + 1) % 3], p) == format::at(t.v[j], p) &&
-          format::at(t.v[(j + 1) % 3], q) == format::at(t.v[j], q))
-        continue;
-      add_edge_test(i, e[j], 256 * kRoundoff * m * m, pending);
-    }
+  const bool plane_first = a_ == 0   ? add_tests<0>(t, e, n, pending)
+                           : a_ == 1 ? add_tests<1>(t, e, n, pending)
+                                     : add_tests<2>(t, e, n, pending);
   commit_tests(pending, plane_first);
   small_ = true;
   for (int level = 0; level < 5; ++level) {
@@ -123,51 +180,6 @@ bool TriangleColumns::setup(const GridTriangle& t) {
       tests_[level][k] = {-INFINITY, INFINITY, 0, 0};  // passes every centre
   }
   return !empty_;
-}
-
-// The test "c . axis in [min_j p_j . axis - r, max_j p_j . axis + r]", filed at the finest level
-// whose axis component is non-zero (a: per column, v: per row, u: per triangle).
-void TriangleColumns::add_test(const std::array<double, 3>& axis, double margin,
-                               PendingTests& pending) {
-  double lo = INFINITY, hi = -INFINITY;
-  for (int j = 0; j < 3; ++j) {
-    const double p = p_[j][0] * axis[0] + p_[j][1] * axis[1] + p_[j][2] * axis[2];
-    lo = std::min(lo, p), hi = std::max(hi, p);
-  }
-  const double r = 0.5 * (std::fabs(axis[0]) + std::fabs(axis[1]) + std::fabs(axis[2]));
-  file_test(axis, lo - r, hi + r, margin, pending);
-}
-
-// add_test on the edge axis cross(unit i, e), whose component along i is exactly zero: each
-// corner's projection is two products (add_test's sum less its zero term, the same value up to
-// the sign of a zero).
-void TriangleColumns::add_edge_test(int i, const std::array<double, 3>& e, double margin,
-                                    PendingTests& pending) {
-  const auto p = std::size_t(i + 1) % 3, q = std::size_t(i + 2) % 3;
-  std::array<double, 3> axis = {0, 0, 0};
-  axis[p] = -e[q], axis[q] = e[p];
-  double lo = INFINITY, hi = -INFINITY;
-  for (int j = 0; j < 3; ++j) {
-    const double d = p_[j][p] * axis[p] + p_[j][q] * axis[q];
-    lo = std::min(lo, d), hi = std::max(hi, d);
-  }
-  const double r = 0.5 * (std::fabs(axis[p]) + std::fabs(axis[q]));
-  file_test(axis, lo - r, hi + r, margin, pending);
-}
-
-void TriangleColumns::file_test(const std::array<double, 3>& axis, double lo, double hi,
-                                double margin, PendingTests& pending) {
-  const double ka = component(axis, a_), ku = component(axis, u_), kv = component(axis, v_);
-  if (ka != 0)
-    pending.add(lo, hi, ka, ku, kv, margin, 2);
-  else if (kv != 0)
-    pending.add(lo, hi, kv, ku, 0, margin, 1);
-  else if (ku != 0)
-    pending.add(lo, hi, ku, 0, 0, margin, 0);
-  else if (0 < lo - margin || 0 > hi + margin)
-    empty_ = true;  // separates every voxel
-  else if (!(lo + margin <= 0 && 0 <= hi - margin))
-    uncertain_all_ = true;
 }
 
 // Each pending test as an interval along its level's axis: "k x + q1 cu + q2 cv in [lo, hi]"

@@ -128,7 +128,8 @@ class WindowLeaves {
     for (int k = 0; k < 3; ++k) base_[k] = first[k] >> 2;
   }
   // The voxels (g[u], g[v], g[a] + k) for the bits k of `bits` (g global, within the window).
-  void add(const std::int64_t g[3], int a, int u, int v, unsigned bits) {
+  template <int a, int u = (a + 1) % 3, int v = (a + 2) % 3>
+  void add(const std::int64_t g[3], unsigned bits) {
     constexpr int n = kWindowLeaves, stride[3] = {1, n, n * n};
     const int slot = int((g[u] >> 2) - base_[u]) * stride[u] +
                      int((g[v] >> 2) - base_[v]) * stride[v] +
@@ -193,21 +194,23 @@ inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
   return bits & w.valid;
 }
 
-// centres_in [lo, hi] (maybe) and [lo + inset, hi - inset] (sure). The sure interval lies in the
-// maybe interval and the centres ascend, so when the first and last maybe centres are sure (by
-// far the common case), every maybe centre is.
+// centres_in [lo, hi] (maybe) and [lo + inset, hi - inset] (sure), in one pass and without
+// branches on the bounds (which branch a window takes is unpredictable).
 inline void centres_within(const WindowAxis& w, double lo, double hi, double inset, unsigned& maybe,
                            unsigned& sure) {
-  maybe = centres_in(w, lo, hi);
-  if (maybe == 0) {
-    sure = 0;
-    return;
+#if defined(__SSE2__)
+  unsigned m = 0, s = 0;
+  const __m128d l = _mm_set1_pd(lo), h = _mm_set1_pd(hi);
+  const __m128d sl = _mm_set1_pd(lo + inset), sh = _mm_set1_pd(hi - inset);
+  for (int k = 0; k < w.pairs; ++k) {
+    const __m128d x = _mm_loadu_pd(w.c + 2 * k);
+    m |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, l), _mm_cmple_pd(x, h)))) << (2 * k);
+    s |= unsigned(_mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(x, sl), _mm_cmple_pd(x, sh)))) << (2 * k);
   }
-  const double s_lo = lo + inset, s_hi = hi - inset;
-  if (w.c[std::countr_zero(maybe)] >= s_lo && w.c[31 - std::countl_zero(maybe)] <= s_hi)
-    sure = maybe;
-  else
-    sure = centres_in(w, s_lo, s_hi);
+  maybe = m & w.valid, sure = s & w.valid;
+#else
+  maybe = centres_in(w, lo, hi), sure = centres_in(w, lo + inset, hi - inset);
+#endif
 }
 
 class TriangleColumns {
@@ -242,8 +245,15 @@ class TriangleColumns {
     }
   };
   bool place(const GridTriangle& t);
+  template <int a>
+  bool add_tests(const GridTriangle& t, const std::array<double, 3>* e,
+                 const std::array<double, 3>& n, PendingTests& pending);
+  template <int a>
   void add_test(const std::array<double, 3>& axis, double margin, PendingTests& pending);
-  void add_edge_test(int i, const std::array<double, 3>& e, double margin, PendingTests& pending);
+  template <int a, int i>
+  void add_edge_test(const GridTriangle& t, int j, const std::array<double, 3>& e, double margin,
+                     PendingTests& pending);
+  template <int a>
   void file_test(const std::array<double, 3>& axis, double lo, double hi, double margin,
                  PendingTests& pending);
   void commit_tests(PendingTests& pending, bool plane_first);
@@ -252,7 +262,8 @@ class TriangleColumns {
   void fill_v_table(std::int64_t v0, std::int64_t v1);
   // walk for a local range at most kSmallWindow wide on every axis: each test's voxels as bit
   // masks of the window's centres along a (comparisons, no conversions; no v table).
-  template <class Leaf, class Voxel>
+  // (a: the dominant axis, a template argument so that the leaf slots and shifts are constants.)
+  template <int a, class Leaf, class Voxel>
   void walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel);
   // The column walk over the local range r (runs along a, rounded to indices per column).
   template <class Run, class Voxel>
@@ -300,9 +311,9 @@ inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
   }
 }
 
-template <class Leaf, class Voxel>
+template <int a, class Leaf, class Voxel>
 void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
-  const int a = a_, u = u_, v = v_;
+  constexpr int u = (a + 1) % 3, v = (a + 2) % 3;
   const WindowAxis wu = window_axis(r.lo[u], r.hi[u]), wv = window_axis(r.lo[v], r.hi[v]),
                    wa = window_axis(r.lo[a], r.hi[a]);
   unsigned u_maybe, u_sure;
@@ -333,7 +344,7 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
       centres_within(wa, lo, hi, sure_inset_, maybe, sure);
       sure &= 0u - (v_sure >> kv & 1);
       c[v] = r.lo[v] + kv + origin_[v];
-      leaves.add(c, a, u, v, sure);
+      leaves.add<a>(c, sure);
       for (unsigned b = maybe & ~sure; b != 0; b &= b - 1) {  // near a bound: rare
         std::int64_t x[3] = {c[0], c[1], c[2]};
         x[a] += std::countr_zero(b);
@@ -354,7 +365,9 @@ void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel vox
   if (is_empty(r)) return;
   if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
       r.hi[2] - r.lo[2] < kSmallWindow)
-    walk_small(r, leaf, voxel);
+    a_ == 0   ? walk_small<0>(r, leaf, voxel)
+    : a_ == 1 ? walk_small<1>(r, leaf, voxel)
+              : walk_small<2>(r, leaf, voxel);
   else
     walk_columns(r, run, voxel);
 }
