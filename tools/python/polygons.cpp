@@ -9,8 +9,6 @@ namespace kiln::python {
 
 namespace {
 
-constexpr std::size_t kBatch = 4096;
-
 template <class T>
 using Rows = py::array_t<T, py::array::c_style | py::array::forcecast>;
 
@@ -30,11 +28,18 @@ py::object locate(const Structure& s, py::handle lon, py::handle lat,
   const double *xs = x.data(), *ys = y.data();
   {
     py::gil_scoped_release release;
-    parallel_for_batched(std::size_t(x.shape(0)), kBatch, threads, [&](std::size_t i) {
-      const bool ok = std::isfinite(xs[i]) && std::isfinite(ys[i]);
-      const std::uint32_t f = ok ? q.locate({xs[i], ys[i]}) : PolygonQueries::kNone;
-      o[i] = f == PolygonQueries::kNone ? -1 : std::int64_t(f);
-    });
+    // The capability's batch call (the one `kiln query --op polygon` makes); a non-finite
+    // coordinate is in no polygon.
+    const std::size_t n = std::size_t(x.shape(0));
+    std::vector<format::Double2> points(n);
+    for (std::size_t i = 0; i < n; ++i)
+      points[i] = std::isfinite(xs[i]) && std::isfinite(ys[i])
+                      ? format::Double2{xs[i], ys[i]}
+                      : format::Double2{std::nan(""), std::nan("")};
+    std::vector<std::uint32_t> found(n);
+    q.locate_many(points, found, threads);
+    for (std::size_t i = 0; i < n; ++i)
+      o[i] = found[i] == PolygonQueries::kNone ? -1 : std::int64_t(found[i]);
   }
   if (scalar) return py::int_(o[0]);
   return out;
