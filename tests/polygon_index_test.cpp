@@ -888,12 +888,13 @@ TEST(PolygonIndexBlob, BatchCallAnswersAsLocateOnAnyThreadCount) {
 // descent's locate_all, itself checked against brute force above): 446 in none.
 TEST(PolygonIndexBlob, ZipPointsFromTheCommandLineOnOneAndTwoThreads) {
   if (!have_shared()) GTEST_SKIP() << "../shared/data/geo is absent";
-  const PolygonLayer layer = load_layer(kGeo + "us-counties-10m.geojson.zst");
-  const FlatPolygonIndex index = build_polygon_index(view_of(layer), {});
-  const PolygonIndexView view = open_view(layer, index);
   test::TempDir dir;
   const std::string blob = dir.file("counties.kiln");
-  test::write_file(blob, test::blob_with(scene_of(layer), "polygon-index", 2));
+  test::write_file(blob, test::blob_with(scene_of(load_layer(kGeo + "us-counties-10m.geojson.zst")),
+                                         "polygon-index", 2));
+  const Blob opened = Blob::open_file(blob);
+  const auto structure = open_structure(opened, "polygon-index");
+  const PolygonQueries& view = *structure->polygons();
   const InputBytes csv = read_input_bytes(kGeo + "zipcodes.csv.zst");
   CsvReader reader("zipcodes.csv", std::string_view(reinterpret_cast<const char*>(csv.bytes.data()),
                                                     csv.bytes.size()));
