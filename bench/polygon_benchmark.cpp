@@ -357,7 +357,7 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
     std::vector<double> build, zip1, zip2, rnd1, rnd2, zipb, rndb;
   };
   std::vector<Times> times(engines.size());
-  std::vector<std::vector<std::uint32_t>> answers(engines.size());
+  std::vector<std::vector<std::uint32_t>> answers(engines.size()), zip_answers(engines.size());
   for (int r = 0; r < a.repeats; ++r)
     for (std::size_t e = 0; e < engines.size(); ++e) {  // alternate engines within each repeat
       auto start = std::chrono::steady_clock::now();
@@ -377,6 +377,7 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
         const double cpu = cpu_seconds();
         for (std::size_t k = 0; k < passes; ++k) answers[e] = run(engines[e], *set, 1);
         t1->push_back(double(passes * set->size()) / (cpu_seconds() - cpu));
+        if (set == &zips) zip_answers[e] = answers[e];
         if (engines[e].locate_many) {
           const double cpu_many = cpu_seconds();
           std::vector<std::uint32_t> many;
@@ -418,6 +419,12 @@ void bench_layer(const Args& a, const char* file, const std::vector<Double2>& zi
                     int(answers[0][i]), engines[e].name.c_str(), int(answers[e][i]));
     std::printf("kiln vs %s: %zu of %zu random points differ\n", engines[e].name.c_str(), differ,
                 random.size());
+    // The ZIP points (MANIFEST.md: on the counties, the same county wherever GEOS finds one).
+    differ = 0;
+    for (std::size_t i = 0; i < zips.size(); ++i) differ += zip_answers[e][i] != zip_answers[0][i];
+    const auto none = std::count(zip_answers[0].begin(), zip_answers[0].end(), kNone);
+    std::printf("kiln vs %s: %zu of %zu ZIP points differ (kiln: %zu in none)\n",
+                engines[e].name.c_str(), differ, zips.size(), std::size_t(none));
   }
 }
 

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -853,6 +854,90 @@ TEST(PolygonIndexBlob, ForgedSectionsAreRefusedOrAnswerInRange) {
       }
     }
     EXPECT_GT(refused, 0) << "section " << section;
+  }
+}
+
+// The capability's batch call (what `kiln query` and the Python module run) answers as locate
+// per point, on one, two and every thread, in runs that cross its 4,096-point runs unevenly.
+TEST(PolygonIndexBlob, BatchCallAnswersAsLocateOnAnyThreadCount) {
+  const PolygonLayer layer =
+      have_shared() ? load_layer(kGeo + "us-counties-10m.geojson.zst") : shapes();
+  const AlignedBuffer copy =
+      test::aligned_copy(test::blob_with(scene_of(layer), "polygon-index", 2));
+  const Blob blob = Blob::open_memory(copy.bytes());
+  const auto view = open_structure(blob, "polygon-index");
+  const PolygonQueries& q = *view->polygons();
+  auto points = random_points(layer.bounds, 9001, 31);
+  const auto boundary = boundary_points(layer, test::kSanitized ? 101 : 11);
+  points.insert(points.end(), boundary.begin(), boundary.end());
+  points.push_back({std::nan(""), 1});
+  points.push_back({layer.bounds.min.x, INFINITY});
+  std::vector<std::uint32_t> want(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) want[i] = q.locate(points[i]);
+  for (const unsigned threads : {1u, 2u, 0u}) {
+    std::vector<std::uint32_t> got(points.size(), 12345);
+    q.locate_many(points, got, threads);
+    ASSERT_EQ(got, want) << threads << " threads";
+  }
+  std::vector<std::uint32_t> short_out(points.size() - 1);
+  EXPECT_THROW(q.locate_many(points, short_out, 1), std::invalid_argument);
+}
+
+// The ZIP points through `kiln query --op polygon` (CSV in and binary in, the batch call) on one
+// and two threads: the same bytes, and per point the lowest county containing it (the
+// descent's locate_all, itself checked against brute force above): 446 in none.
+TEST(PolygonIndexBlob, ZipPointsFromTheCommandLineOnOneAndTwoThreads) {
+  if (!have_shared()) GTEST_SKIP() << "../shared/data/geo is absent";
+  test::TempDir dir;
+  const std::string blob = dir.file("counties.kiln");
+  test::write_file(blob, test::blob_with(scene_of(load_layer(kGeo + "us-counties-10m.geojson.zst")),
+                                         "polygon-index", 2));
+  const Blob opened = Blob::open_file(blob);
+  const auto structure = open_structure(opened, "polygon-index");
+  const PolygonQueries& view = *structure->polygons();
+  const InputBytes csv = read_input_bytes(kGeo + "zipcodes.csv.zst");
+  CsvReader reader("zipcodes.csv", std::string_view(reinterpret_cast<const char*>(csv.bytes.data()),
+                                                    csv.bytes.size()));
+  std::vector<std::string_view> fields;
+  ASSERT_TRUE(reader.next(fields));
+  const auto lat = csv_column(fields, "latitude"), lon = csv_column(fields, "longitude");
+  std::vector<double> xy;
+  std::vector<std::uint32_t> want, all;
+  while (reader.next(fields)) {
+    xy.push_back(std::stod(std::string(fields[*lon])));
+    xy.push_back(std::stod(std::string(fields[*lat])));
+    view.locate_all({xy[xy.size() - 2], xy.back()}, all);
+    want.push_back(all.empty() ? PolygonQueries::kNone : all[0]);
+  }
+  ASSERT_EQ(std::count(want.begin(), want.end(), PolygonQueries::kNone), 446);
+  test::write_file(dir.file("zip.bin"), std::as_bytes(std::span(xy)));
+  const std::string query = "query " + test::quoted(blob) + " --op polygon --in ";
+  std::string text[2];
+  for (const unsigned threads : {1u, 2u}) {
+    const std::string t = " --threads " + std::to_string(threads) + " --out ";
+    const std::string bin = dir.file("zip" + std::to_string(threads) + ".out");
+    auto r = test::run_kiln(query + test::quoted(dir.file("zip.bin")) + t + test::quoted(bin));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto out = test::read_file(bin);
+    ASSERT_EQ(out.size(), want.size() * 4);
+    std::vector<std::uint32_t> got(want.size());
+    std::memcpy(got.data(), out.data(), out.size());
+    EXPECT_EQ(got, want) << threads << " threads";
+    const std::string csv_out = dir.file("zip" + std::to_string(threads) + ".csv");
+    r = test::run_kiln(query + test::quoted(kGeo + "zipcodes.csv.zst") +
+                       " --lon-column longitude --lat-column latitude" + t + test::quoted(csv_out));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    text[threads - 1] = test::read_text(csv_out);
+  }
+  EXPECT_EQ(text[0], text[1]);
+  CsvReader rows("zip1.csv", text[0]);
+  ASSERT_TRUE(rows.next(fields));
+  const auto column = csv_column(fields, "polygon_index");
+  ASSERT_TRUE(column);
+  for (std::size_t i = 0; rows.next(fields); ++i) {
+    ASSERT_LT(i, want.size());
+    const long f = std::stol(std::string(fields[*column]));
+    ASSERT_EQ(f, want[i] == PolygonQueries::kNone ? -1L : long(want[i])) << "row " << i;
   }
 }
 

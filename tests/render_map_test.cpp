@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <span>
 #include <vector>
 
 #include "kiln/compiler/quadtree_builder.hpp"
@@ -48,6 +49,10 @@ class BruteLocate final : public PolygonQueries {
   std::uint32_t locate(const Double2& p) const override {
     Cost cost;
     return locate_counting(p, cost);
+  }
+  void locate_many(std::span<const Double2> points, std::span<std::uint32_t> out,
+                   unsigned) const override {
+    for (std::size_t i = 0; i < points.size(); ++i) out[i] = locate(points[i]);
   }
   std::uint32_t locate_counting(const Double2& p, Cost& cost) const override {
     cost.nodes += 1;

@@ -2,12 +2,15 @@
 // (point in polygon over the blob's polygon layer), deep check and description.
 #include <algorithm>
 #include <memory>
+#include <span>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "kiln/runtime/blob.hpp"
 #include "kiln/runtime/manifest.hpp"
+#include "kiln/runtime/parallel.hpp"
 #include "kiln/runtime/polygon_index.hpp"
 #include "kiln/runtime/predicates2.hpp"
 #include "kiln/runtime/structure_registry.hpp"
@@ -27,6 +30,18 @@ class PolygonIndexStructure final : public StructureView, public PolygonQueries 
 
   const PolygonQueries* polygons() const override { return this; }
   std::uint32_t locate(const format::Double2& p) const override { return view_.locate(p); }
+  void locate_many(std::span<const format::Double2> points, std::span<std::uint32_t> out,
+                   unsigned threads) const override {
+    if (out.size() != points.size())
+      throw std::invalid_argument("locate_many: " + std::to_string(out.size()) +
+                                  " answer slots for " + std::to_string(points.size()) + " points");
+    // Runs of kRun points, each through the view's pipelined batch call into its own slots.
+    constexpr std::size_t kRun = 4096;
+    parallel_for((points.size() + kRun - 1) / kRun, threads, [&](std::size_t b) {
+      const std::size_t at = b * kRun, size = std::min(kRun, points.size() - at);
+      view_.locate_many(points.subspan(at, size), out.subspan(at, size));
+    });
+  }
   std::uint32_t locate_counting(const format::Double2& p, Cost& cost) const override {
     return view_.locate_counting(p, cost);
   }

@@ -150,7 +150,8 @@ struct Fine {
 // The fine column or row of v's uniform estimate, clamped to [0, last] (NaN: 0), for any v: for
 // v in the bounds, within a rounding of the true one (within kEstimateSlack wherever
 // PolygonIndexTopGrid::clear is used).
-inline Fine estimate(const PolygonIndexTopGrid& g, const Box2d& bounds, const Double2& p) {
+template <class G>
+inline Fine estimate(const G& g, const Box2d& bounds, const Double2& p) {
   const double last = double(g.last);
 #if defined(__SSE2__)
   // Both axes at once; maxpd answers its second operand, 0, where the first is NaN.
@@ -170,13 +171,15 @@ inline Fine estimate(const PolygonIndexTopGrid& g, const Box2d& bounds, const Do
 #endif
 }
 
-inline std::size_t table_cell(const PolygonIndexTopGrid& g, Fine f) {
+template <class G>
+inline std::size_t table_cell(const G& g, Fine f) {
   constexpr std::uint32_t k = PolygonIndexTopGrid::kFine;
   return std::size_t(f.y >> k) << g.level | f.x >> k;
 }
 
 // Whether the table says p is in no polygon from its estimated column and row alone.
-inline bool clear(const PolygonIndexTopGrid& g, Fine estimate) {
+template <class G>
+inline bool clear(const G& g, Fine estimate) {
   const std::size_t cell = table_cell(g, estimate);
   return g.clear[cell / 64] >> (cell % 64) & 1;
 }
@@ -184,23 +187,23 @@ inline bool clear(const PolygonIndexTopGrid& g, Fine estimate) {
 // The largest j <= last with lines[j] <= v, for v inside [lines.front(), lines.back()]: the
 // column the descent reaches (it sends v >= a split line to the upper side), from the estimate
 // j; the walks correct it (the split lines are non-decreasing, so they end).
-[[gnu::noinline, gnu::cold]] std::uint32_t walk_column(const std::vector<double>& lines, double v,
+[[gnu::noinline, gnu::cold]] std::uint32_t walk_column(const double* lines, double v,
                                                        std::uint32_t j, std::uint32_t last) {
   while (j > 0 && lines[j] > v) --j;
   while (j < last && lines[j + 1] <= v) ++j;
   return j;
 }
 
-inline std::uint32_t column(const std::vector<double>& lines, double v, std::uint32_t j,
-                            std::uint32_t last) {
+inline std::uint32_t column(const double* lines, double v, std::uint32_t j, std::uint32_t last) {
   if ((lines[j] <= v) & (v < lines[j + 1])) [[likely]]
     return j;
   return walk_column(lines, v, j, last);
 }
 
 // p's fine column and row, from their estimates.
-inline Fine fine(const PolygonIndexTopGrid& g, const Double2& p, Fine estimate) {
-  return {column(g.xs, p.x, estimate.x, g.last), column(g.ys, p.y, estimate.y, g.last)};
+template <class G>
+inline Fine fine(const G& g, const Double2& p, Fine estimate) {
+  return {column(&g.xs[0], p.x, estimate.x, g.last), column(&g.ys[0], p.y, estimate.y, g.last)};
 }
 
 // Box2d::contains with one branch instead of four.
@@ -259,6 +262,27 @@ inline std::uint32_t leaf_code(const PolygonIndexTopGrid& g, Fine f, const Doubl
   return code;
 }
 
+// The table's fields locate_many reads, copied into the call's frame: the record kernel is called
+// through a pointer, after which the compiler must assume any heap word changed and would
+// reload each vector's pointer and the table's sizes.
+struct HotTable {
+  const std::uint32_t* code;
+  const std::uint64_t* clear;
+  const double *xs, *ys;
+  const std::uint64_t* records;
+  std::uint32_t level, last;
+  Double2 scale;
+  explicit HotTable(const PolygonIndexTopGrid& g)
+      : code(g.code.data()),
+        clear(g.clear.data()),
+        xs(g.xs.data()),
+        ys(g.ys.data()),
+        records(g.records.data()),
+        level(g.level),
+        last(g.last),
+        scale(g.scale) {}
+};
+
 }  // namespace
 
 // Calls visit(entry, cell) for each entry of the leaf holding p, in order, until it returns
@@ -311,7 +335,7 @@ std::uint32_t PolygonIndexView::locate(const Double2& p) const {
 // while three other groups work. Answers are locate's: the same steps on the same doubles.
 void PolygonIndexView::locate_many(std::span<const Double2> points,
                                    std::span<std::uint32_t> out) const {
-  constexpr std::size_t kGroup = 16, kStages = 4;
+  constexpr std::size_t kGroup = 64, kStages = 4;
   struct Group {
     std::size_t size = 0;        // points still open
     std::uint32_t at[kGroup];    // their index in the batch
@@ -319,7 +343,10 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
     std::uint32_t code[kGroup];  // table cell, then code, then (stage 3) record
   };
   const std::size_t n = std::min(points.size(), out.size());
-  const PolygonIndexTopGrid& g = *top_;
+  const PolygonIndexTopGrid& grid = *top_;
+  const HotTable g(grid);
+  const Box2d bounds = parts_.bounds;
+  const PolygonRecordKernel record = record_;
   Group ring[kStages];
   const std::size_t groups = (n + kGroup - 1) / kGroup;
   for (std::size_t step = 0; step < groups + kStages - 1; ++step) {
@@ -329,7 +356,7 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
       for (std::size_t i = 0; i < r.size; ++i)
         out[r.at[i]] = r.code[i] & PolygonIndexTopGrid::kAnswer
                            ? answer_of(r.code[i])
-                           : record_(&g.records[r.code[i]], points[r.at[i]]);
+                           : record(&g.records[r.code[i]], points[r.at[i]]);
     }
     // Stage 2: branch entries (group step - 2); deeper branches resolved on the spot.
     if (step >= 2 && step - 2 < groups) {
@@ -340,7 +367,7 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
           code = g.code[code & PolygonIndexTopGrid::kOffset];
           if (is_branch(code)) {
             const Double2& p = points[r.at[i]];
-            code = deep_code(g, code, r.f[i], p);
+            code = deep_code(grid, code, r.f[i], p);
           }
           r.code[i] = code;
         }
@@ -349,6 +376,7 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
           __builtin_prefetch(record);
           __builtin_prefetch(record + 64);
           __builtin_prefetch(record + 128);
+          __builtin_prefetch(record + 183);
         }
       }
     }
@@ -385,8 +413,8 @@ void PolygonIndexView::locate_many(std::span<const Double2> points,
       for (std::size_t k = step * kGroup; k < end; ++k) {
         const Double2& p = points[k];
         out[k] = PolygonQueries::kNone;
-        const Fine e = estimate(g, parts_.bounds, p);
-        if (clear(g, e) || !inside(parts_.bounds, p)) continue;
+        const Fine e = estimate(g, bounds, p);
+        if (clear(g, e) || !inside(bounds, p)) continue;
         const Fine f = fine(g, p, e);
         const std::size_t cell = table_cell(g, f);
         __builtin_prefetch(&g.code[cell]);

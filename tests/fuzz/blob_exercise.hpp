@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <iterator>
 #include <span>
 #include <string>
 #include <vector>
@@ -51,6 +52,8 @@ inline void exercise_2d(const StructureView& view, const Float3& lo, const Float
       (void)polygons->locate_counting(p, cost);
       polygons->locate_all(p, ids);
     }
+    std::uint32_t found[std::size(points)];
+    polygons->locate_many(points, found, 1);
     polygons->features_in_box(box, ids);
     polygons->features_in_box(all, ids);
     polygons->features_in_box({b, a}, ids);  // an empty (inverted) box

@@ -45,6 +45,18 @@ def test_locate_equals_kiln_query(tmp, counties_blob, zip_lonlat):
     np.testing.assert_array_equal(found, np.where(cli == 0xFFFFFFFF, -1, cli.astype(np.int64)))
 
 
+def test_locate_batches_equal_single_calls_on_one_and_two_threads(counties_blob, zip_lonlat):
+    """The batch path (runs of points split over threads) answers as one call per point does."""
+    lon, lat = zip_lonlat
+    with kiln.open(counties_blob) as blob:
+        one = blob["pip"].locate(lon, lat, threads=1)
+        two = blob["pip"].locate(lon, lat, threads=2)
+        single = [blob["pip"].locate(float(x), float(y)) for x, y in zip(lon[::13], lat[::13])]
+    np.testing.assert_array_equal(one, two)
+    np.testing.assert_array_equal(one[::13], single)
+    assert (one < 0).sum() == 446
+
+
 def test_features_in_box_equals_kiln_query(tmp, counties_blob):
     rng = np.random.default_rng(3)
     lo = rng.uniform([-125, 25], [-70, 48], (200, 2))

@@ -1,6 +1,9 @@
 // 2D queries from Python: point in polygon (locate), polygons meeting boxes, points in boxes
 // (range), and the features' ids and names.
+#include <algorithm>
 #include <cmath>
+#include <span>
+#include <vector>
 
 #include "kiln/runtime/parallel.hpp"
 #include "kiln_python.hpp"
@@ -8,8 +11,6 @@
 namespace kiln::python {
 
 namespace {
-
-constexpr std::size_t kBatch = 4096;
 
 template <class T>
 using Rows = py::array_t<T, py::array::c_style | py::array::forcecast>;
@@ -30,11 +31,24 @@ py::object locate(const Structure& s, py::handle lon, py::handle lat,
   const double *xs = x.data(), *ys = y.data();
   {
     py::gil_scoped_release release;
-    parallel_for_batched(std::size_t(x.shape(0)), kBatch, threads, [&](std::size_t i) {
-      const bool ok = std::isfinite(xs[i]) && std::isfinite(ys[i]);
-      const std::uint32_t f = ok ? q.locate({xs[i], ys[i]}) : PolygonQueries::kNone;
-      o[i] = f == PolygonQueries::kNone ? -1 : std::int64_t(f);
-    });
+    // The capability's batch call (the one `kiln query --op polygon` makes), a slice of at
+    // most kSlice points at a time so that the interleaved copy stays small; a non-finite
+    // coordinate is in no polygon.
+    constexpr std::size_t kSlice = std::size_t(1) << 20;
+    const std::size_t n = std::size_t(x.shape(0));
+    std::vector<format::Double2> points(std::min(n, kSlice));
+    std::vector<std::uint32_t> found(points.size());
+    for (std::size_t at = 0; at < n; at += kSlice) {
+      const std::size_t m = std::min(kSlice, n - at);
+      for (std::size_t i = 0; i < m; ++i) {
+        const double px = xs[at + i], py = ys[at + i];
+        points[i] = std::isfinite(px) && std::isfinite(py) ? format::Double2{px, py}
+                                                           : format::Double2{NAN, NAN};
+      }
+      q.locate_many(std::span(points).first(m), std::span(found).first(m), threads);
+      for (std::size_t i = 0; i < m; ++i)
+        o[at + i] = found[i] == PolygonQueries::kNone ? -1 : std::int64_t(found[i]);
+    }
   }
   if (scalar) return py::int_(o[0]);
   return out;

@@ -107,9 +107,19 @@ CsvTable read_points_csv(const PolygonQueryArgs& args) {
   return table;
 }
 
+// The lowest feature per point, through the capability's batch call on `threads` threads.
+std::vector<std::uint32_t> locate_points(const PolygonQueries& q, std::span<const Double2> points,
+                                         unsigned threads) {
+  std::vector<std::uint32_t> found(points.size());
+  q.locate_many(points, found, threads);
+  return found;
+}
+
 std::string locate_csv(const PolygonQueries& q, const PolygonLayerView& layer,
                        const PolygonQueryArgs& args) {
   const CsvTable t = read_points_csv(args);
+  const std::vector<std::uint32_t> found =
+      args.all ? std::vector<std::uint32_t>() : locate_points(q, t.points, args.threads);
   std::string head;
   for (const auto& field : t.header) put_field(head, field), head += ',';
   head += "polygon_index,polygon_id,polygon_name\n";
@@ -127,7 +137,7 @@ std::string locate_csv(const PolygonQueries& q, const PolygonLayerView& layer,
   };
   return head + answer_all<std::string>(t.points.size(), args.threads,
                                         [&](std::size_t i, std::string& out) {
-                                          if (!args.all) return row(out, i, q.locate(t.points[i]));
+                                          if (!args.all) return row(out, i, found[i]);
                                           std::vector<std::uint32_t> all;
                                           q.locate_all(t.points[i], all);
                                           if (all.empty()) row(out, i, kNone);
@@ -150,10 +160,17 @@ std::vector<double> read_doubles(const std::string& path, std::size_t stride) {
 
 std::vector<std::byte> locate_binary(const PolygonQueries& q, const PolygonQueryArgs& args) {
   const std::vector<double> v = read_doubles(args.in, 2);
+  if (!args.all) {
+    std::vector<Double2> points(v.size() / 2);
+    for (std::size_t i = 0; i < points.size(); ++i) points[i] = {v[2 * i], v[2 * i + 1]};
+    const std::vector<std::uint32_t> found = locate_points(q, points, args.threads);
+    std::vector<std::byte> out(found.size() * sizeof(std::uint32_t));
+    std::memcpy(out.data(), found.data(), out.size());
+    return out;
+  }
   return answer_all<std::vector<std::byte>>(v.size() / 2, args.threads,
                                             [&](std::size_t i, std::vector<std::byte>& out) {
                                               const Double2 p{v[2 * i], v[2 * i + 1]};
-                                              if (!args.all) return append_pod(out, q.locate(p));
                                               std::vector<std::uint32_t> all;
                                               q.locate_all(p, all);
                                               append_pod(out, std::uint32_t(all.size()));

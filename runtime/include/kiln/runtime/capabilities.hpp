@@ -106,6 +106,12 @@ class PolygonQueries {
   virtual ~PolygonQueries() = default;
   /// The lowest feature index whose area contains `p`, or kNone.
   virtual std::uint32_t locate(const format::Double2& p) const = 0;
+  /// locate for a batch: out[i] = locate(points[i]) for every i, on up to `threads` threads
+  /// (0 = all cores), each thread answering whole runs of consecutive points through the
+  /// structure's batch path; the answers never depend on the thread count. `out` must hold
+  /// points.size() answers (throws std::invalid_argument otherwise).
+  virtual void locate_many(std::span<const format::Double2> points, std::span<std::uint32_t> out,
+                           unsigned threads) const = 0;
   /// The same, counting cells visited (nodes) and edges tested (primitive tests) into `cost`.
   virtual std::uint32_t locate_counting(const format::Double2& p, Cost& cost) const = 0;
   /// Every feature containing `p`, ascending, into `out` (cleared first).
