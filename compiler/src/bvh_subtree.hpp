@@ -55,8 +55,19 @@ class WorkerSlots {
   std::atomic<int> free_;
 };
 
+/// Emits a node's two children after it, in turn, with `emit(child, nodes)`; returns where the
+/// second one starts.
+template <class Child, class Emit>
+std::uint32_t emit_bvh_children_in_turn(const Child& left, const Child& right,
+                                        std::vector<format::BvhNode>& nodes, const Emit& emit) {
+  emit(left, nodes);
+  const auto second = std::uint32_t(nodes.size());
+  emit(right, nodes);
+  return second;
+}
+
 /// Emits a node's two children after it with `emit(child, nodes)`; the right one on a new
-/// thread when `slots` has a free one (and both sides are at least `min_fork` large). The left
+/// thread when `may_fork` (the caller's size rule) and `slots` has a free one. The left
 /// one is emitted in place, the right one apart (`reserve` nodes reserved) and appended, so the
 /// nodes are the same either way. Links the node at `index` to its second child and makes it
 /// interior.
@@ -87,9 +98,7 @@ void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child&
     second = std::uint32_t(nodes.size());
     append_bvh_subtree(nodes, r);
   } else {
-    emit(left, nodes);
-    second = std::uint32_t(nodes.size());
-    emit(right, nodes);
+    second = emit_bvh_children_in_turn(left, right, nodes, emit);
   }
   nodes[index].offset = second;
   nodes[index].count = 0;
@@ -111,9 +120,7 @@ void emit_bvh_children(bool fork, const Child& left, const Child& right, std::si
     second = std::uint32_t(nodes.size());
     append_bvh_subtree(nodes, r);
   } else {
-    emit(left, nodes);
-    second = std::uint32_t(nodes.size());
-    emit(right, nodes);
+    second = emit_bvh_children_in_turn(left, right, nodes, emit);
   }
   nodes[index].offset = second;
   nodes[index].count = 0;
