@@ -21,6 +21,8 @@
 //   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF[:ORDER]] or LABEL:greedy
 //           (--rounds, repeatable) one more contestant "sbvh w8 LABEL" (default kernel): the
 //           SBVH collapsed with these costs and slot order (0 tree, 1 largest area, 2 occlusion)
+//   --sbvh-build=LABEL:TRAV:ISECT:MAXLEAF[:ALPHA]  the --collapse variant LABEL collapses an SBVH
+//           built with these SAH costs, leaf size and spatial-split threshold (default 1:1:8:1e-5)
 //
 // Every benchmark times itself with std::chrono (manual time) and keeps its fastest iteration,
 // which feeds the counters and the Markdown tables printed at the end: on a small, shared machine
@@ -274,6 +276,7 @@ struct MeshCase {
   std::vector<std::string> files;
   kiln::Scene scene;
   std::map<kiln::BvhBuilder, kiln::FlatBvh> bvhs;
+  std::map<std::string, kiln::FlatBvh> variant_bvhs;  // --sbvh-build, by label
   std::optional<kiln::FlatKdTree> kdtree;
   std::map<kiln::RayKind, std::vector<kiln::Ray>> rays;
   std::map<Structure, Row> rows;
@@ -291,6 +294,7 @@ struct Settings {
   std::vector<std::string> only;  // --rounds: contestants kept (empty: all)
   bool one_thread = false;        // --rounds: no all-threads passes
   std::vector<std::pair<std::string, kiln::WideCollapseOptions>> collapses;
+  std::map<std::string, kiln::BvhBuildOptions> sbvh_builds;  // --sbvh-build, by collapse label
 };
 
 Settings g_settings;
@@ -298,6 +302,18 @@ std::vector<std::unique_ptr<MeshCase>> g_meshes;
 #ifdef KILN_BENCH_EMBREE
 std::vector<std::pair<const MeshCase*, Agreement>> g_agreements;
 #endif
+
+const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder);
+
+// The SBVH a --collapse variant collapses: built with its --sbvh-build options, if any.
+const kiln::FlatBvh& sbvh_for_variant(MeshCase& mesh, const std::string& label) {
+  const auto options = g_settings.sbvh_builds.find(label);
+  if (options == g_settings.sbvh_builds.end()) return bvh_for(mesh, kiln::BvhBuilder::kSpatial);
+  auto it = mesh.variant_bvhs.find(label);
+  if (it == mesh.variant_bvhs.end())
+    it = mesh.variant_bvhs.emplace(label, kiln::build_bvh(mesh.scene, options->second)).first;
+  return it->second;
+}
 
 const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
   auto it = mesh.bvhs.find(builder);
@@ -840,7 +856,7 @@ void add_collapse_variants(MeshCase& mesh, KilnArenas& arenas, std::vector<Conte
     const std::string key = "sbvh w8 " + label;
     const std::string name = key + " " + kiln::bvh_kernel_name(kiln::bvh_auto_kernel());
     if (!wanted(name)) continue;
-    const kiln::FlatBvh& flat = bvh_for(mesh, kiln::BvhBuilder::kSpatial);
+    const kiln::FlatBvh& flat = sbvh_for_variant(mesh, label);
     const kiln::FlatWideBvh w = kiln::collapse_bvh(flat, 8, triangles, false, nullptr, options);
     std::printf("- %s: %llu nodes, %llu packets, fill %.3f, %.1f B/tri\n", key.c_str(),
                 (unsigned long long)w.stats.node_count, (unsigned long long)w.stats.packet_count,
@@ -1008,11 +1024,13 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
   std::vector<std::string> kiln_names = {"sbvh w8", "sbvh w8q", "bvh w8",
                                          "bvh w8q", "sbvh w4",  "sbvh w2"};
   for (const auto& variant : g_settings.collapses) kiln_names.push_back("sbvh w8 " + variant.first);
-  // Against Embree, and against Kiln's default layout (for the --collapse variants).
+  // Against Embree, against Kiln's default layout (for the --collapse variants), and against the
+  // avx512 slot (which a development build can fill with another AVX2 kernel: new ÷ old).
   const std::string kiln_default = "sbvh w8 " + auto_kernel;
   for (const std::string& kiln_name : kiln_names)
-    for (const std::string& embree_name : {std::string("embree medium"), std::string("embree high"),
-                                           std::string("embree high robust"), kiln_default}) {
+    for (const std::string& embree_name :
+         {std::string("embree medium"), std::string("embree high"),
+          std::string("embree high robust"), kiln_default, std::string("sbvh w8 avx512")}) {
       std::string name = kiln_name;
       if (name.back() != '2') name += " " + auto_kernel;
       const std::size_t a = find(name), b = find(embree_name);
@@ -1099,6 +1117,24 @@ int main(int argc, char** argv) {
     }
     if (arg == "--one-thread") {
       g_settings.one_thread = true;
+      continue;
+    }
+    if (arg.starts_with("--sbvh-build=")) {
+      // LABEL:TRAV:ISECT:MAXLEAF[:ALPHA]: the --collapse variant LABEL collapses an SBVH built
+      // with these costs, leaf size and spatial-split threshold.
+      const std::string text = arg.substr(13);
+      const std::size_t colon = text.find(':');
+      kiln::BvhBuildOptions o;
+      o.builder = kiln::BvhBuilder::kSpatial;
+      o.threads = 0;
+      if (colon == std::string::npos ||
+          std::sscanf(text.c_str() + colon + 1, "%f:%f:%u:%f", &o.traversal_cost,
+                      &o.intersection_cost, &o.max_leaf_size, &o.sbvh_alpha) < 3) {
+        std::fprintf(stderr, "bad sbvh build in '%s' (LABEL:TRAV:ISECT:MAXLEAF[:ALPHA])\n",
+                     arg.c_str());
+        return 2;
+      }
+      g_settings.sbvh_builds[text.substr(0, colon)] = o;
       continue;
     }
     if (arg.starts_with("--collapse=")) {
