@@ -101,7 +101,9 @@ template <int a, int i>
                                                                   double margin,
                                                                   PendingTests& pending) {
   constexpr auto p = std::size_t(i + 1) % 3, q = std::size_t(i + 2) % 3;
-  if (format::at(t.v[(j + 1) % 3], int(p)) == format::at(t.v[j], int(p)) &&
+  // (e's components are zero when the corners' are equal, so they are compared only then.)
+  if (e[p] == 0 && e[q] == 0 &&
+      format::at(t.v[(j + 1) % 3], int(p)) == format::at(t.v[j], int(p)) &&
       format::at(t.v[(j + 1) % 3], int(q)) == format::at(t.v[j], int(q)))
     return;
   std::array<double, 3> axis = {0, 0, 0};

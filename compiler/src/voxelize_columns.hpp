@@ -127,8 +127,9 @@ class WindowLeaves {
   void start(const std::int64_t first[3]) {
     for (int k = 0; k < 3; ++k) base_[k] = first[k] >> 2;
   }
-  // The voxels (g[u], g[v], g[a] + k) for the bits k of `bits` (g global, within the window).
-  template <int a, int u = (a + 1) % 3, int v = (a + 2) % 3>
+  // The voxels (g[u], g[v], g[a] + k) for the bits k of `bits` (g global, within the window),
+  // which lie in the `span` leaves along a from g[a]'s (g[a] % 4 + the window's a size <= 4 span).
+  template <int a, int span, int u = (a + 1) % 3, int v = (a + 2) % 3>
   void add(const std::int64_t g[3], unsigned bits) {
     constexpr int n = kWindowLeaves, stride[3] = {1, n, n * n};
     const int slot = int((g[u] >> 2) - base_[u]) * stride[u] +
@@ -136,7 +137,7 @@ class WindowLeaves {
                      int((g[a] >> 2) - base_[a]) * stride[a];
     const unsigned shift = kSpread4[g[u] & 3] << u | kSpread4[g[v] & 3] << v;
     const unsigned m = bits << (g[a] & 3);
-    for (int l = 0; l < n; ++l) {
+    for (int l = 0; l < span; ++l) {
       const unsigned nibble = m >> (4 * l) & 15;
       words_[slot + l * stride[a]] |= kNibbleMasks.masks[a][nibble] << shift;
       used_ |= std::uint64_t(nibble != 0) << (slot + l * stride[a]);
@@ -213,6 +214,30 @@ inline void centres_within(const WindowAxis& w, double lo, double hi, double ins
 #endif
 }
 
+// The interval of `count` tests that depend on the row's centre cu only (qv = 0), for every row
+// of the window at once (two at a time on SSE2): narrow's arithmetic (qv * 0 adds a zero, which
+// changes no bound), so the same bounds.
+inline void row_bounds(const SlabInterval* tests, int count, const WindowAxis& w, double* lo,
+                       double* hi) {
+#if defined(__SSE2__)
+  for (int k = 0; k < w.pairs; ++k) {
+    const __m128d cu = _mm_loadu_pd(w.c + 2 * k);
+    __m128d l = _mm_set1_pd(-INFINITY), h = _mm_set1_pd(INFINITY);
+    for (int t = 0; t < count; ++t) {
+      const __m128d x = _mm_mul_pd(_mm_set1_pd(tests[t].qu), cu);
+      l = _mm_max_pd(l, _mm_add_pd(_mm_set1_pd(tests[t].lo_m), x));
+      h = _mm_min_pd(h, _mm_add_pd(_mm_set1_pd(tests[t].hi_m), x));
+    }
+    _mm_storeu_pd(lo + 2 * k, l), _mm_storeu_pd(hi + 2 * k, h);
+  }
+#else
+  for (int k = 0; k < 2 * w.pairs; ++k) {
+    lo[k] = -INFINITY, hi[k] = INFINITY;
+    narrow(tests, count, w.c[k], 0, lo[k], hi[k]);
+  }
+#endif
+}
+
 class TriangleColumns {
  public:
   /// Prepares the tests; false when the triangle touches no voxel at all.
@@ -263,8 +288,19 @@ class TriangleColumns {
   // walk for a local range at most kSmallWindow wide on every axis: each test's voxels as bit
   // masks of the window's centres along a (comparisons, no conversions; no v table).
   // (a: the dominant axis, a template argument so that the leaf slots and shifts are constants.)
-  template <int a, class Leaf, class Voxel>
+  // (span: the leaves along a the window reaches, kWindowLeaves or fewer, so that a column's
+  // voxels are added without a loop over leaves they cannot reach.)
+  template <int a, int span, class Leaf, class Voxel>
   void walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel);
+  template <int a, class Leaf, class Voxel>
+  void walk_small_any(const VoxelRange& r, Leaf leaf, Voxel voxel) {
+    // The window's a range, from the start of its first leaf (global index modulo 4).
+    const std::int64_t reach = ((r.lo[a] + origin_[a]) & 3) + r.hi[a] - r.lo[a];
+    if (reach < 8)
+      walk_small<a, 2>(r, leaf, voxel);
+    else
+      walk_small<a, kWindowLeaves>(r, leaf, voxel);
+  }
   // The column walk over the local range r (runs along a, rounded to indices per column).
   template <class Run, class Voxel>
   void walk_columns(const VoxelRange& r, Run run, Voxel voxel);
@@ -311,7 +347,7 @@ inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
   }
 }
 
-template <int a, class Leaf, class Voxel>
+template <int a, int span, class Leaf, class Voxel>
 void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
   constexpr int u = (a + 1) % 3, v = (a + 2) % 3;
   const WindowAxis wu = window_axis(r.lo[u], r.hi[u]), wv = window_axis(r.lo[v], r.hi[v]),
@@ -324,6 +360,11 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
     a_lo_v[kv] = -INFINITY, a_hi_v[kv] = INFINITY;
     narrow(tests_[4], kSmallCount[4], 0, wv.c[kv], a_lo_v[kv], a_hi_v[kv]);
   }
+  // Per row: the v interval of [1] and the a interval of [3].
+  constexpr int kPadded = (kSmallWindow + 1) / 2 * 2;
+  double v_lo_u[kPadded], v_hi_u[kPadded], a_lo_u[kPadded], a_hi_u[kPadded];
+  row_bounds(tests_[1], kSmallCount[1], wu, v_lo_u, v_hi_u);
+  row_bounds(tests_[3], kSmallCount[3], wu, a_lo_u, a_hi_u);
   std::int64_t c[3] = {r.lo[0] + origin_[0], r.lo[1] + origin_[1], r.lo[2] + origin_[2]};
   WindowLeaves& leaves = window_leaves_;
   leaves.start(c);
@@ -331,10 +372,9 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
     const int ku = std::countr_zero(bu);
     const double cu = wu.c[ku];
     unsigned v_maybe, v_sure;
-    level_bits<1>(cu, 0, wv, v_maybe, v_sure);
+    centres_within(wv, v_lo_u[ku], v_hi_u[ku], sure_inset_, v_maybe, v_sure);
     if ((u_sure >> ku & 1) == 0) v_sure = 0;
-    double row_lo = -INFINITY, row_hi = INFINITY;
-    narrow(tests_[3], kSmallCount[3], cu, 0, row_lo, row_hi);
+    const double row_lo = a_lo_u[ku], row_hi = a_hi_u[ku];
     c[u] = r.lo[u] + ku + origin_[u];
     for (unsigned bv = v_maybe; bv != 0; bv &= bv - 1) {
       const int kv = std::countr_zero(bv);
@@ -344,7 +384,7 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
       centres_within(wa, lo, hi, sure_inset_, maybe, sure);
       sure &= 0u - (v_sure >> kv & 1);
       c[v] = r.lo[v] + kv + origin_[v];
-      leaves.add<a>(c, sure);
+      leaves.add<a, span>(c, sure);
       for (unsigned b = maybe & ~sure; b != 0; b &= b - 1) {  // near a bound: rare
         std::int64_t x[3] = {c[0], c[1], c[2]};
         x[a] += std::countr_zero(b);
@@ -365,9 +405,9 @@ void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel vox
   if (is_empty(r)) return;
   if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
       r.hi[2] - r.lo[2] < kSmallWindow)
-    a_ == 0   ? walk_small<0>(r, leaf, voxel)
-    : a_ == 1 ? walk_small<1>(r, leaf, voxel)
-              : walk_small<2>(r, leaf, voxel);
+    a_ == 0   ? walk_small_any<0>(r, leaf, voxel)
+    : a_ == 1 ? walk_small_any<1>(r, leaf, voxel)
+              : walk_small_any<2>(r, leaf, voxel);
   else
     walk_columns(r, run, voxel);
 }
