@@ -214,17 +214,18 @@ inline void centres_within(const WindowAxis& w, double lo, double hi, double ins
 #endif
 }
 
-// The interval of `count` tests that depend on the row's centre cu only (qv = 0), for every row
-// of the window at once (two at a time on SSE2): narrow's arithmetic (qv * 0 adds a zero, which
-// changes no bound), so the same bounds.
-inline void row_bounds(const SlabInterval* tests, int count, const WindowAxis& w, double* lo,
-                       double* hi) {
+// The interval of `count` tests that depend on one centre coordinate only (cu: qv = 0, or cv:
+// qu = 0; SlabInterval::*q: that coefficient), for every centre of the window at once (two at a
+// time on SSE2): narrow's arithmetic (the other term adds a zero, which changes no bound), so the
+// same bounds.
+inline void axis_bounds(const SlabInterval* tests, int count, double SlabInterval::*q,
+                        const WindowAxis& w, double* lo, double* hi) {
 #if defined(__SSE2__)
   for (int k = 0; k < w.pairs; ++k) {
     const __m128d cu = _mm_loadu_pd(w.c + 2 * k);
     __m128d l = _mm_set1_pd(-INFINITY), h = _mm_set1_pd(INFINITY);
     for (int t = 0; t < count; ++t) {
-      const __m128d x = _mm_mul_pd(_mm_set1_pd(tests[t].qu), cu);
+      const __m128d x = _mm_mul_pd(_mm_set1_pd(tests[t].*q), cu);
       l = _mm_max_pd(l, _mm_add_pd(_mm_set1_pd(tests[t].lo_m), x));
       h = _mm_min_pd(h, _mm_add_pd(_mm_set1_pd(tests[t].hi_m), x));
     }
@@ -233,7 +234,10 @@ inline void row_bounds(const SlabInterval* tests, int count, const WindowAxis& w
 #else
   for (int k = 0; k < 2 * w.pairs; ++k) {
     lo[k] = -INFINITY, hi[k] = INFINITY;
-    narrow(tests, count, w.c[k], 0, lo[k], hi[k]);
+    for (int t = 0; t < count; ++t) {
+      const double x = tests[t].*q * w.c[k];
+      lo[k] = std::max(lo[k], tests[t].lo_m + x), hi[k] = std::min(hi[k], tests[t].hi_m + x);
+    }
   }
 #endif
 }
@@ -355,16 +359,13 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
   unsigned u_maybe, u_sure;
   level_bits<0>(0, 0, wu, u_maybe, u_sure);
   if (uncertain_all_) u_sure = 0;
-  double a_lo_v[kSmallWindow], a_hi_v[kSmallWindow];  // the a-interval of [4] per v
-  for (int kv = 0; kv <= int(r.hi[v] - r.lo[v]); ++kv) {
-    a_lo_v[kv] = -INFINITY, a_hi_v[kv] = INFINITY;
-    narrow(tests_[4], kSmallCount[4], 0, wv.c[kv], a_lo_v[kv], a_hi_v[kv]);
-  }
-  // Per row: the v interval of [1] and the a interval of [3].
+  // Per v: the a interval of [4]; per row: the v interval of [1] and the a interval of [3].
   constexpr int kPadded = (kSmallWindow + 1) / 2 * 2;
-  double v_lo_u[kPadded], v_hi_u[kPadded], a_lo_u[kPadded], a_hi_u[kPadded];
-  row_bounds(tests_[1], kSmallCount[1], wu, v_lo_u, v_hi_u);
-  row_bounds(tests_[3], kSmallCount[3], wu, a_lo_u, a_hi_u);
+  double a_lo_v[kPadded], a_hi_v[kPadded], v_lo_u[kPadded], v_hi_u[kPadded], a_lo_u[kPadded],
+      a_hi_u[kPadded];
+  axis_bounds(tests_[4], kSmallCount[4], &SlabInterval::qv, wv, a_lo_v, a_hi_v);
+  axis_bounds(tests_[1], kSmallCount[1], &SlabInterval::qu, wu, v_lo_u, v_hi_u);
+  axis_bounds(tests_[3], kSmallCount[3], &SlabInterval::qu, wu, a_lo_u, a_hi_u);
   std::int64_t c[3] = {r.lo[0] + origin_[0], r.lo[1] + origin_[1], r.lo[2] + origin_[2]};
   WindowLeaves& leaves = window_leaves_;
   leaves.start(c);
