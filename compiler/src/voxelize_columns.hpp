@@ -78,8 +78,9 @@ inline std::int64_t ceil_to_int(double x) {
 
 // Indices [lo, hi] (local: voxel index minus the triangle's origin) with centres j + 0.5 within
 // [x_lo, x_hi], clipped to [clip_lo, clip_hi].
-inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo, std::int64_t clip_hi,
-                         std::int64_t& lo, std::int64_t& hi) {
+[[gnu::always_inline]] inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo,
+                                                std::int64_t clip_hi, std::int64_t& lo,
+                                                std::int64_t& hi) {
   // Clamp first so the conversions never overflow (bounds may be huge or infinite).
   const double f_lo = std::clamp(x_lo - 0.5, double(clip_lo) - 1, double(clip_hi) + 1);
   const double f_hi = std::clamp(x_hi - 0.5, double(clip_lo) - 1, double(clip_hi) + 1);
@@ -88,8 +89,8 @@ inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo, std::in
 }
 
 // Narrows the maybe interval [lo, hi] by `tests` at (cu, cv).
-inline void narrow(const SlabInterval* tests, int count, double cu, double cv, double& lo,
-                   double& hi) {
+[[gnu::always_inline]] inline void narrow(const SlabInterval* tests, int count, double cu,
+                                          double cv, double& lo, double& hi) {
   for (int k = 0; k < count; ++k) {
     const SlabInterval& s = tests[k];
     const double w = s.qu * cu + s.qv * cv;
@@ -145,7 +146,7 @@ class WindowLeaves {
   }
   // leaf(g, bits) for every leaf with voxels (g: its first voxel, global), then empty again.
   template <class Leaf>
-  void report(Leaf leaf) {
+  [[gnu::always_inline]] void report(Leaf leaf) {
     constexpr int n = kWindowLeaves;
     for (std::uint64_t b = used_; b != 0; b &= b - 1) {
       const int slot = std::countr_zero(b);
@@ -170,7 +171,7 @@ struct WindowAxis {
   int pairs;
   unsigned valid;
 };
-inline WindowAxis window_axis(std::int64_t lo, std::int64_t hi) {
+[[gnu::always_inline]] inline WindowAxis window_axis(std::int64_t lo, std::int64_t hi) {
   WindowAxis w;
   const double first = double(lo) + 0.5;
   for (int k = 0; k < (kSmallWindow + 1) / 2 * 2; ++k) w.c[k] = first + k;
@@ -197,8 +198,8 @@ inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
 
 // centres_in [lo, hi] (maybe) and [lo + inset, hi - inset] (sure), in one pass and without
 // branches on the bounds (which branch a window takes is unpredictable).
-inline void centres_within(const WindowAxis& w, double lo, double hi, double inset, unsigned& maybe,
-                           unsigned& sure) {
+[[gnu::always_inline]] inline void centres_within(const WindowAxis& w, double lo, double hi,
+                                                  double inset, unsigned& maybe, unsigned& sure) {
 #if defined(__SSE2__)
   unsigned m = 0, s = 0;
   const __m128d l = _mm_set1_pd(lo), h = _mm_set1_pd(hi);
@@ -218,8 +219,9 @@ inline void centres_within(const WindowAxis& w, double lo, double hi, double ins
 // qu = 0; SlabInterval::*q: that coefficient), for every centre of the window at once (two at a
 // time on SSE2): narrow's arithmetic (the other term adds a zero, which changes no bound), so the
 // same bounds.
-inline void axis_bounds(const SlabInterval* tests, int count, double SlabInterval::*q,
-                        const WindowAxis& w, double* lo, double* hi) {
+[[gnu::always_inline]] inline void axis_bounds(const SlabInterval* tests, int count,
+                                               double SlabInterval::*q, const WindowAxis& w,
+                                               double* lo, double* hi) {
 #if defined(__SSE2__)
   for (int k = 0; k < w.pairs; ++k) {
     const __m128d cu = _mm_loadu_pd(w.c + 2 * k);
@@ -297,7 +299,7 @@ class TriangleColumns {
   template <int a, int span, class Leaf, class Voxel>
   void walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel);
   template <int a, class Leaf, class Voxel>
-  void walk_small_any(const VoxelRange& r, Leaf leaf, Voxel voxel) {
+  [[gnu::noinline]] void walk_small_any(const VoxelRange& r, Leaf leaf, Voxel voxel) {
     // The window's a range, from the start of its first leaf (global index modulo 4).
     const std::int64_t reach = ((r.lo[a] + origin_[a]) & 3) + r.hi[a] - r.lo[a];
     if (reach < 8)
@@ -309,8 +311,8 @@ class TriangleColumns {
   template <class Run, class Voxel>
   void walk_columns(const VoxelRange& r, Run run, Voxel voxel);
   template <int level>
-  void level_bits(double cu, double cv, const WindowAxis& w, unsigned& maybe,
-                  unsigned& sure) const {
+  [[gnu::always_inline]] void level_bits(double cu, double cv, const WindowAxis& w, unsigned& maybe,
+                                         unsigned& sure) const {
     double lo = -INFINITY, hi = INFINITY;
     narrow(tests_[level], kSmallCount[level], cu, cv, lo, hi);
     centres_within(w, lo, hi, sure_inset_, maybe, sure);
@@ -342,7 +344,7 @@ class TriangleColumns {
 };
 
 // The a-interval of the tests that depend on cv only, per local v index in [v0, v1].
-inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
+[[gnu::always_inline]] inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
   v_table_.resize(2 * std::size_t(v1 - v0 + 1));
   for (std::int64_t iv = v0; iv <= v1; ++iv) {
     double* t = &v_table_[2 * std::size_t(iv - v0)];
