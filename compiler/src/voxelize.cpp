@@ -73,29 +73,34 @@ VoxelRange range_of(const VoxelCube& cube) {
   return r;
 }
 
-// Morton bits of 0..127, one table for the three axes (shifted by 0, 1, 2).
+// Morton bits of 0..127 (format::spread_bits: bit b to bit 3b), one table for the three axes
+// (shifted by 0, 1, 2); constants, so that no call checks a static's initialization.
 struct SpreadTable {
   std::uint32_t bits[kBrickSide];
-  SpreadTable() {
-    for (std::uint32_t i = 0; i < kBrickSide; ++i) bits[i] = std::uint32_t(format::spread_bits(i));
-  }
 };
-const SpreadTable& spread_table() {
-  static const SpreadTable table;
-  return table;
+constexpr SpreadTable make_spread_table() {
+  SpreadTable t{};
+  for (std::uint32_t i = 0; i < kBrickSide; ++i)
+    for (std::uint32_t b = 0; b < 7; ++b) t.bits[i] |= (i >> b & 1u) << (3 * b);
+  return t;
 }
+constexpr SpreadTable kSpreadTable = make_spread_table();
+static_assert(kBrickSide == 128, "seven bits per coordinate");
 
 // Bits of the voxels k0..k1 (0..3) along axis a inside a 4x4x4 leaf, at u = v = 0.
 struct RunTable {
   std::uint64_t masks[3][4][4] = {};
-  RunTable() {
-    for (int a = 0; a < 3; ++a)
-      for (std::uint32_t k0 = 0; k0 < 4; ++k0)
-        for (std::uint32_t k1 = k0; k1 < 4; ++k1)
-          for (std::uint32_t k = k0; k <= k1; ++k)
-            masks[a][k0][k1] |= std::uint64_t{1} << (format::spread_bits(k) << a);
-  }
 };
+constexpr RunTable make_run_table() {
+  RunTable t{};
+  for (int a = 0; a < 3; ++a)
+    for (std::uint32_t k0 = 0; k0 < 4; ++k0)
+      for (std::uint32_t k1 = k0; k1 < 4; ++k1)
+        for (std::uint32_t k = k0; k <= k1; ++k)
+          t.masks[a][k0][k1] |= std::uint64_t{1} << (kSpreadTable.bits[k] << a);
+  return t;
+}
+constexpr RunTable kRunTable = make_run_table();
 
 // A brick's voxels as bits in Morton order: word w is the 4x4x4 leaf whose local key is w, so the
 // leaves come out in order with no per-voxel codes and no sort. A summary bit per word lists the
@@ -108,7 +113,7 @@ class BrickBits {
     if (words_.size() != words) words_.assign(words, 0), summary_.assign((words + 63) / 64, 0);
   }
   static std::uint32_t index(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-    const std::uint32_t* s = spread_table().bits;
+    const std::uint32_t* s = kSpreadTable.bits;
     return s[x] | s[y] << 1 | s[z] << 2;
   }
   void set(std::uint32_t i) {
@@ -124,12 +129,11 @@ class BrickBits {
   // Voxels (x, y, z) with coordinate `a` from p[a] to last (local), a 4x4x4 leaf at a time: the
   // run's bits within a leaf come from a table, shifted to the column's place.
   void set_run(std::uint32_t p[3], int a, std::uint32_t last) {
-    static const RunTable table;
     for (std::uint32_t first = p[a]; first <= last;) {
       const std::uint32_t end = std::min(last, first | 3);
       p[a] = first & ~3u;
       const std::uint32_t i = index(p[0], p[1], p[2]);
-      words_[i >> 6] |= table.masks[a][first & 3][end & 3] << (i & 63);
+      words_[i >> 6] |= kRunTable.masks[a][first & 3][end & 3] << (i & 63);
       summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
       first = end + 1;
     }
