@@ -139,6 +139,12 @@ class BrickBits {
     }
   }
   std::uint64_t word(std::size_t w) const { return words_[w]; }
+  // The number of non-empty words.
+  std::size_t leaf_count() const {
+    std::size_t n = 0;
+    for (const std::uint64_t s : summary_) n += std::size_t(std::popcount(s));
+    return n;
+  }
   // f(w, mask) for every non-empty word, ascending.
   template <class F>
   void for_each_leaf(F f) const {
@@ -265,6 +271,8 @@ VoxelLeaves voxelize_brick_leaves(const GridMesh& mesh, std::span<const std::uin
   BrickBits& bits = lease.bits();
   rasterize_bits(mesh, triangles, brick, bits);
   VoxelLeaves out;
+  const std::size_t leaves = bits.leaf_count();  // one allocation each, not a doubling series
+  out.keys.reserve(leaves), out.masks.reserve(leaves);
   bits.for_each_leaf([&](std::size_t w, std::uint64_t mask) {
     out.keys.push_back(brick.first_key + w);
     out.masks.push_back(mask);

@@ -24,6 +24,7 @@
 // rounds as the scalar code does.
 #include "voxelize_columns.hpp"
 
+#include <cstring>
 #include <limits>
 
 #if defined(__SSE2__)
@@ -211,10 +212,11 @@ void TriangleColumns::divide_tests(const PendingTests& p, int i, SlabInterval* o
   // that copy it forward from them (four 8-byte stores would stall each load).
   const __m128d l = _mm_sub_pd(lo, margin), h = _mm_add_pd(hi, margin);
   static_assert(sizeof(SlabInterval) == 4 * sizeof(double));
-  double* o = &out[i].lo_m;
-  _mm_storeu_pd(o, _mm_unpacklo_pd(l, h)), _mm_storeu_pd(o + 2, _mm_unpacklo_pd(qu, qv));
-  double* o1 = &out[i + 1].lo_m;
-  _mm_storeu_pd(o1, _mm_unpackhi_pd(l, h)), _mm_storeu_pd(o1 + 2, _mm_unpackhi_pd(qu, qv));
+  alignas(16) double pairs[8];
+  _mm_store_pd(pairs, _mm_unpacklo_pd(l, h)), _mm_store_pd(pairs + 2, _mm_unpacklo_pd(qu, qv));
+  _mm_store_pd(pairs + 4, _mm_unpackhi_pd(l, h)), _mm_store_pd(pairs + 6, _mm_unpackhi_pd(qu, qv));
+  std::memcpy(&out[i], pairs, sizeof(SlabInterval));
+  std::memcpy(&out[i + 1], pairs + 4, sizeof(SlabInterval));
   _mm_storeu_pd(m + i, margin);
 #else
   for (int j = i; j < i + 2; ++j) {
