@@ -355,6 +355,46 @@ TEST(Voxelizer, FastPathsMatchReferenceOnSmallQuantizedTriangles) {
   expect_paths_match_reference(grid_unit_scene(triangles), unit_grid(256), "small quantized");
 }
 
+// An indexed mesh of small triangles (a wavy sheet on a 1/8-voxel lattice, vertices shared):
+// the whole mesh converts each vertex once, a small subset of its triangles (fewer than half the
+// vertices) converts each triangle's corners; both against the predicate, whatever span of
+// leaves along the dominant axis each triangle's window has.
+TEST(Voxelizer, SharedVertexMeshMatchesReferenceWholeAndSubset) {
+  std::mt19937 rng(2026);
+  std::uniform_int_distribution<int> jitter(-6, 6);
+  constexpr int kSide = 48;
+  Scene mesh;
+  for (int j = 0; j <= kSide; ++j)
+    for (int i = 0; i <= kSide; ++i) {
+      const float h = 64 + 24 * std::sin(float(i) * 0.31f) * std::cos(float(j) * 0.17f);
+      mesh.positions.push_back({float(8 * 40 + 8 * 3 * i + jitter(rng)) / 8,
+                                float(8 * 40 + 8 * 3 * j + jitter(rng)) / 8,
+                                std::round(h * 8 + float(jitter(rng))) / 8});
+    }
+  for (std::uint32_t j = 0; j < kSide; ++j)
+    for (std::uint32_t i = 0; i < kSide; ++i) {
+      const std::uint32_t a = j * (kSide + 1) + i, b = a + 1, c = a + kSide + 1, d = c + 1;
+      mesh.triangles.push_back({{a, b, d}}), mesh.triangles.push_back({{a, d, c}});
+      mesh.triangle_mesh.push_back(0), mesh.triangle_mesh.push_back(0);
+    }
+  mesh.bounds = bounds_of(mesh.positions);
+  mesh.sources.push_back({"generated", 0, 0});
+  mesh.meshes.push_back({"generated", 0, 0, mesh.triangles.size(), 0, mesh.positions.size()});
+  const VoxelGrid grid = unit_grid(256);
+  expect_paths_match_reference(mesh, grid, "shared-vertex sheet");
+  Scene subset = mesh;  // every 9th triangle: 512 triangles for 2401 vertices
+  subset.triangles.clear(), subset.triangle_mesh.clear();
+  std::vector<std::uint32_t> picked;
+  for (std::uint32_t t = 0; t < mesh.triangles.size(); t += 9)
+    picked.push_back(t), subset.triangles.push_back(mesh.triangles[t]),
+        subset.triangle_mesh.push_back(0);
+  subset.meshes[0].triangle_count = subset.triangles.size();
+  ASSERT_LT(2 * picked.size(), mesh.positions.size());
+  const VoxelCube cube{{0, 0, 0}, grid.resolution};
+  expect_leaves_equal(voxelize_surface_leaves(mesh, grid, cube, picked, 2),
+                      leaves_of(reference_voxels(subset, grid, false).codes), "subset");
+}
+
 // Huge triangles on grids up to 131072^3 (the margins grow with the triangle's extent): one
 // sub-cube through each path against every voxel of the cube under the predicate.
 TEST(Voxelizer, FastPathsMatchPredicateOnHugeTrianglesInSubCubes) {

@@ -27,11 +27,43 @@ using voxelize_detail::VoxelRange;
 
 constexpr std::uint32_t kBrickSide = 128;
 
+// A point in grid units (voxel (x, y, z) is the box [x, x+1] x ...): to_grid's arithmetic.
+format::Double3 grid_point(const VoxelGrid& grid, const format::Float3& p) {
+  return {(double(p.x) - grid.origin[0]) / grid.voxel_size,
+          (double(p.y) - grid.origin[1]) / grid.voxel_size,
+          (double(p.z) - grid.origin[2]) / grid.voxel_size};
+}
+
 GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::uint32_t i) {
   const auto& tri = scene.triangles[i];
   return to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
                  scene.positions[tri.v[2]]);
 }
+
+// The scene's triangles in grid units. When the triangles to voxelize reference a good share of
+// the vertices, every vertex is converted once (three divisions per vertex instead of nine per
+// triangle, each triangle being read twice: binning and walk; the same arithmetic, so the same
+// doubles); otherwise each triangle converts its corners.
+class GridMesh {
+ public:
+  GridMesh(const Scene& scene, const VoxelGrid& grid, std::size_t triangle_count)
+      : scene(scene), grid_(grid) {
+    if (2 * triangle_count < scene.positions.size()) return;
+    corners_.resize(scene.positions.size());
+    for (std::size_t k = 0; k < corners_.size(); ++k)
+      corners_[k] = grid_point(grid, scene.positions[k]);
+  }
+  GridTriangle triangle(std::uint32_t i) const {
+    if (corners_.empty()) return grid_triangle(scene, grid_, i);
+    const auto& tri = scene.triangles[i];
+    return {{corners_[tri.v[0]], corners_[tri.v[1]], corners_[tri.v[2]]}};
+  }
+  const Scene& scene;
+
+ private:
+  const VoxelGrid& grid_;
+  std::vector<format::Double3> corners_;
+};
 
 // The cube as an inclusive voxel range.
 VoxelRange range_of(const VoxelCube& cube) {
@@ -41,29 +73,34 @@ VoxelRange range_of(const VoxelCube& cube) {
   return r;
 }
 
-// Morton bits of 0..127, one table for the three axes (shifted by 0, 1, 2).
+// Morton bits of 0..127 (format::spread_bits: bit b to bit 3b), one table for the three axes
+// (shifted by 0, 1, 2); constants, so that no call checks a static's initialization.
 struct SpreadTable {
   std::uint32_t bits[kBrickSide];
-  SpreadTable() {
-    for (std::uint32_t i = 0; i < kBrickSide; ++i) bits[i] = std::uint32_t(format::spread_bits(i));
-  }
 };
-const SpreadTable& spread_table() {
-  static const SpreadTable table;
-  return table;
+constexpr SpreadTable make_spread_table() {
+  SpreadTable t{};
+  for (std::uint32_t i = 0; i < kBrickSide; ++i)
+    for (std::uint32_t b = 0; b < 7; ++b) t.bits[i] |= (i >> b & 1u) << (3 * b);
+  return t;
 }
+constexpr SpreadTable kSpreadTable = make_spread_table();
+static_assert(kBrickSide == 128, "seven bits per coordinate");
 
 // Bits of the voxels k0..k1 (0..3) along axis a inside a 4x4x4 leaf, at u = v = 0.
 struct RunTable {
   std::uint64_t masks[3][4][4] = {};
-  RunTable() {
-    for (int a = 0; a < 3; ++a)
-      for (std::uint32_t k0 = 0; k0 < 4; ++k0)
-        for (std::uint32_t k1 = k0; k1 < 4; ++k1)
-          for (std::uint32_t k = k0; k <= k1; ++k)
-            masks[a][k0][k1] |= std::uint64_t{1} << (format::spread_bits(k) << a);
-  }
 };
+constexpr RunTable make_run_table() {
+  RunTable t{};
+  for (int a = 0; a < 3; ++a)
+    for (std::uint32_t k0 = 0; k0 < 4; ++k0)
+      for (std::uint32_t k1 = k0; k1 < 4; ++k1)
+        for (std::uint32_t k = k0; k <= k1; ++k)
+          t.masks[a][k0][k1] |= std::uint64_t{1} << (kSpreadTable.bits[k] << a);
+  return t;
+}
+constexpr RunTable kRunTable = make_run_table();
 
 // A brick's voxels as bits in Morton order: word w is the 4x4x4 leaf whose local key is w, so the
 // leaves come out in order with no per-voxel codes and no sort. A summary bit per word lists the
@@ -76,7 +113,7 @@ class BrickBits {
     if (words_.size() != words) words_.assign(words, 0), summary_.assign((words + 63) / 64, 0);
   }
   static std::uint32_t index(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-    const std::uint32_t* s = spread_table().bits;
+    const std::uint32_t* s = kSpreadTable.bits;
     return s[x] | s[y] << 1 | s[z] << 2;
   }
   void set(std::uint32_t i) {
@@ -92,17 +129,22 @@ class BrickBits {
   // Voxels (x, y, z) with coordinate `a` from p[a] to last (local), a 4x4x4 leaf at a time: the
   // run's bits within a leaf come from a table, shifted to the column's place.
   void set_run(std::uint32_t p[3], int a, std::uint32_t last) {
-    static const RunTable table;
     for (std::uint32_t first = p[a]; first <= last;) {
       const std::uint32_t end = std::min(last, first | 3);
       p[a] = first & ~3u;
       const std::uint32_t i = index(p[0], p[1], p[2]);
-      words_[i >> 6] |= table.masks[a][first & 3][end & 3] << (i & 63);
+      words_[i >> 6] |= kRunTable.masks[a][first & 3][end & 3] << (i & 63);
       summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
       first = end + 1;
     }
   }
   std::uint64_t word(std::size_t w) const { return words_[w]; }
+  // The number of non-empty words.
+  std::size_t leaf_count() const {
+    std::size_t n = 0;
+    for (const std::uint64_t s : summary_) n += std::size_t(std::popcount(s));
+    return n;
+  }
   // f(w, mask) for every non-empty word, ascending.
   template <class F>
   void for_each_leaf(F f) const {
@@ -165,12 +207,12 @@ Brick brick_of(const VoxelCube& cube, std::uint32_t brick, std::size_t b) {
 // (brick-local), covering every voxel of `brick` each triangle touches once, triangle by triangle
 // in the given order.
 template <class OnRun, class OnLeaf, class OnVoxel>
-void rasterize(const Scene& scene, const VoxelGrid& grid, std::span<const std::uint32_t> triangles,
-               const Brick& brick, OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
+void rasterize(const GridMesh& mesh, std::span<const std::uint32_t> triangles, const Brick& brick,
+               OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
   TriangleColumns columns;
   const std::int64_t* o = brick.clip.lo;
   for (const std::uint32_t i : triangles) {
-    if (!columns.setup(grid_triangle(scene, grid, i))) continue;
+    if (!columns.setup(mesh.triangle(i))) continue;
     columns.walk(
         brick.clip,
         [&](const std::int64_t* c, int a, std::int64_t last) {
@@ -191,11 +233,10 @@ void rasterize(const Scene& scene, const VoxelGrid& grid, std::span<const std::u
 
 // rasterize with one callback per voxel (brick-local Morton index).
 template <class OnVoxel>
-void rasterize_voxels(const Scene& scene, const VoxelGrid& grid,
-                      std::span<const std::uint32_t> triangles, const Brick& brick,
-                      OnVoxel on_voxel) {
+void rasterize_voxels(const GridMesh& mesh, std::span<const std::uint32_t> triangles,
+                      const Brick& brick, OnVoxel on_voxel) {
   rasterize(
-      scene, grid, triangles, brick,
+      mesh, triangles, brick,
       [&](std::uint32_t t, std::uint32_t* p, int a, std::uint32_t last) {
         for (std::uint32_t k = p[a]; k <= last; ++k) {
           p[a] = k;
@@ -213,10 +254,10 @@ void rasterize_voxels(const Scene& scene, const VoxelGrid& grid,
 }
 
 // Sets the bits of every voxel `triangles` touch in `brick`.
-void rasterize_bits(const Scene& scene, const VoxelGrid& grid,
-                    std::span<const std::uint32_t> triangles, const Brick& brick, BrickBits& bits) {
+void rasterize_bits(const GridMesh& mesh, std::span<const std::uint32_t> triangles,
+                    const Brick& brick, BrickBits& bits) {
   rasterize(
-      scene, grid, triangles, brick,
+      mesh, triangles, brick,
       [&](std::uint32_t, std::uint32_t* p, int a, std::uint32_t last) { bits.set_run(p, a, last); },
       [&](std::uint32_t, const std::uint32_t* p, std::uint64_t mask) { bits.set_leaf(p, mask); },
       [&](std::uint32_t, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
@@ -224,13 +265,14 @@ void rasterize_bits(const Scene& scene, const VoxelGrid& grid,
       });
 }
 
-VoxelLeaves voxelize_brick_leaves(const Scene& scene, const VoxelGrid& grid,
-                                  std::span<const std::uint32_t> triangles, const Brick& brick,
-                                  std::uint32_t side) {
+VoxelLeaves voxelize_brick_leaves(const GridMesh& mesh, std::span<const std::uint32_t> triangles,
+                                  const Brick& brick, std::uint32_t side) {
   BitsLease lease(side);
   BrickBits& bits = lease.bits();
-  rasterize_bits(scene, grid, triangles, brick, bits);
+  rasterize_bits(mesh, triangles, brick, bits);
   VoxelLeaves out;
+  const std::size_t leaves = bits.leaf_count();  // one allocation each, not a doubling series
+  out.keys.reserve(leaves), out.masks.reserve(leaves);
   bits.for_each_leaf([&](std::size_t w, std::uint64_t mask) {
     out.keys.push_back(brick.first_key + w);
     out.masks.push_back(mask);
@@ -255,12 +297,11 @@ void append_codes(const VoxelLeaves& leaves, std::vector<std::uint64_t>& codes) 
 // The brick's voxels with the octahedral sum of their triangles' unit normals, summed in
 // ascending triangle order (as sorting (code, triangle) pairs would): a first pass sets the bits,
 // whose ranks give each voxel its slot, and a second pass adds each triangle's normal there.
-BrickOutput voxelize_brick_normals(const Scene& scene, const VoxelGrid& grid,
-                                   std::span<const std::uint32_t> triangles, const Brick& brick,
-                                   std::uint32_t side) {
+BrickOutput voxelize_brick_normals(const GridMesh& mesh, std::span<const std::uint32_t> triangles,
+                                   const Brick& brick, std::uint32_t side) {
   BitsLease lease(side);
   BrickBits& bits = lease.bits();
-  rasterize_bits(scene, grid, triangles, brick, bits);
+  rasterize_bits(mesh, triangles, brick, bits);
   BrickOutput out;
   std::vector<std::uint32_t> rank(std::size_t(side) * side * side / 64);
   std::uint32_t total = 0;
@@ -273,12 +314,12 @@ BrickOutput voxelize_brick_normals(const Scene& scene, const VoxelGrid& grid,
   std::vector<double> sums(3 * std::size_t(total), 0.0);
   std::uint32_t current = ~0u;
   double unit[3] = {0, 0, 0};
-  rasterize_voxels(scene, grid, triangles, brick, [&](std::uint32_t t, std::uint32_t i) {
+  rasterize_voxels(mesh, triangles, brick, [&](std::uint32_t t, std::uint32_t i) {
     if (t != current) {
-      const auto& tri = scene.triangles[t];
-      const format::Double3 a = to_d(scene.positions[tri.v[0]]),
-                            b = to_d(scene.positions[tri.v[1]]),
-                            c = to_d(scene.positions[tri.v[2]]);
+      const auto& tri = mesh.scene.triangles[t];
+      const format::Double3 a = to_d(mesh.scene.positions[tri.v[0]]),
+                            b = to_d(mesh.scene.positions[tri.v[1]]),
+                            c = to_d(mesh.scene.positions[tri.v[2]]);
       const format::Double3 nrm = cross(b - a, c - a);
       const double length = std::sqrt(dot(nrm, nrm));
       for (int axis = 0; axis < 3; ++axis) unit[axis] = format::at(nrm, axis) / length;
@@ -298,8 +339,7 @@ BrickOutput voxelize_brick_normals(const Scene& scene, const VoxelGrid& grid,
 // Each of `triangles`, in the given order, in the bin (Morton index within `cube`) of each brick
 // of side `brick` its voxels may reach: over each column of bricks along the triangle's dominant
 // axis, only the bricks its plane's slab (with margin) meets, not its whole bounding box.
-std::vector<std::vector<std::uint32_t>> bin_triangles(const Scene& scene, const VoxelGrid& grid,
-                                                      const VoxelCube& cube,
+std::vector<std::vector<std::uint32_t>> bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
                                                       std::span<const std::uint32_t> triangles,
                                                       std::uint32_t brick) {
   const std::uint32_t per_axis = cube.side / brick;
@@ -307,7 +347,7 @@ std::vector<std::vector<std::uint32_t>> bin_triangles(const Scene& scene, const 
   std::vector<std::vector<std::uint32_t>> bins(std::size_t(per_axis) * per_axis * per_axis);
   TriangleColumns columns;
   for (const std::uint32_t i : triangles) {
-    const GridTriangle t = grid_triangle(scene, grid, i);
+    const GridTriangle t = mesh.triangle(i);
     const VoxelRange r = candidate_range(t, whole);
     if (is_empty(r)) continue;
     if ((r.lo[0] - whole.lo[0]) / brick == (r.hi[0] - whole.lo[0]) / brick &&
@@ -371,11 +411,7 @@ VoxelGrid fit_voxel_grid(const format::Box3f& bounds, std::uint32_t resolution) 
 GridTriangle to_grid(const VoxelGrid& grid, const format::Float3& a, const format::Float3& b,
                      const format::Float3& c) {
   GridTriangle t;
-  const format::Float3* corners[3] = {&a, &b, &c};
-  for (int i = 0; i < 3; ++i)
-    t.v[i] = {(double(corners[i]->x) - grid.origin[0]) / grid.voxel_size,
-              (double(corners[i]->y) - grid.origin[1]) / grid.voxel_size,
-              (double(corners[i]->z) - grid.origin[2]) / grid.voxel_size};
+  t.v[0] = grid_point(grid, a), t.v[1] = grid_point(grid, b), t.v[2] = grid_point(grid, c);
   return t;
 }
 
@@ -410,7 +446,8 @@ Voxels voxelize_surface_cube(const Scene& scene, const VoxelGrid& grid, const Vo
   Voxels out;
   out.grid = grid;
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
-  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(scene, grid, cube, triangles, brick);
+  const GridMesh mesh(scene, grid, triangles.size());
+  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(mesh, cube, triangles, brick);
   std::vector<BrickOutput> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
     if (bins[b].empty()) return;
@@ -419,9 +456,9 @@ Voxels voxelize_surface_cube(const Scene& scene, const VoxelGrid& grid, const Vo
       // Normals are summed in ascending triangle order, whatever order the caller gave.
       if (!std::is_sorted(bins[b].begin(), bins[b].end()))
         std::sort(bins[b].begin(), bins[b].end());
-      bricks[b] = voxelize_brick_normals(scene, grid, bins[b], frame, brick);
+      bricks[b] = voxelize_brick_normals(mesh, bins[b], frame, brick);
     } else {
-      append_codes(voxelize_brick_leaves(scene, grid, bins[b], frame, brick), bricks[b].codes);
+      append_codes(voxelize_brick_leaves(mesh, bins[b], frame, brick), bricks[b].codes);
     }
     std::vector<std::uint32_t>().swap(bins[b]);
   });
@@ -442,11 +479,12 @@ VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
                                     unsigned threads) {
   if (!is_valid_cube(grid, cube)) throw std::invalid_argument("voxel cube outside the grid");
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
-  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(scene, grid, cube, triangles, brick);
+  const GridMesh mesh(scene, grid, triangles.size());
+  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(mesh, cube, triangles, brick);
   std::vector<VoxelLeaves> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
     if (bins[b].empty()) return;
-    bricks[b] = voxelize_brick_leaves(scene, grid, bins[b], brick_of(cube, brick, b), brick);
+    bricks[b] = voxelize_brick_leaves(mesh, bins[b], brick_of(cube, brick, b), brick);
     std::vector<std::uint32_t>().swap(bins[b]);
   });
   VoxelLeaves out;

@@ -24,6 +24,7 @@
 // rounds as the scalar code does.
 #include "voxelize_columns.hpp"
 
+#include <cstring>
 #include <limits>
 
 #if defined(__SSE2__)
@@ -101,7 +102,9 @@ template <int a, int i>
                                                                   double margin,
                                                                   PendingTests& pending) {
   constexpr auto p = std::size_t(i + 1) % 3, q = std::size_t(i + 2) % 3;
-  if (format::at(t.v[(j + 1) % 3], int(p)) == format::at(t.v[j], int(p)) &&
+  // (e's components are zero when the corners' are equal, so they are compared only then.)
+  if (e[p] == 0 && e[q] == 0 &&
+      format::at(t.v[(j + 1) % 3], int(p)) == format::at(t.v[j], int(p)) &&
       format::at(t.v[(j + 1) % 3], int(q)) == format::at(t.v[j], int(q)))
     return;
   std::array<double, 3> axis = {0, 0, 0};
@@ -205,10 +208,16 @@ void TriangleColumns::divide_tests(const PendingTests& p, int i, SlabInterval* o
                  _mm_set1_pd(1));
   const __m128d margin = _mm_add_pd(_mm_mul_pd(_mm_loadu_pd(p.margin + i), abs(inv)),
                                     _mm_mul_pd(_mm_set1_pd(16 * kRoundoff), spread));
-  double l[2], h[2], u[2], v[2];
-  _mm_storeu_pd(l, _mm_sub_pd(lo, margin)), _mm_storeu_pd(h, _mm_add_pd(hi, margin));
-  _mm_storeu_pd(u, qu), _mm_storeu_pd(v, qv), _mm_storeu_pd(m + i, margin);
-  out[i] = {l[0], h[0], u[0], v[0]}, out[i + 1] = {l[1], h[1], u[1], v[1]};
+  // Each SlabInterval as two 16-byte stores (its fields in order), so that the 16-byte loads
+  // that copy it forward from them (four 8-byte stores would stall each load).
+  const __m128d l = _mm_sub_pd(lo, margin), h = _mm_add_pd(hi, margin);
+  static_assert(sizeof(SlabInterval) == 4 * sizeof(double));
+  alignas(16) double pairs[8];
+  _mm_store_pd(pairs, _mm_unpacklo_pd(l, h)), _mm_store_pd(pairs + 2, _mm_unpacklo_pd(qu, qv));
+  _mm_store_pd(pairs + 4, _mm_unpackhi_pd(l, h)), _mm_store_pd(pairs + 6, _mm_unpackhi_pd(qu, qv));
+  std::memcpy(&out[i], pairs, sizeof(SlabInterval));
+  std::memcpy(&out[i + 1], pairs + 4, sizeof(SlabInterval));
+  _mm_storeu_pd(m + i, margin);
 #else
   for (int j = i; j < i + 2; ++j) {
     const double inv = 1 / p.k[j], a = p.lo[j] * inv, b = p.hi[j] * inv;
@@ -231,6 +240,7 @@ void TriangleColumns::commit_tests(PendingTests& p, bool plane_first) {
   double m[PendingTests::kMax + 1];
   for (int i = 0; i < p.count; i += 2) divide_tests(p, i, s, m);
   int constant[5] = {-1, -1, -1, -1, -1};
+  double inset = sure_inset_;  // a local: the member would go through memory on every test
   for (int i = 0; i < p.count; ++i) {
     // NaN or infinity anywhere makes the margin non-finite (lo, hi, |qu|, |qv| <= m / (16u);
     // a NaN bound needs an infinite reciprocal, and the margin has margin * |inv|).
@@ -240,8 +250,9 @@ void TriangleColumns::commit_tests(PendingTests& p, bool plane_first) {
     }
     if (i == 0 && plane_first) has_plane_ = true, plane_ = s[0];
     file_interval(s[i], p.level[i], constant);
-    sure_inset_ = std::max(sure_inset_, 2 * m[i]);
+    inset = std::max(inset, 2 * m[i]);
   }
+  sure_inset_ = inset;
 }
 
 // Files `s` by what it depends on (see tests_). Tests that do not depend on the column at all

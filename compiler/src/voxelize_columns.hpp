@@ -78,8 +78,9 @@ inline std::int64_t ceil_to_int(double x) {
 
 // Indices [lo, hi] (local: voxel index minus the triangle's origin) with centres j + 0.5 within
 // [x_lo, x_hi], clipped to [clip_lo, clip_hi].
-inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo, std::int64_t clip_hi,
-                         std::int64_t& lo, std::int64_t& hi) {
+[[gnu::always_inline]] inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo,
+                                                std::int64_t clip_hi, std::int64_t& lo,
+                                                std::int64_t& hi) {
   // Clamp first so the conversions never overflow (bounds may be huge or infinite).
   const double f_lo = std::clamp(x_lo - 0.5, double(clip_lo) - 1, double(clip_hi) + 1);
   const double f_hi = std::clamp(x_hi - 0.5, double(clip_lo) - 1, double(clip_hi) + 1);
@@ -88,8 +89,8 @@ inline void centre_range(double x_lo, double x_hi, std::int64_t clip_lo, std::in
 }
 
 // Narrows the maybe interval [lo, hi] by `tests` at (cu, cv).
-inline void narrow(const SlabInterval* tests, int count, double cu, double cv, double& lo,
-                   double& hi) {
+[[gnu::always_inline]] inline void narrow(const SlabInterval* tests, int count, double cu,
+                                          double cv, double& lo, double& hi) {
   for (int k = 0; k < count; ++k) {
     const SlabInterval& s = tests[k];
     const double w = s.qu * cu + s.qv * cv;
@@ -127,8 +128,9 @@ class WindowLeaves {
   void start(const std::int64_t first[3]) {
     for (int k = 0; k < 3; ++k) base_[k] = first[k] >> 2;
   }
-  // The voxels (g[u], g[v], g[a] + k) for the bits k of `bits` (g global, within the window).
-  template <int a, int u = (a + 1) % 3, int v = (a + 2) % 3>
+  // The voxels (g[u], g[v], g[a] + k) for the bits k of `bits` (g global, within the window),
+  // which lie in the `span` leaves along a from g[a]'s (g[a] % 4 + the window's a size <= 4 span).
+  template <int a, int span, int u = (a + 1) % 3, int v = (a + 2) % 3>
   void add(const std::int64_t g[3], unsigned bits) {
     constexpr int n = kWindowLeaves, stride[3] = {1, n, n * n};
     const int slot = int((g[u] >> 2) - base_[u]) * stride[u] +
@@ -136,7 +138,7 @@ class WindowLeaves {
                      int((g[a] >> 2) - base_[a]) * stride[a];
     const unsigned shift = kSpread4[g[u] & 3] << u | kSpread4[g[v] & 3] << v;
     const unsigned m = bits << (g[a] & 3);
-    for (int l = 0; l < n; ++l) {
+    for (int l = 0; l < span; ++l) {
       const unsigned nibble = m >> (4 * l) & 15;
       words_[slot + l * stride[a]] |= kNibbleMasks.masks[a][nibble] << shift;
       used_ |= std::uint64_t(nibble != 0) << (slot + l * stride[a]);
@@ -144,7 +146,7 @@ class WindowLeaves {
   }
   // leaf(g, bits) for every leaf with voxels (g: its first voxel, global), then empty again.
   template <class Leaf>
-  void report(Leaf leaf) {
+  [[gnu::always_inline]] void report(Leaf leaf) {
     constexpr int n = kWindowLeaves;
     for (std::uint64_t b = used_; b != 0; b &= b - 1) {
       const int slot = std::countr_zero(b);
@@ -169,7 +171,7 @@ struct WindowAxis {
   int pairs;
   unsigned valid;
 };
-inline WindowAxis window_axis(std::int64_t lo, std::int64_t hi) {
+[[gnu::always_inline]] inline WindowAxis window_axis(std::int64_t lo, std::int64_t hi) {
   WindowAxis w;
   const double first = double(lo) + 0.5;
   for (int k = 0; k < (kSmallWindow + 1) / 2 * 2; ++k) w.c[k] = first + k;
@@ -196,8 +198,8 @@ inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
 
 // centres_in [lo, hi] (maybe) and [lo + inset, hi - inset] (sure), in one pass and without
 // branches on the bounds (which branch a window takes is unpredictable).
-inline void centres_within(const WindowAxis& w, double lo, double hi, double inset, unsigned& maybe,
-                           unsigned& sure) {
+[[gnu::always_inline]] inline void centres_within(const WindowAxis& w, double lo, double hi,
+                                                  double inset, unsigned& maybe, unsigned& sure) {
 #if defined(__SSE2__)
   unsigned m = 0, s = 0;
   const __m128d l = _mm_set1_pd(lo), h = _mm_set1_pd(hi);
@@ -210,6 +212,35 @@ inline void centres_within(const WindowAxis& w, double lo, double hi, double ins
   maybe = m & w.valid, sure = s & w.valid;
 #else
   maybe = centres_in(w, lo, hi), sure = centres_in(w, lo + inset, hi - inset);
+#endif
+}
+
+// The interval of `count` tests that depend on one centre coordinate only (cu: qv = 0, or cv:
+// qu = 0; SlabInterval::*q: that coefficient), for every centre of the window at once (two at a
+// time on SSE2): narrow's arithmetic (the other term adds a zero, which changes no bound), so the
+// same bounds.
+[[gnu::always_inline]] inline void axis_bounds(const SlabInterval* tests, int count,
+                                               double SlabInterval::*q, const WindowAxis& w,
+                                               double* lo, double* hi) {
+#if defined(__SSE2__)
+  for (int k = 0; k < w.pairs; ++k) {
+    const __m128d cu = _mm_loadu_pd(w.c + 2 * k);
+    __m128d l = _mm_set1_pd(-INFINITY), h = _mm_set1_pd(INFINITY);
+    for (int t = 0; t < count; ++t) {
+      const __m128d x = _mm_mul_pd(_mm_set1_pd(tests[t].*q), cu);
+      l = _mm_max_pd(l, _mm_add_pd(_mm_set1_pd(tests[t].lo_m), x));
+      h = _mm_min_pd(h, _mm_add_pd(_mm_set1_pd(tests[t].hi_m), x));
+    }
+    _mm_storeu_pd(lo + 2 * k, l), _mm_storeu_pd(hi + 2 * k, h);
+  }
+#else
+  for (int k = 0; k < 2 * w.pairs; ++k) {
+    lo[k] = -INFINITY, hi[k] = INFINITY;
+    for (int t = 0; t < count; ++t) {
+      const double x = tests[t].*q * w.c[k];
+      lo[k] = std::max(lo[k], tests[t].lo_m + x), hi[k] = std::min(hi[k], tests[t].hi_m + x);
+    }
+  }
 #endif
 }
 
@@ -263,14 +294,25 @@ class TriangleColumns {
   // walk for a local range at most kSmallWindow wide on every axis: each test's voxels as bit
   // masks of the window's centres along a (comparisons, no conversions; no v table).
   // (a: the dominant axis, a template argument so that the leaf slots and shifts are constants.)
-  template <int a, class Leaf, class Voxel>
+  // (span: the leaves along a the window reaches, kWindowLeaves or fewer, so that a column's
+  // voxels are added without a loop over leaves they cannot reach.)
+  template <int a, int span, class Leaf, class Voxel>
   void walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel);
+  template <int a, class Leaf, class Voxel>
+  [[gnu::noinline]] void walk_small_any(const VoxelRange& r, Leaf leaf, Voxel voxel) {
+    // The window's a range, from the start of its first leaf (global index modulo 4).
+    const std::int64_t reach = ((r.lo[a] + origin_[a]) & 3) + r.hi[a] - r.lo[a];
+    if (reach < 8)
+      walk_small<a, 2>(r, leaf, voxel);
+    else
+      walk_small<a, kWindowLeaves>(r, leaf, voxel);
+  }
   // The column walk over the local range r (runs along a, rounded to indices per column).
   template <class Run, class Voxel>
   void walk_columns(const VoxelRange& r, Run run, Voxel voxel);
   template <int level>
-  void level_bits(double cu, double cv, const WindowAxis& w, unsigned& maybe,
-                  unsigned& sure) const {
+  [[gnu::always_inline]] void level_bits(double cu, double cv, const WindowAxis& w, unsigned& maybe,
+                                         unsigned& sure) const {
     double lo = -INFINITY, hi = INFINITY;
     narrow(tests_[level], kSmallCount[level], cu, cv, lo, hi);
     centres_within(w, lo, hi, sure_inset_, maybe, sure);
@@ -302,7 +344,7 @@ class TriangleColumns {
 };
 
 // The a-interval of the tests that depend on cv only, per local v index in [v0, v1].
-inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
+[[gnu::always_inline]] inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
   v_table_.resize(2 * std::size_t(v1 - v0 + 1));
   for (std::int64_t iv = v0; iv <= v1; ++iv) {
     double* t = &v_table_[2 * std::size_t(iv - v0)];
@@ -311,7 +353,7 @@ inline void TriangleColumns::fill_v_table(std::int64_t v0, std::int64_t v1) {
   }
 }
 
-template <int a, class Leaf, class Voxel>
+template <int a, int span, class Leaf, class Voxel>
 void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
   constexpr int u = (a + 1) % 3, v = (a + 2) % 3;
   const WindowAxis wu = window_axis(r.lo[u], r.hi[u]), wv = window_axis(r.lo[v], r.hi[v]),
@@ -319,11 +361,13 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
   unsigned u_maybe, u_sure;
   level_bits<0>(0, 0, wu, u_maybe, u_sure);
   if (uncertain_all_) u_sure = 0;
-  double a_lo_v[kSmallWindow], a_hi_v[kSmallWindow];  // the a-interval of [4] per v
-  for (int kv = 0; kv <= int(r.hi[v] - r.lo[v]); ++kv) {
-    a_lo_v[kv] = -INFINITY, a_hi_v[kv] = INFINITY;
-    narrow(tests_[4], kSmallCount[4], 0, wv.c[kv], a_lo_v[kv], a_hi_v[kv]);
-  }
+  // Per v: the a interval of [4]; per row: the v interval of [1] and the a interval of [3].
+  constexpr int kPadded = (kSmallWindow + 1) / 2 * 2;
+  double a_lo_v[kPadded], a_hi_v[kPadded], v_lo_u[kPadded], v_hi_u[kPadded], a_lo_u[kPadded],
+      a_hi_u[kPadded];
+  axis_bounds(tests_[4], kSmallCount[4], &SlabInterval::qv, wv, a_lo_v, a_hi_v);
+  axis_bounds(tests_[1], kSmallCount[1], &SlabInterval::qu, wu, v_lo_u, v_hi_u);
+  axis_bounds(tests_[3], kSmallCount[3], &SlabInterval::qu, wu, a_lo_u, a_hi_u);
   std::int64_t c[3] = {r.lo[0] + origin_[0], r.lo[1] + origin_[1], r.lo[2] + origin_[2]};
   WindowLeaves& leaves = window_leaves_;
   leaves.start(c);
@@ -331,10 +375,9 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
     const int ku = std::countr_zero(bu);
     const double cu = wu.c[ku];
     unsigned v_maybe, v_sure;
-    level_bits<1>(cu, 0, wv, v_maybe, v_sure);
+    centres_within(wv, v_lo_u[ku], v_hi_u[ku], sure_inset_, v_maybe, v_sure);
     if ((u_sure >> ku & 1) == 0) v_sure = 0;
-    double row_lo = -INFINITY, row_hi = INFINITY;
-    narrow(tests_[3], kSmallCount[3], cu, 0, row_lo, row_hi);
+    const double row_lo = a_lo_u[ku], row_hi = a_hi_u[ku];
     c[u] = r.lo[u] + ku + origin_[u];
     for (unsigned bv = v_maybe; bv != 0; bv &= bv - 1) {
       const int kv = std::countr_zero(bv);
@@ -344,7 +387,7 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
       centres_within(wa, lo, hi, sure_inset_, maybe, sure);
       sure &= 0u - (v_sure >> kv & 1);
       c[v] = r.lo[v] + kv + origin_[v];
-      leaves.add<a>(c, sure);
+      leaves.add<a, span>(c, sure);
       for (unsigned b = maybe & ~sure; b != 0; b &= b - 1) {  // near a bound: rare
         std::int64_t x[3] = {c[0], c[1], c[2]};
         x[a] += std::countr_zero(b);
@@ -365,9 +408,9 @@ void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel vox
   if (is_empty(r)) return;
   if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
       r.hi[2] - r.lo[2] < kSmallWindow)
-    a_ == 0   ? walk_small<0>(r, leaf, voxel)
-    : a_ == 1 ? walk_small<1>(r, leaf, voxel)
-              : walk_small<2>(r, leaf, voxel);
+    a_ == 0   ? walk_small_any<0>(r, leaf, voxel)
+    : a_ == 1 ? walk_small_any<1>(r, leaf, voxel)
+              : walk_small_any<2>(r, leaf, voxel);
   else
     walk_columns(r, run, voxel);
 }
