@@ -463,7 +463,9 @@ TEST(Voxelizer, LeavesByteIdenticalAcrossThreadsAndCubes) {
         const auto it = std::lower_bound(one.keys.begin(), one.keys.end(), key);
         const bool present = it != one.keys.end() && *it == key;
         ASSERT_EQ(l.keys.size(), present ? 1u : 0u);
-        if (present) EXPECT_EQ(l.masks[0], one.masks[std::size_t(it - one.keys.begin())]);
+        if (present) {
+          EXPECT_EQ(l.masks[0], one.masks[std::size_t(it - one.keys.begin())]);
+        }
         continue;
       }
       joined.keys.insert(joined.keys.end(), l.keys.begin(), l.keys.end());
