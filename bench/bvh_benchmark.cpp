@@ -274,6 +274,7 @@ struct MeshCase {
   std::vector<std::string> files;
   kiln::Scene scene;
   std::map<kiln::BvhBuilder, kiln::FlatBvh> bvhs;
+  std::map<kiln::BvhBuilder, kiln::FlatBvh> wide_bvhs;  // as `kiln build` builds for w4 / w8
   std::optional<kiln::FlatKdTree> kdtree;
   std::map<kiln::RayKind, std::vector<kiln::Ray>> rays;
   std::map<Structure, Row> rows;
@@ -306,6 +307,20 @@ const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
     options.builder = builder;
     options.threads = 0;
     it = mesh.bvhs.emplace(builder, kiln::build_bvh(mesh.scene, options)).first;
+  }
+  return it->second;
+}
+
+// The binary tree the wide layouts collapse, as `kiln build` builds it for them: leaves priced
+// per packet (BvhBuildOptions::leaf_packet).
+const kiln::FlatBvh& wide_bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
+  auto it = mesh.wide_bvhs.find(builder);
+  if (it == mesh.wide_bvhs.end()) {
+    kiln::BvhBuildOptions options;
+    options.builder = builder;
+    options.threads = 0;
+    options.leaf_packet = kiln::format::kBvhPacketSize;
+    it = mesh.wide_bvhs.emplace(builder, kiln::build_bvh(mesh.scene, options)).first;
   }
   return it->second;
 }
@@ -840,7 +855,7 @@ void add_collapse_variants(MeshCase& mesh, KilnArenas& arenas, std::vector<Conte
     const std::string key = "sbvh w8 " + label;
     const std::string name = key + " " + kiln::bvh_kernel_name(kiln::bvh_auto_kernel());
     if (!wanted(name)) continue;
-    const kiln::FlatBvh& flat = bvh_for(mesh, kiln::BvhBuilder::kSpatial);
+    const kiln::FlatBvh& flat = wide_bvh_for(mesh, kiln::BvhBuilder::kSpatial);
     const kiln::FlatWideBvh w = kiln::collapse_bvh(flat, 8, triangles, false, nullptr, options);
     std::printf("- %s: %llu nodes, %llu packets, fill %.3f, %.1f B/tri\n", key.c_str(),
                 (unsigned long long)w.stats.node_count, (unsigned long long)w.stats.packet_count,
@@ -865,7 +880,13 @@ void add_kiln_contestants(MeshCase& mesh, KilnArenas& arenas, std::vector<Contes
          {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
       const std::string key = b + " w" + std::to_string(width) + (quantized ? "q" : "");
       if (!wanted(key + " ")) continue;
-      const kiln::FlatWideBvh w = kiln::collapse_bvh(flat, width, triangles, quantized);
+      const kiln::FlatWideBvh w =
+          kiln::collapse_bvh(wide_bvh_for(mesh, builder), width, triangles, quantized);
+      if (!quantized)
+        std::printf("- %s: %llu binary nodes, %llu wide nodes, %llu packets, SAH %.3f\n",
+                    key.c_str(), (unsigned long long)wide_bvh_for(mesh, builder).nodes.size(),
+                    (unsigned long long)w.stats.node_count,
+                    (unsigned long long)w.stats.packet_count, w.stats.sah_cost);
       for (const auto kernel : {kiln::BvhKernel::kScalar, kiln::BvhKernel::kSse,
                                 kiln::BvhKernel::kAvx2, kiln::BvhKernel::kAvx512}) {
         if (!kiln::bvh_kernel_supported(kernel)) continue;

@@ -168,5 +168,55 @@ TEST(BvhBinnedBuild, TwoReferenceNodesKeepTheirOrderOrPutTheLowerCentroidFirst) 
   }
 }
 
+// References under each node of a flat BVH (depth-first, first child adjacent).
+std::vector<std::uint32_t> references_under(const FlatBvh& bvh) {
+  std::vector<std::uint32_t> refs(bvh.nodes.size());
+  for (std::size_t i = bvh.nodes.size(); i-- > 0;) {
+    const format::BvhNode& n = bvh.nodes[i];
+    refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
+  }
+  return refs;
+}
+
+float half_area(const format::BvhNode& n) {
+  const float x = n.max[0] - n.min[0], y = n.max[1] - n.min[1], z = n.max[2] - n.min[2];
+  return x * y + y * z + z * x;
+}
+
+// Leaves priced per packet (what `kiln build` builds for the wide layouts): no interior node
+// holds a packet or less, no leaf more than max_leaf_size, and every interior node of at most
+// max_leaf_size references splits only where its children's boxes, each weighted by its
+// packets, sum to less than its own box weighted by its packets. Fewer nodes than the tree down
+// to single references, and every triangle still in a leaf.
+TEST(BvhBinnedBuild, PacketPricedLeavesStopAtPacketsWhereTheSplitSavesNoPacketArea) {
+  const Scene scene = random_scene(3000, 5);
+  for (const BvhBuilder builder : {BvhBuilder::kBinned, BvhBuilder::kSpatial}) {
+    SCOPED_TRACE(bvh_builder_name(builder));
+    BvhBuildOptions options;
+    options.builder = builder;
+    const FlatBvh single = build_bvh(scene, options);
+    options.leaf_packet = 4;
+    const FlatBvh packets = build_bvh(scene, options);
+    EXPECT_LT(packets.nodes.size(), single.nodes.size() * 3 / 4);
+    const std::vector<std::uint32_t> refs = references_under(packets);
+    const auto blocks = [](std::uint32_t n) { return float((n + 3) / 4); };
+    for (std::size_t i = 0; i < packets.nodes.size(); ++i) {
+      const format::BvhNode& n = packets.nodes[i];
+      if (n.count > 0) {
+        ASSERT_LE(n.count, options.max_leaf_size) << i;
+        continue;
+      }
+      ASSERT_GT(refs[i], 4u) << i;
+      if (refs[i] > options.max_leaf_size) continue;
+      const format::BvhNode &l = packets.nodes[i + 1], &r = packets.nodes[n.offset];
+      EXPECT_LT(half_area(l) * blocks(refs[i + 1]) + half_area(r) * blocks(refs[n.offset]),
+                half_area(n) * blocks(refs[i]))
+          << i;
+    }
+    std::set<std::uint32_t> ids(packets.prim_ids.begin(), packets.prim_ids.end());
+    EXPECT_EQ(ids.size(), scene.triangles.size());
+  }
+}
+
 }  // namespace
 }  // namespace kiln

@@ -19,6 +19,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "bvh_splits.hpp"
 #include "bvh_subtree.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
@@ -336,6 +337,14 @@ std::optional<std::pair<Task, Task>> split_pair(const Context& ctx, const Task& 
                    Task{t.begin + 1, t.end, rb.box(), point(c[1]), t.depth + 1}};
 }
 
+// Whether a node of n references stays a leaf against its best split `s`: by the SAH with a
+// test per reference, or (leaf_packet) with leaves priced per packet.
+bool leaf_wins(const Split& s, std::size_t n, float area, const BvhBuildOptions& o) {
+  if (o.leaf_packet == 0) return s.cost >= o.intersection_cost * float(n);
+  return packet_leaf_wins(o, n, area, bvh_simd::half_area(s.left_box), s.left_count,
+                          bvh_simd::half_area(s.right_box));
+}
+
 // Splits [begin, end) by the SAH (or in half when every centroid coincides) and returns the two
 // child tasks, or nothing when the node should be a leaf.
 std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& t, int& axis) {
@@ -347,6 +356,7 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return std::nullopt;
   }
+  if (n <= o.leaf_packet) return std::nullopt;  // one packet: nothing a split could save
   const float area = t.box.half_area();
   if (n == 2 && area > 0.0f)
     if (const int a = first_spread_axis(t.centroids); a >= 0) return split_pair(ctx, t, a, axis);
@@ -374,7 +384,7 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
     return std::pair{Task{t.begin, mid, l.box(), lc, t.depth + 1},
                      Task{mid, t.end, r.box(), rc, t.depth + 1}};
   }
-  if (s.cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) return std::nullopt;
+  if (n <= o.max_leaf_size && leaf_wins(s, n, area, o)) return std::nullopt;
   VBox lc, rc;
   const std::size_t mid = t.begin + partition_refs(refs, map, s, lc, rc);
   axis = s.axis;

@@ -86,6 +86,16 @@ Choice choose_split(const BuildContext& ctx, const SortedRefs& refs, const forma
   return c;
 }
 
+// Whether a node of n references (at most max_leaf_size) stays a leaf: by the SAH with a test
+// per reference, or (leaf_packet) with leaves priced per packet against the object split (the
+// spatial split's counts are not known; below kMinSpatialRefs it is not searched at all).
+bool leaf_wins(const BvhBuildOptions& o, const Choice& c, const format::Box3f& box, std::size_t n,
+               float best_cost) {
+  if (o.leaf_packet == 0 || !c.object.valid()) return best_cost >= o.intersection_cost * float(n);
+  return packet_leaf_wins(o, n, box.half_area(), c.object.left_box.half_area(), c.object.left_count,
+                          c.object.right_box.half_area());
+}
+
 void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, std::uint32_t depth,
                     std::size_t budget, std::size_t index, FlatOut& out);
 
@@ -95,7 +105,7 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
   const format::Box3f box = bounds_of(refs.axis[0]);
   const std::size_t n = refs.size();
   const bool must_stop = depth + 1 >= format::kBvhMaxDepth;
-  if (n <= 1 || must_stop) {
+  if (n <= 1 || must_stop || n <= o.leaf_packet) {  // leaf_packet: one packet, nothing to save
     if (n > format::kBvhMaxLeafSize)
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return append_leaf(box, refs.axis[0], out);
@@ -111,7 +121,7 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
     // All centroids coincide: nothing separates them by the SAH, so split the list in half.
     if (n <= o.max_leaf_size) return append_leaf(box, ordered, out);
     partition_object_split(std::move(refs), c.order_axis, n / 2, left, right, threads);
-  } else if (best_cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) {
+  } else if (n <= o.max_leaf_size && leaf_wins(o, c, box, n, best_cost)) {
     return append_leaf(box, ordered, out);
   } else if (c.spatial.valid() && c.spatial.cost < c.object.cost) {
     const std::size_t added =

@@ -592,6 +592,8 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   }
   out.stats.node_count = tally.node_count, out.stats.leaf_count = tally.leaf_count;
   out.stats.packet_count = tally.packet_count, out.stats.max_depth = tally.max_depth;
+  if (collapser.programme && !binary.nodes.empty())
+    out.stats.sah_cost = collapser.programme->cost1[0] / half_area(binary.nodes[0]);
   if (options.index_tree) IndexTreeReader<Node, W>{out}.read(0);
   return tally.lanes_used;
 }

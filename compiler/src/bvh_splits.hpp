@@ -58,6 +58,21 @@ void partition_object_split(const SortedRefs& refs, int axis, std::size_t left_c
 void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count, SortedRefs& left,
                             SortedRefs& right, unsigned threads = 1);
 
+/// With leaves priced per packet (options.leaf_packet > 0): whether a node of n references, of
+/// half area `area`, stays one leaf rather than split into `left_count` references under
+/// `left_area` and the rest under `right_area`. Both sides are priced by packets, and the split
+/// pays no traversal: the collapse folds a binary node into its wide parent's child slots, so a
+/// split costs slots, not a node visit (with a traversal term the 8-wide trees' SAH rose by up
+/// to 4 %, without it it stays within 0.1 % of a tree built down to single references).
+inline bool packet_leaf_wins(const BvhBuildOptions& o, std::size_t n, float area, float left_area,
+                             std::size_t left_count, float right_area) {
+  const auto packets = [&](std::size_t m) {
+    return float((m + o.leaf_packet - 1) / o.leaf_packet);
+  };
+  return left_area * packets(left_count) + right_area * packets(n - left_count) >=
+         area * packets(n);
+}
+
 struct SpatialSplit {
   float cost = std::numeric_limits<float>::infinity();
   int axis = -1;
