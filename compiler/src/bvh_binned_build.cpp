@@ -21,6 +21,7 @@
 
 #include "bvh_splits.hpp"
 #include "bvh_subtree.hpp"
+#include "huge_pages.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -440,7 +441,7 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
   const Context ctx{refs, options, slots};
   std::vector<format::BvhNode> nodes;
   // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
-  nodes.reserve(refs.size() + refs.size() / 4 + 1);
+  reserve_huge(nodes, refs.size() + refs.size() / 4 + 1);
   emit(ctx, {0, refs.size(), box[0].box(), centroids[0].box(), 0}, nodes);
   return nodes;
 }
