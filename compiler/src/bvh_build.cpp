@@ -121,7 +121,7 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
   const format::Box3f box = bounds_of(refs.axis[0]);
   const std::size_t n = refs.size();
   const bool must_stop = depth + 1 >= format::kBvhMaxDepth;
-  if (n <= 1 || must_stop || n <= o.leaf_packet) {  // leaf_packet: one packet, nothing to save
+  if (n <= 1 || must_stop) {
     if (n > format::kBvhMaxLeafSize)
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return append_leaf(box, refs.axis[0], out);
