@@ -276,7 +276,8 @@ struct MeshCase {
   std::vector<std::string> files;
   kiln::Scene scene;
   std::map<kiln::BvhBuilder, kiln::FlatBvh> bvhs;
-  std::map<std::string, kiln::FlatBvh> variant_bvhs;  // --sbvh-build, by label
+  std::map<kiln::BvhBuilder, kiln::FlatBvh> wide_bvhs;  // as `kiln build` builds for w4 / w8
+  std::map<std::string, kiln::FlatBvh> variant_bvhs;    // --sbvh-build, by label
   std::optional<kiln::FlatKdTree> kdtree;
   std::map<kiln::RayKind, std::vector<kiln::Ray>> rays;
   std::map<Structure, Row> rows;
@@ -304,11 +305,14 @@ std::vector<std::pair<const MeshCase*, Agreement>> g_agreements;
 #endif
 
 const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder);
+const kiln::FlatBvh& wide_bvh_for(MeshCase& mesh, kiln::BvhBuilder builder);
 
-// The SBVH a --collapse variant collapses: built with its --sbvh-build options, if any.
+// The SBVH a --collapse variant collapses: built with its --sbvh-build options, if any, else as
+// `kiln build` builds it for the wide layouts.
 const kiln::FlatBvh& sbvh_for_variant(MeshCase& mesh, const std::string& label) {
   const auto options = g_settings.sbvh_builds.find(label);
-  if (options == g_settings.sbvh_builds.end()) return bvh_for(mesh, kiln::BvhBuilder::kSpatial);
+  if (options == g_settings.sbvh_builds.end())
+    return wide_bvh_for(mesh, kiln::BvhBuilder::kSpatial);
   auto it = mesh.variant_bvhs.find(label);
   if (it == mesh.variant_bvhs.end())
     it = mesh.variant_bvhs.emplace(label, kiln::build_bvh(mesh.scene, options->second)).first;
@@ -322,6 +326,20 @@ const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
     options.builder = builder;
     options.threads = 0;
     it = mesh.bvhs.emplace(builder, kiln::build_bvh(mesh.scene, options)).first;
+  }
+  return it->second;
+}
+
+// The binary tree the wide layouts collapse, as `kiln build` builds it for them: leaves priced
+// per packet (BvhBuildOptions::leaf_packet).
+const kiln::FlatBvh& wide_bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
+  auto it = mesh.wide_bvhs.find(builder);
+  if (it == mesh.wide_bvhs.end()) {
+    kiln::BvhBuildOptions options;
+    options.builder = builder;
+    options.threads = 0;
+    options.leaf_packet = kiln::format::kBvhPacketSize;
+    it = mesh.wide_bvhs.emplace(builder, kiln::build_bvh(mesh.scene, options)).first;
   }
   return it->second;
 }
@@ -881,7 +899,13 @@ void add_kiln_contestants(MeshCase& mesh, KilnArenas& arenas, std::vector<Contes
          {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
       const std::string key = b + " w" + std::to_string(width) + (quantized ? "q" : "");
       if (!wanted(key + " ")) continue;
-      const kiln::FlatWideBvh w = kiln::collapse_bvh(flat, width, triangles, quantized);
+      const kiln::FlatWideBvh w =
+          kiln::collapse_bvh(wide_bvh_for(mesh, builder), width, triangles, quantized);
+      if (!quantized)
+        std::printf("- %s: %llu binary nodes, %llu wide nodes, %llu packets, SAH %.3f\n",
+                    key.c_str(), (unsigned long long)wide_bvh_for(mesh, builder).nodes.size(),
+                    (unsigned long long)w.stats.node_count,
+                    (unsigned long long)w.stats.packet_count, w.stats.sah_cost);
       for (const auto kernel : {kiln::BvhKernel::kScalar, kiln::BvhKernel::kSse,
                                 kiln::BvhKernel::kAvx2, kiln::BvhKernel::kAvx512}) {
         if (!kiln::bvh_kernel_supported(kernel)) continue;
@@ -1127,6 +1151,7 @@ int main(int argc, char** argv) {
       kiln::BvhBuildOptions o;
       o.builder = kiln::BvhBuilder::kSpatial;
       o.threads = 0;
+      o.leaf_packet = kiln::format::kBvhPacketSize;  // as `kiln build` builds for w4 / w8
       if (colon == std::string::npos ||
           std::sscanf(text.c_str() + colon + 1, "%f:%f:%u:%f", &o.traversal_cost,
                       &o.intersection_cost, &o.max_leaf_size, &o.sbvh_alpha) < 3) {

@@ -168,5 +168,72 @@ TEST(BvhBinnedBuild, TwoReferenceNodesKeepTheirOrderOrPutTheLowerCentroidFirst) 
   }
 }
 
+// References under each node of a flat BVH (depth-first, first child adjacent).
+std::vector<std::uint32_t> references_under(const FlatBvh& bvh) {
+  std::vector<std::uint32_t> refs(bvh.nodes.size());
+  for (std::size_t i = bvh.nodes.size(); i-- > 0;) {
+    const format::BvhNode& n = bvh.nodes[i];
+    refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
+  }
+  return refs;
+}
+
+float half_area(const format::BvhNode& n) {
+  const float x = n.max[0] - n.min[0], y = n.max[1] - n.min[1], z = n.max[2] - n.min[2];
+  return x * y + y * z + z * x;
+}
+
+// The least sum of the half areas of two boxes holding the triangles of `ids`, over every way to
+// part them in two, plainly (infinity for fewer than two).
+float best_bipartition(const Scene& scene, const std::vector<std::uint32_t>& ids) {
+  float best = std::numeric_limits<float>::infinity();
+  const auto n = std::uint32_t(ids.size());
+  for (std::uint32_t m = 1; n >= 2 && m + 1 < (1u << n); ++m) {
+    format::Box3f l, r;
+    for (std::uint32_t i = 0; i < n; ++i) (m >> i & 1 ? l : r).grow(triangle_box(scene, ids[i]));
+    best = std::min(best, l.half_area() + r.half_area());
+  }
+  return best;
+}
+
+// Leaves priced per packet (what `kiln build` builds for the wide layouts): no leaf holds more
+// than max_leaf_size references; every interior node of at most max_leaf_size references splits
+// only where its children's boxes, each weighted by its packets, sum to less than its own box
+// weighted by its packets; and (binned) no leaf of one packet could be parted in two boxes of
+// less area, by a brute-force search. Every triangle is still in a leaf.
+TEST(BvhBinnedBuild, PacketPricedLeavesSplitOnlyWhereTheySavePacketArea) {
+  const Scene scene = random_scene(3000, 5);
+  for (const BvhBuilder builder : {BvhBuilder::kBinned, BvhBuilder::kSpatial}) {
+    SCOPED_TRACE(bvh_builder_name(builder));
+    BvhBuildOptions options;
+    options.builder = builder;
+    options.leaf_packet = 4;
+    const FlatBvh packets = build_bvh(scene, options);
+    const std::vector<std::uint32_t> refs = references_under(packets);
+    const auto blocks = [](std::uint32_t n) { return float((n + 3) / 4); };
+    std::size_t small_leaves = 0;
+    for (std::size_t i = 0; i < packets.nodes.size(); ++i) {
+      const format::BvhNode& n = packets.nodes[i];
+      if (n.count > 0) {
+        ASSERT_LE(n.count, options.max_leaf_size) << i;
+        if (builder != BvhBuilder::kBinned || n.count > 4) continue;
+        const std::vector<std::uint32_t> ids(packets.prim_ids.begin() + n.offset,
+                                             packets.prim_ids.begin() + n.offset + n.count);
+        EXPECT_GE(best_bipartition(scene, ids), half_area(n)) << i;
+        small_leaves += 1;
+        continue;
+      }
+      if (refs[i] > options.max_leaf_size) continue;
+      const format::BvhNode &l = packets.nodes[i + 1], &r = packets.nodes[n.offset];
+      EXPECT_LT(half_area(l) * blocks(refs[i + 1]) + half_area(r) * blocks(refs[n.offset]),
+                half_area(n) * blocks(refs[i]))
+          << i;
+    }
+    if (builder == BvhBuilder::kBinned) EXPECT_GT(small_leaves, 100u);
+    std::set<std::uint32_t> ids(packets.prim_ids.begin(), packets.prim_ids.end());
+    EXPECT_EQ(ids.size(), scene.triangles.size());
+  }
+}
+
 }  // namespace
 }  // namespace kiln

@@ -32,10 +32,13 @@ constexpr BvhKernel kKernels[] = {BvhKernel::kScalar, BvhKernel::kSse, BvhKernel
                                   BvhKernel::kAvx512};
 constexpr BvhBuilder kBuilders[] = {BvhBuilder::kBinned, BvhBuilder::kSpatial};
 
+// As `kiln build` makes it: the binary tree down to packet-priced leaves (leaf_packet 4), unless
+// `leaf_packet` says otherwise (0: down to single references).
 FlatWideBvh wide_of(const Scene& scene, BvhBuilder builder, std::uint32_t width,
-                    bool quantized = false) {
+                    bool quantized = false, std::uint32_t leaf_packet = format::kBvhPacketSize) {
   BvhBuildOptions o;
   o.builder = builder;
+  o.leaf_packet = leaf_packet;
   return collapse_bvh(build_bvh(scene, o), width, scene.triangles.size(), quantized);
 }
 
@@ -44,23 +47,27 @@ BvhWideView view_of(const FlatWideBvh& w, BvhKernel kernel) {
 }
 
 // Runs `check(view)` for each width, box encoding, builder and kernel this CPU has (saying
-// which it skips).
+// which it skips), on trees built as `kiln build` builds them, and (8-wide float boxes) on trees
+// built down to single references.
 template <class Check>
 void for_each_layout(const Scene& scene, Check&& check) {
   for (const std::uint32_t width : {4u, 8u})
     for (const bool quantized : {false, true})
-      for (const BvhBuilder builder : kBuilders) {
-        const FlatWideBvh wide = wide_of(scene, builder, width, quantized);
-        for (const BvhKernel kernel : kKernels) {
-          if (!bvh_kernel_supported(kernel)) {
-            std::printf("skipped: this CPU cannot run the %s kernel\n", bvh_kernel_name(kernel));
-            continue;
+      for (const BvhBuilder builder : kBuilders)
+        for (const std::uint32_t leaf_packet : {format::kBvhPacketSize, 0u}) {
+          if (leaf_packet == 0 && (width != 8 || quantized)) continue;
+          const FlatWideBvh wide = wide_of(scene, builder, width, quantized, leaf_packet);
+          for (const BvhKernel kernel : kKernels) {
+            if (!bvh_kernel_supported(kernel)) {
+              std::printf("skipped: this CPU cannot run the %s kernel\n", bvh_kernel_name(kernel));
+              continue;
+            }
+            SCOPED_TRACE(std::to_string(width) + "-wide " + (quantized ? "u8 " : "float ") +
+                         bvh_builder_name(builder) + " " + bvh_kernel_name(kernel) +
+                         " leaf_packet " + std::to_string(leaf_packet));
+            check(view_of(wide, kernel));
           }
-          SCOPED_TRACE(std::to_string(width) + "-wide " + (quantized ? "u8 " : "float ") +
-                       bvh_builder_name(builder) + " " + bvh_kernel_name(kernel));
-          check(view_of(wide, kernel));
         }
-      }
 }
 
 TEST(WideBvh, EveryKernelAgreesWithBruteForceOnGeneratedWorstCases) {

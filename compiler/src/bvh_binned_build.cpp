@@ -13,13 +13,16 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cmath>
 #include <limits>
 #include <optional>
 #include <span>
 #include <stdexcept>
 #include <vector>
 
+#include "bvh_splits.hpp"
 #include "bvh_subtree.hpp"
+#include "huge_pages.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -30,7 +33,8 @@ namespace {
 constexpr std::size_t kParallelSubtree = 4096;      // fork subtrees at least this large
 constexpr std::size_t kParallelBinning = 1u << 16;  // bin in chunks above this many references
 constexpr std::size_t kBinChunk = 1u << 14;
-constexpr std::uint32_t kMaxBins = 1024;  // as --bvh-bins allows
+constexpr std::uint32_t kMaxBins = 1024;     // as --bvh-bins allows
+constexpr std::uint32_t kMaxLeafPacket = 8;  // split_packet's arrays
 
 using bvh_simd::BuildRef;
 using bvh_simd::V4;
@@ -336,6 +340,60 @@ std::optional<std::pair<Task, Task>> split_pair(const Context& ctx, const Task& 
                    Task{t.begin + 1, t.end, rb.box(), point(c[1]), t.depth + 1}};
 }
 
+// Whether a node of n references stays a leaf against its best split `s`: by the SAH with a
+// test per reference, or (leaf_packet) with leaves priced per packet.
+bool leaf_wins(const Split& s, std::size_t n, float area, const BvhBuildOptions& o) {
+  if (o.leaf_packet == 0) return s.cost >= o.intersection_cost * float(n);
+  return packet_leaf_wins(o, n, area, bvh_simd::half_area(s.left_box), s.left_count,
+                          bvh_simd::half_area(s.right_box));
+}
+
+// leaf_packet: a node of at most one packet (n <= leaf_packet <= 8) stays a leaf unless two
+// packets under smaller boxes save area: of every way to part its references in two (the
+// subsets holding the first one, in increasing bit order), the least sum of the two sides'
+// areas splits it when below the node's area (the first such subset on ties). Exact and
+// without bins or sorting, so the small nodes the wide layout ends in cost a few box unions.
+std::optional<std::pair<Task, Task>> split_packet(const Context& ctx, const Task& t, int& axis) {
+  const auto n = std::uint32_t(t.end - t.begin);
+  BuildRef* r = ctx.refs.data() + t.begin;
+  const std::uint32_t full = (1u << n) - 1;
+  V4 lo[1u << kMaxLeafPacket], hi[1u << kMaxLeafPacket];  // subset m's box (uninitialised)
+  float area[1u << kMaxLeafPacket];
+  const auto box = [&](std::uint32_t m) { return VBox{lo[m], hi[m]}; };
+  for (std::uint32_t m = 1; m <= full; ++m) {
+    const int low = std::countr_zero(m);
+    VBox b;
+    if (m & (m - 1)) b = box(m & (m - 1));
+    b.grow(bvh_simd::lower(r[low]), bvh_simd::upper(r[low]));
+    lo[m] = b.lo, hi[m] = b.hi, area[m] = bvh_simd::half_area(b);
+  }
+  float best = t.box.half_area();
+  std::uint32_t best_mask = 0;
+  for (std::uint32_t m = 1; m < full; m += 2) {  // odd: holds the first reference
+    const float sum = area[m] + area[full ^ m];
+    if (sum < best) best = sum, best_mask = m;
+  }
+  if (best_mask == 0) return std::nullopt;
+  BuildRef parted[kMaxLeafPacket];
+  std::uint32_t left = 0, right = std::popcount(best_mask);
+  for (std::uint32_t i = 0; i < n; ++i) parted[(best_mask >> i & 1) ? left++ : right++] = r[i];
+  std::copy(parted, parted + n, r);
+  // The axis on which the two sides' boxes lie furthest apart (their centres), for the node.
+  const std::uint32_t other = full ^ best_mask;
+  const V4 gap = (lo[best_mask] + hi[best_mask]) - (lo[other] + hi[other]);
+  alignas(16) float g[4];
+  bvh_simd::store(g, gap);
+  axis = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(g[a]) > std::abs(g[axis])) axis = a;
+  const auto side = [&](std::size_t begin, std::size_t end, const VBox& b) {
+    return Task{begin, end, b.box(), centroid_bounds(ctx.refs.subspan(begin, end - begin)).box(),
+                t.depth + 1};
+  };
+  return std::pair{side(t.begin, t.begin + left, box(best_mask)),
+                   side(t.begin + left, t.end, box(other))};
+}
+
 // Splits [begin, end) by the SAH (or in half when every centroid coincides) and returns the two
 // child tasks, or nothing when the node should be a leaf.
 std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& t, int& axis) {
@@ -347,6 +405,7 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return std::nullopt;
   }
+  if (n <= o.leaf_packet) return split_packet(ctx, t, axis);
   const float area = t.box.half_area();
   if (n == 2 && area > 0.0f)
     if (const int a = first_spread_axis(t.centroids); a >= 0) return split_pair(ctx, t, a, axis);
@@ -374,7 +433,7 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
     return std::pair{Task{t.begin, mid, l.box(), lc, t.depth + 1},
                      Task{mid, t.end, r.box(), rc, t.depth + 1}};
   }
-  if (s.cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) return std::nullopt;
+  if (n <= o.max_leaf_size && leaf_wins(s, n, area, o)) return std::nullopt;
   VBox lc, rc;
   const std::size_t mid = t.begin + partition_refs(refs, map, s, lc, rc);
   axis = s.axis;
@@ -413,6 +472,8 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
                                                 const BvhBuildOptions& options) {
   if (options.bins > kMaxBins)
     throw std::invalid_argument("BVH: at most " + std::to_string(kMaxBins) + " bins");
+  if (options.leaf_packet > kMaxLeafPacket)
+    throw std::invalid_argument("BVH: packets of at most " + std::to_string(kMaxLeafPacket));
   // The root's box and centroid bounds in one pass over fixed chunks (in parallel), merged in
   // chunk order: the bounds one pass in order gives.
   const std::size_t chunks = (refs.size() + kBinChunk - 1) / kBinChunk;
@@ -430,7 +491,7 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
   const Context ctx{refs, options, slots};
   std::vector<format::BvhNode> nodes;
   // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
-  nodes.reserve(refs.size() + refs.size() / 4 + 1);
+  reserve_huge(nodes, refs.size() + refs.size() / 4 + 1);
   emit(ctx, {0, refs.size(), box[0].box(), centroids[0].box(), 0}, nodes);
   return nodes;
 }

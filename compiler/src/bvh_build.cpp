@@ -2,9 +2,13 @@
 // reference arrays: sorted once at the root, kept sorted through every object and spatial split,
 // so the exact SAH sweep never sorts per node.
 #include <cmath>
+#include <exception>
+#include <optional>
 #include <stdexcept>
+#include <thread>
 
 #include "bvh_splits.hpp"
+#include "bvh_subtree.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -12,15 +16,26 @@ namespace kiln {
 
 namespace {
 
-// Subtrees at least this large, near the root, are built on their own thread. Each subtree is a
-// pure function of its references, so the tree is the same whatever runs where.
-constexpr std::size_t kParallelSubtree = 16384;
+// Subtrees at least this large (both sides of a split) go to their own thread whenever a worker
+// slot is free, at any depth (bvh_subtree.hpp's WorkerSlots). Each subtree is a pure function of
+// its references, so the tree is the same whatever runs where.
+constexpr std::size_t kParallelSubtree = 4096;
 
 struct BuildContext {
   const Scene& scene;
   const BvhBuildOptions& options;
   float root_area;
-  unsigned parallel_depth;  // spawn threads above this depth
+  WorkerSlots& slots;  // threads not yet working: large nodes' axes and forks take them
+};
+
+// The free worker slots a large node takes for its sweeps, spatial binning and partitions, given
+// back when it is done (also when it throws).
+struct SlotsTaken {
+  WorkerSlots& slots;
+  unsigned extra;
+  SlotsTaken(WorkerSlots& s, bool large) : slots(s), extra(large ? s.take_all() : 0u) {}
+  ~SlotsTaken() { slots.give(extra); }
+  unsigned threads() const { return 1 + extra; }
 };
 
 format::Box3f bounds_of(std::span<const PrimRef> refs) {
@@ -81,9 +96,20 @@ Choice choose_split(const BuildContext& ctx, const SortedRefs& refs, const forma
             ? format::Box3f::intersection(c.object.left_box, c.object.right_box).half_area()
             : box.half_area();
     if (!c.object.valid() || overlap > o.sbvh_alpha * ctx.root_area)
-      c.spatial = find_spatial_split(refs.axis[c.order_axis], box, ctx.scene, o, c.object.axis);
+      c.spatial =
+          find_spatial_split(refs.axis[c.order_axis], box, ctx.scene, o, c.object.axis, threads);
   }
   return c;
+}
+
+// Whether a node of n references (at most max_leaf_size) stays a leaf: by the SAH with a test
+// per reference, or (leaf_packet) with leaves priced per packet against the object split (the
+// spatial split's counts are not known; below kMinSpatialRefs it is not searched at all).
+bool leaf_wins(const BvhBuildOptions& o, const Choice& c, const format::Box3f& box, std::size_t n,
+               float best_cost) {
+  if (o.leaf_packet == 0 || !c.object.valid()) return best_cost >= o.intersection_cost * float(n);
+  return packet_leaf_wins(o, n, box.half_area(), c.object.left_box.half_area(), c.object.left_count,
+                          c.object.right_box.half_area());
 }
 
 void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, std::uint32_t depth,
@@ -100,8 +126,9 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
       throw std::runtime_error("BVH: " + std::to_string(n) + " references left at maximum depth");
     return append_leaf(box, refs.axis[0], out);
   }
-  // Near the root, where the subtrees have not forked yet, a large node's axes run apart.
-  const unsigned threads = depth < ctx.parallel_depth && n >= kParallelSweep ? o.threads : 1u;
+  // A large node's axes run apart on the threads that are free.
+  std::optional<SlotsTaken> taken(std::in_place, ctx.slots, n >= kParallelSweep);
+  const unsigned threads = taken->threads();
   const Choice c = choose_split(ctx, refs, box, budget, threads);
   const float best_cost = std::min(c.object.cost, c.spatial.cost);
   const auto& ordered = refs.axis[c.order_axis];
@@ -111,7 +138,7 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
     // All centroids coincide: nothing separates them by the SAH, so split the list in half.
     if (n <= o.max_leaf_size) return append_leaf(box, ordered, out);
     partition_object_split(std::move(refs), c.order_axis, n / 2, left, right, threads);
-  } else if (best_cost >= o.intersection_cost * float(n) && n <= o.max_leaf_size) {
+  } else if (n <= o.max_leaf_size && leaf_wins(o, c, box, n, best_cost)) {
     return append_leaf(box, ordered, out);
   } else if (c.spatial.valid() && c.spatial.cost < c.object.cost) {
     const std::size_t added =
@@ -128,7 +155,8 @@ void build_node(const BuildContext& ctx, SortedRefs refs, std::uint32_t depth, s
     partition_object_split(std::move(refs), c.object.axis, c.object.left_count, left, right,
                            threads);
   const int axis = spatial ? c.spatial.axis : std::max(c.object.axis, 0);
-  refs.clear();  // free before recursing
+  refs.clear();   // free before recursing
+  taken.reset();  // the slots go back before the children fork
   const std::size_t index = out.nodes.size();
   out.nodes.push_back(node_of(box));  // made interior below
   out.nodes[index].axis = std::uint8_t(axis);
@@ -148,12 +176,26 @@ void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, 
     build_node(ctx, std::move(right), depth + 1, budget - left_budget, o);
   };
   std::uint32_t second;
-  if (depth < ctx.parallel_depth && left.size() >= kParallelSubtree &&
-      right.size() >= kParallelSubtree) {
-    FlatOut l, r;
-    fork_join(
-        true, [&] { left_tree(l); }, [&] { right_tree(r); });
-    append_subtree(out, l);
+  if (left.size() >= kParallelSubtree && right.size() >= kParallelSubtree && ctx.slots.try_take()) {
+    // The right subtree apart on a new thread, the left one in place (as in turn), then the
+    // right one appended: the same nodes either way.
+    FlatOut r;
+    std::exception_ptr error;
+    {
+      std::jthread worker([&] {
+        try {
+          right_tree(r);
+        } catch (...) {
+          error = std::current_exception();
+        }
+        ctx.slots.give();
+      });
+      left_tree(out);  // if it throws, the jthread joins on unwinding
+      ctx.slots.block();
+      worker.join();
+      ctx.slots.resume();
+    }
+    if (error) std::rethrow_exception(error);
     second = std::uint32_t(out.nodes.size());
     append_subtree(out, r);
   } else {
@@ -187,7 +229,8 @@ std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuild
     refs[i].prim = i;
   }
   const format::Box3f root = bounds_of(refs);
-  const BuildContext ctx{scene, options, root.half_area(), fork_depth(options.threads)};
+  WorkerSlots slots(resolve_thread_count(options.threads));
+  const BuildContext ctx{scene, options, root.half_area(), slots};
   SortedRefs sorted;  // sorted once here, kept sorted through every split
   parallel_for(3, options.threads,
                [&](std::size_t a) { sort_by_centroid(refs, int(a), sorted.axis[a]); });

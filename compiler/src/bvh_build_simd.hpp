@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "huge_pages.hpp"
 #include "kiln/formats/vector.hpp"
 
 #if defined(__SSE2__)
@@ -225,6 +226,11 @@ struct UninitAllocator : std::allocator<T> {
   template <class U, class... Args>
   void construct(U* p, Args&&... args) {
     ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+  T* allocate(std::size_t n) {  // large arrays on huge pages (huge_pages.hpp)
+    T* p = std::allocator<T>::allocate(n);
+    advise_huge_pages(p, n * sizeof(T));
+    return p;
   }
 };
 

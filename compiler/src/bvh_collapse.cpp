@@ -13,6 +13,7 @@
 #include <tuple>
 #include <type_traits>
 
+#include "huge_pages.hpp"
 #include "kiln/formats/vector.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -114,7 +115,10 @@ struct CollapseProgramme {
   const WideCollapseOptions& o;
 
   CollapseProgramme(std::size_t nodes, const WideCollapseOptions& opt)
-      : cost1(nodes), pick(nodes * W), split(nodes), o(opt) {}
+      : cost1(huge_vector<double>(nodes)),
+        pick(huge_vector<std::uint8_t>(nodes * W)),
+        split(huge_vector<std::uint8_t>(nodes)),
+        o(opt) {}
 
   // Node i, once its children (if any) have been visited.
   void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs, Rows& rows) {
@@ -187,13 +191,13 @@ struct Collapser {
   std::vector<double> prim_area;                  // each scene triangle's (kOcclusion, no copies)
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
-      : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
+      : bin(b), scene(s), out(o), options(opt), refs(huge_vector<std::uint32_t>(b.nodes.size())) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
     if (!options.greedy) programme.emplace(bin.nodes.size(), options);
     const bool occlusion = options.order == WideSlotOrder::kOcclusion;
     if (occlusion) {
-      triangle_area.resize(bin.nodes.size());
+      triangle_area = huge_vector<double>(bin.nodes.size());
       if (bin.triangles.empty()) prim_area = scene_triangle_areas(*scene, options.threads);
     }
     sweep(options.threads);
@@ -273,7 +277,7 @@ struct Collapser {
   // Every scene triangle's area, in scene order (its corners read in sequence, not in the
   // leaves' scattered order).
   static std::vector<double> scene_triangle_areas(const Scene& scene, unsigned threads) {
-    std::vector<double> area(scene.triangles.size());
+    std::vector<double> area = huge_vector<double>(scene.triangles.size());
     parallel_for_batched(area.size(), 65536, threads, [&](std::size_t i) {
       const auto& t = scene.triangles[i];
       area[i] =
@@ -558,6 +562,11 @@ struct IndexTreeReader {
 
 // Writes the arena: serially, or (threads > 1) the top levels here and the subtrees below them
 // on their own threads, each into its place. The same bytes either way.
+void size_arena(std::vector<std::byte>& arena, std::size_t bytes) {
+  reserve_huge(arena, bytes);
+  arena.resize(bytes);
+}
+
 template <int W, class Node>
 std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
                             const WideCollapseOptions& options, FlatWideBvh& out) {
@@ -566,7 +575,7 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   WriteTally tally;
   std::size_t root_lines = 0;
   if (threads == 1 || collapser.is_leaf(0)) {
-    out.arena.resize(collapser.subtree_size(0, sizeof(Node), tally.scratch).first);
+    size_arena(out.arena, collapser.subtree_size(0, sizeof(Node), tally.scratch).first);
     collapser.template write<Node>(0, 1, 0, root_lines, tally);
   } else {
     TopLevels top;
@@ -579,7 +588,7 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
           collapser.subtree_size(sub.node, sizeof(Node), tallies[t].scratch);
     });
     std::size_t next = 0;
-    out.arena.resize(collapser.top_size(0, sizeof(Node), top, next, tally.scratch));
+    size_arena(out.arena, collapser.top_size(0, sizeof(Node), top, next, tally.scratch));
     collapser.template write<Node>(0, 1, 0, root_lines, tally, &top);
     if (top.next != top.subtrees.size())  // every place reserved, in the order found
       throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
@@ -592,6 +601,8 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   }
   out.stats.node_count = tally.node_count, out.stats.leaf_count = tally.leaf_count;
   out.stats.packet_count = tally.packet_count, out.stats.max_depth = tally.max_depth;
+  if (collapser.programme && !binary.nodes.empty())
+    out.stats.sah_cost = collapser.programme->cost1[0] / half_area(binary.nodes[0]);
   if (options.index_tree) IndexTreeReader<Node, W>{out}.read(0);
   return tally.lanes_used;
 }

@@ -8,6 +8,7 @@
 #include "kiln/compiler/bvh_collapse.hpp"
 #include "kiln/compiler/structure_builder.hpp"
 #include "kiln/formats/bvh.hpp"
+#include "kiln/formats/bvh_wide.hpp"
 #include "kiln/schema/manifest_generated.h"
 
 namespace kiln {
@@ -184,6 +185,8 @@ BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, con
 BuiltStructure build_structure(const Scene& scene, BvhBuildOptions options) {
   // The wide layout takes corners from the scene: no binary leaf triangles at the peak.
   options.leaf_triangles = options.width == 2;
+  // The wide layouts pack leaves in 4-triangle packets: the binary tree stops there.
+  options.leaf_packet = options.width == 2 ? 0 : format::kBvhPacketSize;
   auto flat = std::make_shared<FlatBvh>(build_bvh(scene, options));
   if (options.width == 2) return binary_structure(std::move(flat), options);
   return wide_structure(*flat, options, scene);

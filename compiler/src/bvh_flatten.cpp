@@ -6,6 +6,7 @@
 
 #include "bvh_binned_build.hpp"
 #include "bvh_evh_presplit.hpp"
+#include "huge_pages.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -78,6 +79,7 @@ std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& o
       refs[i] = bvh_simd::BuildRef::make(pieces[i].box, pieces[i].prim);
   }
   out.nodes = build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options);
+  reserve_huge(out.prim_ids, refs.size());
   out.prim_ids.resize(refs.size());
   parallel_for_batched(refs.size(), 65536, options.threads,
                        [&](std::size_t i) { out.prim_ids[i] = refs[i].prim(); });

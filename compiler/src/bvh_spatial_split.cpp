@@ -317,8 +317,8 @@ unsigned spatial_axes(const format::Box3f& node_box, int object_axis) {
 }
 
 SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
-                                const Scene& scene, const BvhBuildOptions& options,
-                                int object_axis) {
+                                const Scene& scene, const BvhBuildOptions& options, int object_axis,
+                                unsigned threads) {
   const float node_area = node_box.half_area();
   const std::uint32_t k = spatial_bin_count(refs.size(), options.bins);
   SpatialSplit best;
@@ -328,10 +328,10 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box
   for (int a = 0; a < 3; ++a) bins.valid[a] = bins.valid[a] && (axes >> a & 1);
   if (refs.size() >= kParallelSpatial) {
     // Fixed chunks (by count, not by thread), each into its own bins: the same bins on any
-    // number of threads. Near the root the subtree tasks have not forked yet.
+    // number of threads.
     const std::size_t chunks = (refs.size() + kSpatialChunk - 1) / kSpatialChunk;
     std::vector<SpatialBins> part(chunks, SpatialBins(node_box, k));
-    parallel_for(chunks, options.threads, [&](std::size_t c) {
+    parallel_for(chunks, threads, [&](std::size_t c) {
       const std::size_t begin = c * kSpatialChunk;
       bin_references(refs.subspan(begin, std::min(kSpatialChunk, refs.size() - begin)), scene,
                      part[c]);

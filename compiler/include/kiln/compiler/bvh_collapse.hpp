@@ -15,7 +15,10 @@ namespace kiln {
 struct WideBvhStatistics {
   std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0;
   std::uint32_t max_depth = 0;
-  double packet_fill = 0;         ///< distinct references per leaf / (packets x 4)
+  double packet_fill = 0;  ///< distinct references per leaf / (packets x 4)
+  /// The tree's SAH cost by the programme's model (node_cost per wide node, packet_cost per
+  /// packet, leaf_cost per leaf, each weighted by its box's area over the root's); 0 if greedy.
+  double sah_cost = 0;
   std::uint64_t arena_bytes = 0;  ///< the stored arena: nodes, packets (with ids), padding
   double bytes_per_triangle = 0;  ///< arena_bytes / triangles
 };
