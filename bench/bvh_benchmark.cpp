@@ -943,7 +943,8 @@ void add_embree_contestants(MeshCase& mesh, std::vector<std::shared_ptr<EmbreeSc
     const double bytes = double(g_embree_bytes - before) / double(mesh.scene.triangles.size());
     scenes.push_back(scene);
     const RTCScene s = scene->get();
-    out.push_back({k.name, bytes,
+    out.push_back({k.name,
+                   bytes,
                    [s](const std::vector<kiln::Ray>& rays, std::vector<kiln::Hit>& hits,
                        bool any_hit, bool all_threads) {
                      auto one = [&](std::size_t i) { hits[i] = embree_trace(s, rays[i], any_hit); };
@@ -952,7 +953,8 @@ void add_embree_contestants(MeshCase& mesh, std::vector<std::shared_ptr<EmbreeSc
                      } else {
                        for (std::size_t i = 0; i < rays.size(); ++i) one(i);
                      }
-                   }});
+                   },
+                   {}});  // no cost counter for Embree
   }
 }
 #endif

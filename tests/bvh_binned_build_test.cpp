@@ -229,7 +229,9 @@ TEST(BvhBinnedBuild, PacketPricedLeavesSplitOnlyWhereTheySavePacketArea) {
                 half_area(n) * blocks(refs[i]))
           << i;
     }
-    if (builder == BvhBuilder::kBinned) EXPECT_GT(small_leaves, 100u);
+    if (builder == BvhBuilder::kBinned) {
+      EXPECT_GT(small_leaves, 100u);
+    }
     std::set<std::uint32_t> ids(packets.prim_ids.begin(), packets.prim_ids.end());
     EXPECT_EQ(ids.size(), scene.triangles.size());
   }

@@ -417,7 +417,9 @@ TEST(SbvhPresorted, SpatialSplitIsTheBruteForceBinOptimum) {
         const std::uint32_t k = spatial_bin_count(n, bins);
         const unsigned axes = spatial_axes(box, object_axis);
         EXPECT_TRUE(axes >> found.axis & 1);
-        if (object_axis >= 0) EXPECT_TRUE(axes >> object_axis & 1);
+        if (object_axis >= 0) {
+          EXPECT_TRUE(axes >> object_axis & 1);
+        }
         float best = std::numeric_limits<float>::infinity();
         for (int a = 0; a < 3; ++a)
           if (axes >> a & 1)
