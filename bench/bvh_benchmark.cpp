@@ -275,9 +275,8 @@ struct MeshCase {
   std::string label;
   std::vector<std::string> files;
   kiln::Scene scene;
-  std::map<kiln::BvhBuilder, kiln::FlatBvh> bvhs;
-  std::map<kiln::BvhBuilder, kiln::FlatBvh> wide_bvhs;  // as `kiln build` builds for w4 / w8
-  std::map<std::string, kiln::FlatBvh> variant_bvhs;    // --sbvh-build, by label
+  std::map<std::pair<kiln::BvhBuilder, bool>, kiln::FlatBvh> bvhs;  // by builder, for wide
+  std::map<std::string, kiln::FlatBvh> variant_bvhs;                // --sbvh-build, by label
   std::optional<kiln::FlatKdTree> kdtree;
   std::map<kiln::RayKind, std::vector<kiln::Ray>> rays;
   std::map<Structure, Row> rows;
@@ -304,42 +303,31 @@ std::vector<std::unique_ptr<MeshCase>> g_meshes;
 std::vector<std::pair<const MeshCase*, Agreement>> g_agreements;
 #endif
 
-const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder);
-const kiln::FlatBvh& wide_bvh_for(MeshCase& mesh, kiln::BvhBuilder builder);
+const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder, bool for_wide = false);
 
 // The SBVH a --collapse variant collapses: built with its --sbvh-build options, if any, else as
 // `kiln build` builds it for the wide layouts.
 const kiln::FlatBvh& sbvh_for_variant(MeshCase& mesh, const std::string& label) {
   const auto options = g_settings.sbvh_builds.find(label);
   if (options == g_settings.sbvh_builds.end())
-    return wide_bvh_for(mesh, kiln::BvhBuilder::kSpatial);
+    return bvh_for(mesh, kiln::BvhBuilder::kSpatial, true);
   auto it = mesh.variant_bvhs.find(label);
   if (it == mesh.variant_bvhs.end())
     it = mesh.variant_bvhs.emplace(label, kiln::build_bvh(mesh.scene, options->second)).first;
   return it->second;
 }
 
-const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
-  auto it = mesh.bvhs.find(builder);
+// The binary tree of `builder`; `for_wide`: as `kiln build` builds it for the wide layouts, its
+// leaves priced per packet (BvhBuildOptions::leaf_packet).
+const kiln::FlatBvh& bvh_for(MeshCase& mesh, kiln::BvhBuilder builder, bool for_wide) {
+  auto it = mesh.bvhs.find({builder, for_wide});
   if (it == mesh.bvhs.end()) {
     kiln::BvhBuildOptions options;
     options.builder = builder;
     options.threads = 0;
-    it = mesh.bvhs.emplace(builder, kiln::build_bvh(mesh.scene, options)).first;
-  }
-  return it->second;
-}
-
-// The binary tree the wide layouts collapse, as `kiln build` builds it for them: leaves priced
-// per packet (BvhBuildOptions::leaf_packet).
-const kiln::FlatBvh& wide_bvh_for(MeshCase& mesh, kiln::BvhBuilder builder) {
-  auto it = mesh.wide_bvhs.find(builder);
-  if (it == mesh.wide_bvhs.end()) {
-    kiln::BvhBuildOptions options;
-    options.builder = builder;
-    options.threads = 0;
-    options.leaf_packet = kiln::format::kBvhPacketSize;
-    it = mesh.wide_bvhs.emplace(builder, kiln::build_bvh(mesh.scene, options)).first;
+    if (for_wide) options.leaf_packet = kiln::format::kBvhPacketSize;
+    it =
+        mesh.bvhs.emplace(std::pair{builder, for_wide}, kiln::build_bvh(mesh.scene, options)).first;
   }
   return it->second;
 }
@@ -479,7 +467,7 @@ void bench_kiln_build(benchmark::State& state, MeshCase* mesh, Structure s) {
   row.sah_cost = built->stats.sah_cost;
   row.bytes_per_triangle = built->stats.bytes_per_triangle;
   set_build_counters(state, *mesh, row);
-  mesh->bvhs[options.builder] = std::move(*built);
+  mesh->bvhs[{options.builder, false}] = std::move(*built);
 }
 
 void bench_kiln_trace(benchmark::State& state, MeshCase* mesh, Structure s, kiln::RayKind kind,
@@ -900,10 +888,10 @@ void add_kiln_contestants(MeshCase& mesh, KilnArenas& arenas, std::vector<Contes
       const std::string key = b + " w" + std::to_string(width) + (quantized ? "q" : "");
       if (!wanted(key + " ")) continue;
       const kiln::FlatWideBvh w =
-          kiln::collapse_bvh(wide_bvh_for(mesh, builder), width, triangles, quantized);
+          kiln::collapse_bvh(bvh_for(mesh, builder, true), width, triangles, quantized);
       if (!quantized)
         std::printf("- %s: %llu binary nodes, %llu wide nodes, %llu packets, SAH %.3f\n",
-                    key.c_str(), (unsigned long long)wide_bvh_for(mesh, builder).nodes.size(),
+                    key.c_str(), (unsigned long long)bvh_for(mesh, builder, true).nodes.size(),
                     (unsigned long long)w.stats.node_count,
                     (unsigned long long)w.stats.packet_count, w.stats.sah_cost);
       for (const auto kernel : {kiln::BvhKernel::kScalar, kiln::BvhKernel::kSse,
