@@ -330,27 +330,6 @@ TEST(Voxelizer, FastPathsMatchReferenceOnWorstCases) {
                                  "fitted at " + std::to_string(n));
 }
 
-// Triangles are set up two at a time (one per SIMD lane): every triangle of the worst cases with
-// each kind of neighbour in the other lane (itself, a degenerate one, a huge one, a tiny one),
-// in both lanes (an odd count leaves the last alone), against the reference.
-TEST(Voxelizer, PairedSetupMatchesReferenceWhateverTheOtherLane) {
-  const std::uint32_t n = 32;
-  const auto cases = worst_case_triangles(n, 20);
-  const std::array<Float3, 3> neighbours[] = {
-      {{{3, 3, 3}, {20, 9, 3}, {20, 9, 3}}},                              // a repeated corner
-      {{{0, 0, 0}, {32, 32, 0}, {0, 32, 32}}},                            // across the grid
-      {{{7.25f, 7.5f, 7.75f}, {7.5f, 7.5f, 7.75f}, {7.25f, 7.75f, 8}}}};  // in one voxel
-  for (const auto& other : neighbours) {
-    std::vector<std::array<Float3, 3>> paired;
-    for (std::size_t i = 0; i < cases.size(); i += 3)
-      paired.push_back(cases[i]), paired.push_back(other);
-    paired.push_back(cases[1]);  // odd: alone in its pair
-    expect_paths_match_reference(grid_unit_scene(paired), unit_grid(n), "other lane first");
-    std::reverse(paired.begin(), paired.end());
-    expect_paths_match_reference(grid_unit_scene(paired), unit_grid(n), "other lane second");
-  }
-}
-
 // Small triangles with corners on a 1/8-voxel lattice (as quantized meshes such as Draco's give:
 // many edges parallel to a grid plane), 1 to 9 voxels wide, at every offset from the 4x4x4
 // leaves, some across the 128^3 bricks: the window walk, its merged tests and its leaf masks.

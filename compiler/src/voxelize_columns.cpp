@@ -315,9 +315,8 @@ bool TriangleColumns::setup(const GridTriangle& t, const PreparedPair& g, int l)
 // The pending tests k[i] (the level's axis component) as intervals along that axis with their
 // margins m[i]: "k x + q1 cu + q2 cv in [lo, hi]" divided by k. A reciprocal instead of four
 // divisions: one more rounding each, within the 16u term. Entries i and i + 1 at once on SSE2.
-[[gnu::always_inline]] inline void TriangleColumns::divide_tests(const PendingTests& p, int i,
-                                                                 SlabInterval* out,
-                                                                 double* m) const {
+void TriangleColumns::divide_tests(const PendingTests& p, int i, SlabInterval* out,
+                                   double* m) const {
 #if defined(__SSE2__)
   const __m128d k = _mm_loadu_pd(p.k + i), inv = _mm_div_pd(_mm_set1_pd(1), k);
   const __m128d sign = _mm_set1_pd(-0.0);
