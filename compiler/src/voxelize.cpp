@@ -211,7 +211,8 @@ void rasterize(const GridMesh& mesh, std::span<const std::uint32_t> triangles, c
                OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
   TriangleColumns columns;
   const std::int64_t* o = brick.clip.lo;
-  auto visit = [&](std::uint32_t i) {
+  for (const std::uint32_t i : triangles) {
+    if (!columns.setup(mesh.triangle(i))) continue;
     columns.walk(
         brick.clip,
         [&](const std::int64_t* c, int a, std::int64_t last) {
@@ -227,15 +228,6 @@ void rasterize(const GridMesh& mesh, std::span<const std::uint32_t> triangles, c
         [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
           on_voxel(i, std::uint32_t(x - o[0]), std::uint32_t(y - o[1]), std::uint32_t(z - o[2]));
         });
-  };
-  // Two triangles set up at a time (one per SSE2 lane), then walked one after the other.
-  voxelize_detail::PreparedPair pair;
-  for (std::size_t k = 0; k < triangles.size(); k += 2) {
-    const std::uint32_t i[2] = {triangles[k], triangles[std::min(k + 1, triangles.size() - 1)]};
-    const GridTriangle t[2] = {mesh.triangle(i[0]), mesh.triangle(i[1])};
-    TriangleColumns::prepare(t[0], t[1], pair);
-    for (int l = 0; l < 2 && k + std::size_t(l) < triangles.size(); ++l)
-      if (columns.setup(t[l], pair, l)) visit(i[l]);
   }
 }
 

@@ -37,6 +37,10 @@ namespace {
 
 constexpr double kRoundoff = 0x1p-53;
 
+double component(const std::array<double, 3>& v, int i) {
+  return v[std::size_t(i)];
+}
+
 }  // namespace
 
 VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip) {
@@ -53,186 +57,65 @@ VoxelRange candidate_range(const GridTriangle& t, const VoxelRange& clip) {
   return r;
 }
 
-namespace {
-
-// Two doubles, one per triangle of a PreparedPair: an SSE2 register, or a plain pair without
-// SSE2. min_of and max_of are std::min and std::max lane by lane ((b < a) ? b : a and
-// (a < b) ? b : a, signed zeros and NaN included), so each lane computes what the scalar code did.
-#if defined(__SSE2__)
-struct D2 {
-  __m128d x;
-};
-inline D2 splat(double a) {
-  return {_mm_set1_pd(a)};
-}
-inline D2 lanes(double l0, double l1) {
-  return {_mm_set_pd(l1, l0)};
-}
-inline D2 operator+(D2 a, D2 b) {
-  return {_mm_add_pd(a.x, b.x)};
-}
-inline D2 operator-(D2 a, D2 b) {
-  return {_mm_sub_pd(a.x, b.x)};
-}
-inline D2 operator*(D2 a, D2 b) {
-  return {_mm_mul_pd(a.x, b.x)};
-}
-inline D2 operator-(D2 a) {
-  return {_mm_xor_pd(a.x, _mm_set1_pd(-0.0))};
-}
-inline D2 abs(D2 a) {
-  return {_mm_andnot_pd(_mm_set1_pd(-0.0), a.x)};
-}
-inline D2 min_of(D2 a, D2 b) {
-  return {_mm_min_pd(b.x, a.x)};
-}
-inline D2 max_of(D2 a, D2 b) {
-  return {_mm_max_pd(b.x, a.x)};
-}
-inline int lanes_within(D2 a, double bound) {  // bit l: |lane l| <= bound
-  return _mm_movemask_pd(_mm_cmple_pd(abs(a).x, _mm_set1_pd(bound)));
-}
-// floor and ceil of lanes within +-2^40, exactly: adding 1.5 * 2^52 rounds to an integer.
-inline D2 nearest(D2 a) {
-  const __m128d m = _mm_set1_pd(0x1.8p52);
-  return {_mm_sub_pd(_mm_add_pd(a.x, m), m)};
-}
-inline D2 floor_of(D2 a) {
-  const __m128d t = nearest(a).x;
-  return {_mm_sub_pd(t, _mm_and_pd(_mm_cmpgt_pd(t, a.x), _mm_set1_pd(1)))};
-}
-inline D2 ceil_of(D2 a) {
-  const __m128d t = nearest(a).x;
-  return {_mm_add_pd(t, _mm_and_pd(_mm_cmplt_pd(t, a.x), _mm_set1_pd(1)))};
-}
-inline void store(D2 a, double* out) {
-  _mm_storeu_pd(out, a.x);
-}
-#else
-struct D2 {
-  double x[2];
-};
-template <class F>
-inline D2 map(D2 a, D2 b, F f) {
-  return {{f(a.x[0], b.x[0]), f(a.x[1], b.x[1])}};
-}
-inline D2 splat(double a) {
-  return {{a, a}};
-}
-inline D2 lanes(double l0, double l1) {
-  return {{l0, l1}};
-}
-inline D2 operator+(D2 a, D2 b) {
-  return map(a, b, [](double x, double y) { return x + y; });
-}
-inline D2 operator-(D2 a, D2 b) {
-  return map(a, b, [](double x, double y) { return x - y; });
-}
-inline D2 operator*(D2 a, D2 b) {
-  return map(a, b, [](double x, double y) { return x * y; });
-}
-inline D2 operator-(D2 a) {
-  return {{-a.x[0], -a.x[1]}};
-}
-inline D2 abs(D2 a) {
-  return {{std::fabs(a.x[0]), std::fabs(a.x[1])}};
-}
-inline D2 min_of(D2 a, D2 b) {
-  return map(a, b, [](double x, double y) { return std::min(x, y); });
-}
-inline D2 max_of(D2 a, D2 b) {
-  return map(a, b, [](double x, double y) { return std::max(x, y); });
-}
-inline int lanes_within(D2 a, double bound) {
-  return int(std::fabs(a.x[0]) <= bound) | int(std::fabs(a.x[1]) <= bound) << 1;
-}
-inline D2 floor_of(D2 a) {
-  return {{std::floor(a.x[0]), std::floor(a.x[1])}};
-}
-inline D2 ceil_of(D2 a) {
-  return {{std::ceil(a.x[0]), std::ceil(a.x[1])}};
-}
-inline void store(D2 a, double* out) {
-  out[0] = a.x[0], out[1] = a.x[1];
-}
-#endif
-
-// The slab bounds of `axis` (add_test's: min_j p_j . axis - r, max_j p_j . axis + r) over the
-// components `ks` of the axis (an edge axis: its two non-zero ones).
-template <int count>
-[[gnu::always_inline]] inline void slab(const D2 (*p)[3], const D2* axis, const int* ks, double* lo,
-                                        double* hi) {
-  D2 l = splat(INFINITY), h = splat(-INFINITY), r = abs(axis[ks[0]]);
-  for (int j = 0; j < 3; ++j) {
-    D2 d = p[j][ks[0]] * axis[ks[0]];
-    for (int c = 1; c < count; ++c) d = d + p[j][ks[c]] * axis[ks[c]];
-    l = min_of(l, d), h = max_of(h, d);
-  }
-  for (int c = 1; c < count; ++c) r = r + abs(axis[ks[c]]);
-  r = splat(0.5) * r;
-  store(l - r, lo), store(h + r, hi);
-}
-
-}  // namespace
-
-// Per axis: the corners' min and max (candidate_range's bounds, never clipped nor empty within
-// +-2^40), the origin (floor of the min), the corners minus the origin and the extent M; then the
-// edges, the normal and the ten slab tests' bounds (setup's arithmetic, two triangles at a time).
-void TriangleColumns::prepare(const GridTriangle& t0, const GridTriangle& t1, PreparedPair& out) {
-  D2 p[3][3], extent = splat(0);
-  int inside = 3;
+// The corners relative to an integer origin, the candidate range and the extent M; false when
+// the triangle lies outside any grid or its range is empty.
+bool TriangleColumns::place(const GridTriangle& t) {
+  double extent = 0;
   for (int k = 0; k < 3; ++k) {
-    D2 v[3];
+    const double v[3] = {format::at(t.v[0], k), format::at(t.v[1], k), format::at(t.v[2], k)};
+    for (const double x : v)
+      if (!(std::fabs(x) <= 0x1p40)) return false;  // NaN, infinite or outside any grid
+    // candidate_range's bounds (never clipped nor empty within +-2^40), and the origin.
+    const double lo = std::min({v[0], v[1], v[2]}), hi = std::max({v[0], v[1], v[2]});
+    range_.lo[k] = ceil_to_int(lo) - 1, range_.hi[k] = floor_to_int(hi);
+    origin_[k] = floor_to_int(lo);
     for (int j = 0; j < 3; ++j) {
-      v[j] = lanes(format::at(t0.v[j], k), format::at(t1.v[j], k));
-      inside &= lanes_within(v[j], 0x1p40);
-    }
-    const D2 lo = min_of(min_of(v[0], v[1]), v[2]), hi = max_of(max_of(v[0], v[1]), v[2]);
-    const D2 origin = floor_of(lo);
-    store(origin, out.floor_lo[k]), store(ceil_of(lo), out.ceil_lo[k]);
-    store(floor_of(hi), out.floor_hi[k]);
-    for (int j = 0; j < 3; ++j) {
-      p[j][k] = v[j] - origin;
-      extent = max_of(extent, p[j][k]);
-      store(p[j][k], out.p[j][k]);
+      p_[j][std::size_t(k)] = v[j] - double(origin_[k]);
+      extent = std::max(extent, p_[j][std::size_t(k)]);
     }
   }
-  store(extent + splat(2), out.extent);
-  out.inside = inside;
-  D2 e[3][3];
-  for (int j = 0; j < 3; ++j)
-    for (int k = 0; k < 3; ++k) e[j][k] = p[(j + 1) % 3][k] - p[j][k], store(e[j][k], out.e[j][k]);
-  const D2 n[3] = {e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
-                   e[0][0] * e[1][1] - e[0][1] * e[1][0]};
-  for (int k = 0; k < 3; ++k) store(n[k], out.n[k]);
-  constexpr int all[3] = {0, 1, 2};
-  slab<3>(p, n, all, out.lo[0], out.hi[0]);
-  for (int j = 0; j < 3; ++j)
-    for (int i = 0; i < 3; ++i) {
-      const int ks[2] = {(i + 1) % 3, (i + 2) % 3};
-      D2 axis[3] = {splat(0), splat(0), splat(0)};
-      axis[ks[0]] = -e[j][ks[1]], axis[ks[1]] = e[j][ks[0]];
-      slab<2>(p, axis, ks, out.lo[1 + 3 * j + i], out.hi[1 + 3 * j + i]);
-    }
+  extent_ = extent + 2;
+  return true;
 }
 
-// The edge test cross(unit i, e) of edge j, whose component along i is exactly zero, filed from
-// its prepared bounds. None when the edge is parallel to axis i (the exact zero axis, which
+// The test "c . axis in [min_j p_j . axis - r, max_j p_j . axis + r]", filed at the finest level
+// whose axis component is non-zero (a: per column, v: per row, u: per triangle).
+template <int a>
+[[gnu::always_inline]] inline void TriangleColumns::add_test(const std::array<double, 3>& axis,
+                                                             double margin, PendingTests& pending) {
+  double lo = INFINITY, hi = -INFINITY;
+  for (int j = 0; j < 3; ++j) {
+    const double p = p_[j][0] * axis[0] + p_[j][1] * axis[1] + p_[j][2] * axis[2];
+    lo = std::min(lo, p), hi = std::max(hi, p);
+  }
+  const double r = 0.5 * (std::fabs(axis[0]) + std::fabs(axis[1]) + std::fabs(axis[2]));
+  file_test<a>(axis, lo - r, hi + r, margin, pending);
+}
+
+// add_test on the edge axis cross(unit i, e) of edge j, whose component along i is exactly zero:
+// each corner's projection is two products (add_test's sum less its zero term, the same value up
+// to the sign of a zero). None when the edge is parallel to axis i (the exact zero axis, which
 // never separates).
 template <int a, int i>
-[[gnu::always_inline]] inline void TriangleColumns::add_edge_test(const GridTriangle& t,
-                                                                  const PreparedPair& g, int l,
-                                                                  int j, double margin,
+[[gnu::always_inline]] inline void TriangleColumns::add_edge_test(const GridTriangle& t, int j,
+                                                                  const std::array<double, 3>& e,
+                                                                  double margin,
                                                                   PendingTests& pending) {
-  constexpr int p = (i + 1) % 3, q = (i + 2) % 3;
-  const double ep = g.e[j][p][l], eq = g.e[j][q][l];
+  constexpr auto p = std::size_t(i + 1) % 3, q = std::size_t(i + 2) % 3;
   // (e's components are zero when the corners' are equal, so they are compared only then.)
-  if (ep == 0 && eq == 0 && format::at(t.v[(j + 1) % 3], p) == format::at(t.v[j], p) &&
-      format::at(t.v[(j + 1) % 3], q) == format::at(t.v[j], q))
+  if (e[p] == 0 && e[q] == 0 &&
+      format::at(t.v[(j + 1) % 3], int(p)) == format::at(t.v[j], int(p)) &&
+      format::at(t.v[(j + 1) % 3], int(q)) == format::at(t.v[j], int(q)))
     return;
   std::array<double, 3> axis = {0, 0, 0};
-  axis[p] = -eq, axis[q] = ep;
-  file_test<a>(axis, g.lo[1 + 3 * j + i][l], g.hi[1 + 3 * j + i][l], margin, pending);
+  axis[p] = -e[q], axis[q] = e[p];
+  double lo = INFINITY, hi = -INFINITY;
+  for (int k = 0; k < 3; ++k) {
+    const double d = p_[k][p] * axis[p] + p_[k][q] * axis[q];
+    lo = std::min(lo, d), hi = std::max(hi, d);
+  }
+  const double r = 0.5 * (std::fabs(axis[p]) + std::fabs(axis[q]));
+  file_test<a>(axis, lo - r, hi + r, margin, pending);
 }
 
 template <int a>
@@ -252,42 +135,35 @@ template <int a>
     uncertain_all_ = true;
 }
 
-// The plane test and the nine edge tests of lane l, pending, for the dominant axis a (a template
-// argument, so that where each test is filed is mostly known at compile time); true when the
-// plane test is the first pending one and bounds the a index.
+// The plane test and the nine edge tests, pending, for the dominant axis a (a template argument,
+// so that where each test is filed is mostly known at compile time); true when the plane test is
+// the first pending one and bounds the a index.
 template <int a>
-bool TriangleColumns::add_tests(const GridTriangle& t, const PreparedPair& g, int l,
-                                PendingTests& pending) {
+bool TriangleColumns::add_tests(const GridTriangle& t, const std::array<double, 3>* e,
+                                const std::array<double, 3>& n, PendingTests& pending) {
   const double m = extent_;
-  const std::array<double, 3> n = {g.n[0][l], g.n[1][l], g.n[2][l]};
-  file_test<a>(n, g.lo[0][l], g.hi[0][l], 2048 * kRoundoff * m * m * m, pending);
+  add_test<a>(n, 2048 * kRoundoff * m * m * m, pending);
   const bool plane_first = pending.count == 1 && pending.level[0] == 2;
   for (int j = 0; j < 3; ++j) {
-    add_edge_test<a, 0>(t, g, l, j, 256 * kRoundoff * m * m, pending);
-    add_edge_test<a, 1>(t, g, l, j, 256 * kRoundoff * m * m, pending);
-    add_edge_test<a, 2>(t, g, l, j, 256 * kRoundoff * m * m, pending);
+    add_edge_test<a, 0>(t, j, e[j], 256 * kRoundoff * m * m, pending);
+    add_edge_test<a, 1>(t, j, e[j], 256 * kRoundoff * m * m, pending);
+    add_edge_test<a, 2>(t, j, e[j], 256 * kRoundoff * m * m, pending);
   }
   return plane_first;
 }
 
 bool TriangleColumns::setup(const GridTriangle& t) {
-  PreparedPair g;
-  prepare(t, t, g);
-  return setup(t, g, 0);
-}
-
-bool TriangleColumns::setup(const GridTriangle& t, const PreparedPair& g, int l) {
   t_ = t;
-  if ((g.inside >> l & 1) == 0) return false;
-  for (int k = 0; k < 3; ++k) {  // integers within +-2^40: exact conversions
-    range_.lo[k] = std::int64_t(g.ceil_lo[k][l]) - 1, range_.hi[k] = std::int64_t(g.floor_hi[k][l]);
-    origin_[k] = std::int64_t(g.floor_lo[k][l]);
-  }
-  extent_ = g.extent[l];
-  const double n[3] = {g.n[0][l], g.n[1][l], g.n[2][l]};
+  if (!place(t)) return false;
+  std::array<double, 3> e[3];
+  for (int j = 0; j < 3; ++j)
+    for (std::size_t k = 0; k < 3; ++k) e[j][k] = p_[(j + 1) % 3][k] - p_[j][k];
+  const std::array<double, 3> n = {e[0][1] * e[1][2] - e[0][2] * e[1][1],
+                                   e[0][2] * e[1][0] - e[0][0] * e[1][2],
+                                   e[0][0] * e[1][1] - e[0][1] * e[1][0]};
   a_ = 0;
   for (int k = 1; k < 3; ++k)
-    if (std::fabs(n[k]) > std::fabs(n[a_])) a_ = k;
+    if (std::fabs(component(n, k)) > std::fabs(component(n, a_))) a_ = k;
   if (n[0] == 0 && n[1] == 0 && n[2] == 0)  // degenerate: walk along the longest extent
     for (int k = 0; k < 3; ++k)
       if (range_.hi[k] - range_.lo[k] > range_.hi[a_] - range_.lo[a_]) a_ = k;
@@ -296,9 +172,9 @@ bool TriangleColumns::setup(const GridTriangle& t, const PreparedPair& g, int l)
   sure_inset_ = 0;
   uncertain_all_ = empty_ = has_plane_ = false;
   PendingTests pending;
-  const bool plane_first = a_ == 0   ? add_tests<0>(t, g, l, pending)
-                           : a_ == 1 ? add_tests<1>(t, g, l, pending)
-                                     : add_tests<2>(t, g, l, pending);
+  const bool plane_first = a_ == 0   ? add_tests<0>(t, e, n, pending)
+                           : a_ == 1 ? add_tests<1>(t, e, n, pending)
+                                     : add_tests<2>(t, e, n, pending);
   commit_tests(pending, plane_first);
   small_ = true;
   for (int level = 0; level < 5; ++level) {

@@ -244,29 +244,10 @@ inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
 #endif
 }
 
-/// The arithmetic of TriangleColumns::setup that does not depend on where a test is filed, for
-/// two triangles at once (TriangleColumns::prepare; [..][l]: triangle l, one per SSE2 lane), with
-/// the scalar operations in the same order per lane, so the same doubles.
-struct PreparedPair {
-  double floor_lo[3][2], ceil_lo[3][2], floor_hi[3][2];  // of the corners' min and max per axis
-  double p[3][3][2];                                     // corner j minus the origin (floor_lo)
-  double e[3][3][2];                                     // edges p[j + 1] - p[j]
-  double n[3][2];                                        // normal cross(e[0], e[1])
-  double extent[2];                                      // M
-  // The slab bounds min_j p_j . X - r and max_j p_j . X + r: [0] the plane (X = n), [1 + 3j + i]
-  // the edge axis cross(unit i, e[j]).
-  double lo[10][2], hi[10][2];
-  int inside;  // bit l: every coordinate of triangle l within +-2^40 (else NaN, infinite or far)
-};
-
 class TriangleColumns {
  public:
   /// Prepares the tests; false when the triangle touches no voxel at all.
   bool setup(const GridTriangle& t);
-  /// setup of `t` from lane l of prepare's record (t: its triangle l): the same tests.
-  bool setup(const GridTriangle& t, const PreparedPair& g, int l);
-  /// The arithmetic of setup for two triangles (the same one twice for one).
-  static void prepare(const GridTriangle& t0, const GridTriangle& t1, PreparedPair& out);
   /// The candidate range (every voxel the predicate can accept lies in it).
   const VoxelRange& range() const { return range_; }
   int dominant_axis() const { return a_; }
@@ -294,10 +275,14 @@ class TriangleColumns {
       margin[count] = m, level[count++] = lv;
     }
   };
+  bool place(const GridTriangle& t);
   template <int a>
-  bool add_tests(const GridTriangle& t, const PreparedPair& g, int l, PendingTests& pending);
+  bool add_tests(const GridTriangle& t, const std::array<double, 3>* e,
+                 const std::array<double, 3>& n, PendingTests& pending);
+  template <int a>
+  void add_test(const std::array<double, 3>& axis, double margin, PendingTests& pending);
   template <int a, int i>
-  void add_edge_test(const GridTriangle& t, const PreparedPair& g, int l, int j, double margin,
+  void add_edge_test(const GridTriangle& t, int j, const std::array<double, 3>& e, double margin,
                      PendingTests& pending);
   template <int a>
   void file_test(const std::array<double, 3>& axis, double lo, double hi, double margin,
@@ -337,6 +322,7 @@ class TriangleColumns {
   VoxelRange range_{};
   int a_ = 2, u_ = 0, v_ = 1;
   std::int64_t origin_[3] = {0, 0, 0};  // local origin (integers), per axis
+  std::array<double, 3> p_[3]{};        // corners minus the origin
   double extent_ = 1;                   // M: bounds |corner - centre| over candidate voxels
   double sure_inset_ = 0;               // twice the largest margin of the tests
   bool uncertain_all_ = false;          // every voxel is decided by the exact predicate
