@@ -292,6 +292,55 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
   return l;
 }
 
+// Pieces of the reference array, in index order: [begin, begin + size) each.
+struct Segments {
+  std::vector<std::size_t> begin, end_rank;  // end_rank: references in this piece and before
+  void add(std::size_t b, std::size_t e) {
+    if (e <= b) return;
+    begin.push_back(b);
+    end_rank.push_back((end_rank.empty() ? 0 : end_rank.back()) + (e - b));
+  }
+  // The index of the rank-th reference the pieces hold.
+  std::size_t at(std::size_t rank, std::size_t& piece) const {
+    while (end_rank[piece] <= rank) ++piece;
+    return begin[piece] + rank - (piece ? end_rank[piece - 1] : 0);
+  }
+};
+
+// partition_refs for large nodes, in fixed blocks: each block of kBinChunk references is
+// partitioned on its own, then the right references before the middle swap with the left ones
+// after it, the i-th with the i-th in index order. The blocks and the pairs depend on the node
+// alone, so the order is the same on any thread count (`threads` at most run the blocks and the
+// swaps).
+std::size_t partition_blocks(std::span<BuildRef> refs, const BinMap& map, const Split& s,
+                             VBox& left_centroids, VBox& right_centroids, unsigned threads) {
+  const std::size_t n = refs.size(), blocks = (n + kBinChunk - 1) / kBinChunk;
+  std::vector<std::size_t> lefts(blocks);
+  std::vector<VBox> lc(blocks), rc(blocks);
+  parallel_for(blocks, threads, [&](std::size_t b) {
+    const std::size_t begin = b * kBinChunk;
+    lefts[b] =
+        partition_refs(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s, lc[b], rc[b]);
+  });
+  std::size_t mid = 0;
+  for (std::size_t b = 0; b < blocks; ++b)
+    mid += lefts[b], left_centroids.grow(lc[b]), right_centroids.grow(rc[b]);
+  Segments right_before, left_after;  // misplaced: right ones before mid, left ones after
+  for (std::size_t b = 0; b < blocks; ++b) {
+    const std::size_t begin = b * kBinChunk, end = std::min(n, begin + kBinChunk);
+    const std::size_t split = begin + lefts[b];
+    right_before.add(split, std::min(end, mid));
+    left_after.add(std::max(begin, mid), split);
+  }
+  const std::size_t misplaced = right_before.end_rank.empty() ? 0 : right_before.end_rank.back();
+  parallel_for((misplaced + kBinChunk - 1) / kBinChunk, threads, [&](std::size_t c) {
+    std::size_t p = 0, q = 0;
+    for (std::size_t i = c * kBinChunk; i < std::min(misplaced, (c + 1) * kBinChunk); ++i)
+      std::swap(refs[right_before.at(i, p)], refs[left_after.at(i, q)]);
+  });
+  return mid;
+}
+
 format::BvhNode leaf_node(const Box3f& box, std::size_t begin, std::size_t count) {
   format::BvhNode node{};
   for (int a = 0; a < 3; ++a)
@@ -435,7 +484,14 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
   }
   if (n <= o.max_leaf_size && leaf_wins(s, n, area, o)) return std::nullopt;
   VBox lc, rc;
-  const std::size_t mid = t.begin + partition_refs(refs, map, s, lc, rc);
+  std::size_t mid = t.begin;
+  if (n >= kParallelBinning) {
+    const unsigned extra = ctx.slots.take_all();
+    mid += partition_blocks(refs, map, s, lc, rc, 1 + extra);
+    ctx.slots.give(extra);
+  } else {
+    mid += partition_refs(refs, map, s, lc, rc);
+  }
   axis = s.axis;
   return std::pair{Task{t.begin, mid, s.left_box.box(), lc.box(), t.depth + 1},
                    Task{mid, t.end, s.right_box.box(), rc.box(), t.depth + 1}};
