@@ -224,11 +224,18 @@ std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuild
                                               std::vector<std::uint32_t>& prim_ids) {
   if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
   std::vector<PrimRef> refs(scene.triangles.size());
-  for (std::uint32_t i = 0; i < refs.size(); ++i) {
-    for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
-    refs[i].prim = i;
-  }
-  const format::Box3f root = bounds_of(refs);
+  // In fixed chunks, their bounds merged in order: the bounds of one pass in order.
+  constexpr std::size_t kChunk = 65536;
+  std::vector<format::Box3f> chunk_box((refs.size() + kChunk - 1) / kChunk);
+  parallel_for(chunk_box.size(), options.threads, [&](std::size_t c) {
+    for (std::size_t i = c * kChunk; i < std::min(refs.size(), (c + 1) * kChunk); ++i) {
+      for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
+      refs[i].prim = std::uint32_t(i);
+      chunk_box[c].grow(refs[i].box);
+    }
+  });
+  format::Box3f root;
+  for (const format::Box3f& b : chunk_box) root.grow(b);
   WorkerSlots slots(resolve_thread_count(options.threads));
   const BuildContext ctx{scene, options, root.half_area(), slots};
   SortedRefs sorted;  // sorted once here, kept sorted through every split
