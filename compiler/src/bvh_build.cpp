@@ -9,6 +9,7 @@
 
 #include "bvh_splits.hpp"
 #include "bvh_subtree.hpp"
+#include "huge_pages.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -223,7 +224,7 @@ const char* bvh_builder_name(BvhBuilder builder) {
 std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuildOptions& options,
                                               std::vector<std::uint32_t>& prim_ids) {
   if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
-  std::vector<PrimRef> refs(scene.triangles.size());
+  std::vector<PrimRef> refs = huge_vector<PrimRef>(scene.triangles.size());
   // In fixed chunks, their bounds merged in order: the bounds of one pass in order.
   constexpr std::size_t kChunk = 65536;
   std::vector<format::Box3f> chunk_box((refs.size() + kChunk - 1) / kChunk);

@@ -6,6 +6,7 @@
 
 #include "bvh_build_simd.hpp"
 #include "bvh_splits.hpp"
+#include "huge_pages.hpp"
 #include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
@@ -35,7 +36,7 @@ void radix_sort(std::vector<KeyIndex>& keys, int low_bit) {
   for (const KeyIndex& k : keys)
     for (int p = 0; p < passes; ++p)
       ++count[p * kBuckets + ((k.key >> (low_bit + p * kBits)) & (kBuckets - 1))];
-  std::vector<KeyIndex> tmp(keys.size());
+  std::vector<KeyIndex> tmp = huge_vector<KeyIndex>(keys.size());
   for (int p = 0; p < passes; ++p) {
     std::uint32_t* c = count.data() + p * kBuckets;
     if (std::any_of(c, c + kBuckets, [&](std::uint32_t n) { return n == keys.size(); })) continue;
@@ -57,7 +58,7 @@ void radix_sort_chunked(std::vector<KeyIndex>& keys, int low_bit, std::size_t ch
   const int passes = (64 - low_bit + kBits - 1) / kBits;
   const std::size_t n = keys.size(), chunk = (n + chunks - 1) / chunks;
   std::vector<std::uint32_t> count(chunks * kBuckets);
-  std::vector<KeyIndex> tmp(n);
+  std::vector<KeyIndex> tmp = huge_vector<KeyIndex>(n);
   for (int p = 0; p < passes; ++p) {
     const int shift = low_bit + p * kBits;
     parallel_for(chunks, threads, [&](std::size_t c) {
@@ -93,7 +94,7 @@ void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimR
   const std::size_t n = refs.size();
   const std::size_t chunks = n >= kRadixSort ? std::max(1u, threads) : 1;
   const std::size_t chunk = (n + chunks - 1) / chunks;
-  std::vector<KeyIndex> keys(n);
+  std::vector<KeyIndex> keys = huge_vector<KeyIndex>(n);
   std::vector<char> prim_order(chunks, 1);  // ids ascending (the root's refs): centroids only
   parallel_for(chunks, threads, [&](std::size_t c) {
     for (std::size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) {
@@ -109,6 +110,7 @@ void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimR
     radix_sort(keys, low_bit);
   else
     radix_sort_chunked(keys, low_bit, chunks, threads);
+  reserve_huge(out, n);
   out.resize(n);
   parallel_for(chunks, threads, [&](std::size_t c) {
     for (std::size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
@@ -216,12 +218,14 @@ void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count,
   auto& split = refs.axis[axis];
   const std::size_t n = split.size();
   const std::uint64_t pivot = centroid_key(split[left_count], axis);
+  reserve_huge(right.axis[axis], n - left_count);
   right.axis[axis].assign(split.begin() + std::ptrdiff_t(left_count), split.end());
   split.resize(left_count);
   parallel_for(2, threads, [&](std::size_t other) {  // the two other axes, apart
     const int a = (axis + 1 + int(other)) % 3;
     auto& v = refs.axis[a];
     auto& r = right.axis[a];
+    reserve_huge(r, n - left_count);
     r.resize(n - left_count);
     PrimRef* lp = v.data();
     PrimRef* rp = r.data();

@@ -5,6 +5,7 @@
 
 #include "bvh_build_simd.hpp"
 #include "bvh_splits.hpp"
+#include "huge_pages.hpp"
 #include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
@@ -359,6 +360,7 @@ Side side_of(const PrimRef& r, int axis, float pos) {
 // computed once.
 void merge_on_axis(std::span<const PrimRef> sorted, std::span<const PrimRef> pieces, int axis,
                    std::vector<PrimRef>& out) {
+  reserve_huge(out, sorted.size() + pieces.size());
   out.resize(sorted.size() + pieces.size());
   PrimRef* o = out.data();
   std::size_t i = 0, j = 0;
