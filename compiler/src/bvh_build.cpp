@@ -68,12 +68,28 @@ void append_leaf(const format::Box3f& box, std::span<const PrimRef> refs, FlatOu
 }
 
 // Appends a subtree built apart, shifting its offsets past what `out` holds.
+// Both arrays are sized once (on huge pages when large) and filled in place: growing them node
+// by node regrew and copied the root's arrays after its halves joined, serially.
 void append_subtree(FlatOut& out, const FlatOut& sub) {
-  const auto node_shift = std::uint32_t(out.nodes.size());
-  const auto prim_shift = std::uint32_t(out.prims.size());
+  const std::size_t nodes = out.nodes.size(), prims = out.prims.size();
+  const auto node_shift = std::uint32_t(nodes), prim_shift = std::uint32_t(prims);
+  if (out.nodes.capacity() < nodes + sub.nodes.size()) {
+    std::vector<format::BvhNode> grown;
+    reserve_huge(grown, 2 * (nodes + sub.nodes.size()));
+    grown.assign(out.nodes.begin(), out.nodes.end());
+    out.nodes.swap(grown);
+  }
+  out.nodes.resize(nodes + sub.nodes.size());
+  format::BvhNode* to = out.nodes.data() + nodes;
   for (format::BvhNode n : sub.nodes) {
     n.offset += n.count == 0 ? node_shift : prim_shift;
-    out.nodes.push_back(n);
+    *to++ = n;
+  }
+  if (out.prims.capacity() < prims + sub.prims.size()) {
+    std::vector<std::uint32_t> grown;
+    reserve_huge(grown, 2 * (prims + sub.prims.size()));
+    grown.assign(out.prims.begin(), out.prims.end());
+    out.prims.swap(grown);
   }
   out.prims.insert(out.prims.end(), sub.prims.begin(), sub.prims.end());
 }
@@ -248,6 +264,10 @@ std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuild
   const std::size_t budget = std::size_t(double(scene.triangles.size()) *
                                          std::max(0.0, double(options.sbvh_max_duplication)));
   FlatOut out;
+  // At most triangles + budget references; SAH trees have about one node per reference: no
+  // regrowth (and copy) of the arrays in most builds.
+  reserve_huge(out.nodes, scene.triangles.size() + budget);
+  reserve_huge(out.prims, scene.triangles.size() + budget);
   build_node(ctx, std::move(sorted), 0, budget, out);
   prim_ids = std::move(out.prims);
   return std::move(out.nodes);
