@@ -75,7 +75,7 @@ void append_subtree(FlatOut& out, const FlatOut& sub) {
   const auto node_shift = std::uint32_t(nodes), prim_shift = std::uint32_t(prims);
   if (out.nodes.capacity() < nodes + sub.nodes.size()) {
     std::vector<format::BvhNode> grown;
-    reserve_huge(grown, 2 * (nodes + sub.nodes.size()));
+    reserve_huge(grown, nodes + sub.nodes.size());
     grown.assign(out.nodes.begin(), out.nodes.end());
     out.nodes.swap(grown);
   }
@@ -87,7 +87,7 @@ void append_subtree(FlatOut& out, const FlatOut& sub) {
   }
   if (out.prims.capacity() < prims + sub.prims.size()) {
     std::vector<std::uint32_t> grown;
-    reserve_huge(grown, 2 * (prims + sub.prims.size()));
+    reserve_huge(grown, prims + sub.prims.size());
     grown.assign(out.prims.begin(), out.prims.end());
     out.prims.swap(grown);
   }
@@ -264,10 +264,6 @@ std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuild
   const std::size_t budget = std::size_t(double(scene.triangles.size()) *
                                          std::max(0.0, double(options.sbvh_max_duplication)));
   FlatOut out;
-  // At most triangles + budget references; SAH trees have about one node per reference: no
-  // regrowth (and copy) of the arrays in most builds.
-  reserve_huge(out.nodes, scene.triangles.size() + budget);
-  reserve_huge(out.prims, scene.triangles.size() + budget);
   build_node(ctx, std::move(sorted), 0, budget, out);
   prim_ids = std::move(out.prims);
   return std::move(out.nodes);
