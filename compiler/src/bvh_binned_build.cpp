@@ -147,7 +147,8 @@ struct Split {
 struct Context {
   std::span<BuildRef> refs;
   const BvhBuildOptions& o;
-  WorkerSlots& slots;  // threads free for a subtree or a parallel binning
+  WorkerSlots& slots;      // threads free for a subtree or a parallel binning
+  PendingRights& pending;  // right children a thread with nothing to do may build
 };
 
 void bin_range(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
@@ -506,9 +507,9 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
   const auto& [left, right] = *children;
   const std::size_t right_size = right.end - right.begin;
   const bool may_fork = left.end - left.begin >= kParallelSubtree && right_size >= kParallelSubtree;
-  emit_bvh_children_on_demand(ctx.slots, may_fork, left, right, right_size + right_size / 4 + 1,
-                              index, nodes,
-                              [&](const Task& child, auto& out) { emit(ctx, child, out); });
+  emit_bvh_children_on_demand(
+      ctx.slots, may_fork, left, right, right_size + right_size / 4 + 1, index, nodes,
+      [&](const Task& child, auto& out) { emit(ctx, child, out); }, &ctx.pending);
   nodes[index].axis = std::uint8_t(axis);
 }
 
@@ -544,7 +545,8 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
   });
   for (std::size_t c = 1; c < chunks; ++c) box[0].grow(box[c]), centroids[0].grow(centroids[c]);
   WorkerSlots slots(resolve_thread_count(options.threads));
-  const Context ctx{refs, options, slots};
+  PendingRights pending;
+  const Context ctx{refs, options, slots, pending};
   std::vector<format::BvhNode> nodes;
   // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
   reserve_huge(nodes, refs.size() + refs.size() / 4 + 1);
