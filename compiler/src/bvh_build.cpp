@@ -9,6 +9,7 @@
 
 #include "bvh_splits.hpp"
 #include "bvh_subtree.hpp"
+#include "huge_pages.hpp"
 #include "kiln/compiler/bvh_builder.hpp"
 #include "kiln/runtime/parallel.hpp"
 
@@ -67,12 +68,28 @@ void append_leaf(const format::Box3f& box, std::span<const PrimRef> refs, FlatOu
 }
 
 // Appends a subtree built apart, shifting its offsets past what `out` holds.
+// Both arrays are sized once (on huge pages when large) and filled in place: growing them node
+// by node regrew and copied the root's arrays after its halves joined, serially.
 void append_subtree(FlatOut& out, const FlatOut& sub) {
-  const auto node_shift = std::uint32_t(out.nodes.size());
-  const auto prim_shift = std::uint32_t(out.prims.size());
+  const std::size_t nodes = out.nodes.size(), prims = out.prims.size();
+  const auto node_shift = std::uint32_t(nodes), prim_shift = std::uint32_t(prims);
+  if (out.nodes.capacity() < nodes + sub.nodes.size()) {
+    std::vector<format::BvhNode> grown;
+    reserve_huge(grown, nodes + sub.nodes.size());
+    grown.assign(out.nodes.begin(), out.nodes.end());
+    out.nodes.swap(grown);
+  }
+  out.nodes.resize(nodes + sub.nodes.size());
+  format::BvhNode* to = out.nodes.data() + nodes;
   for (format::BvhNode n : sub.nodes) {
     n.offset += n.count == 0 ? node_shift : prim_shift;
-    out.nodes.push_back(n);
+    *to++ = n;
+  }
+  if (out.prims.capacity() < prims + sub.prims.size()) {
+    std::vector<std::uint32_t> grown;
+    reserve_huge(grown, prims + sub.prims.size());
+    grown.assign(out.prims.begin(), out.prims.end());
+    out.prims.swap(grown);
   }
   out.prims.insert(out.prims.end(), sub.prims.begin(), sub.prims.end());
 }
@@ -223,17 +240,26 @@ const char* bvh_builder_name(BvhBuilder builder) {
 std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuildOptions& options,
                                               std::vector<std::uint32_t>& prim_ids) {
   if (scene.triangles.empty()) throw std::runtime_error("BVH: the scene has no triangles");
-  std::vector<PrimRef> refs(scene.triangles.size());
-  for (std::uint32_t i = 0; i < refs.size(); ++i) {
-    for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
-    refs[i].prim = i;
-  }
-  const format::Box3f root = bounds_of(refs);
+  std::vector<PrimRef> refs = huge_vector<PrimRef>(scene.triangles.size());
+  // In fixed chunks, their bounds merged in order: the bounds of one pass in order.
+  constexpr std::size_t kChunk = 65536;
+  std::vector<format::Box3f> chunk_box((refs.size() + kChunk - 1) / kChunk);
+  parallel_for(chunk_box.size(), options.threads, [&](std::size_t c) {
+    for (std::size_t i = c * kChunk; i < std::min(refs.size(), (c + 1) * kChunk); ++i) {
+      for (const auto v : scene.triangles[i].v) refs[i].box.grow(scene.positions[v]);
+      refs[i].prim = std::uint32_t(i);
+      chunk_box[c].grow(refs[i].box);
+    }
+  });
+  format::Box3f root;
+  for (const format::Box3f& b : chunk_box) root.grow(b);
   WorkerSlots slots(resolve_thread_count(options.threads));
   const BuildContext ctx{scene, options, root.half_area(), slots};
   SortedRefs sorted;  // sorted once here, kept sorted through every split
-  parallel_for(3, options.threads,
-               [&](std::size_t a) { sort_by_centroid(refs, int(a), sorted.axis[a]); });
+  // Three axes on two threads would leave one idle for a third of the time: on several
+  // threads each axis is sorted in turn by all of them.
+  const unsigned threads = resolve_thread_count(options.threads);
+  for (int a = 0; a < 3; ++a) sort_by_centroid(refs, a, sorted.axis[a], threads);
   refs = {};
   const std::size_t budget = std::size_t(double(scene.triangles.size()) *
                                          std::max(0.0, double(options.sbvh_max_duplication)));

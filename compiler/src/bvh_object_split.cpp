@@ -6,6 +6,7 @@
 
 #include "bvh_build_simd.hpp"
 #include "bvh_splits.hpp"
+#include "huge_pages.hpp"
 #include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
@@ -22,22 +23,63 @@ struct KeyIndex {
 
 namespace {
 
-// LSD radix sort of unique 64-bit keys, 11 bits a pass, skipping the passes whose digit is the
-// same for every key (the high bits of the primitive ids, mostly): the order std::sort gives.
-void radix_sort(std::vector<KeyIndex>& keys) {
-  constexpr int kBits = 11, kPasses = 6;  // 66 bits
+// LSD radix sort of unique 64-bit keys on their bits from `low_bit` up, 11 bits a pass,
+// skipping the passes whose digit is the same for every key (the high bits of the primitive ids,
+// mostly). With low_bit 0 it gives the order std::sort gives; with low_bit 32 (the centroid
+// alone) it gives that order too when the keys come in ascending order of their low 32 bits
+// (the primitive ids): the sort is stable, so ties on the centroid keep that order.
+void radix_sort(std::vector<KeyIndex>& keys, int low_bit) {
+  constexpr int kBits = 11;
   constexpr std::size_t kBuckets = std::size_t(1) << kBits;
-  std::vector<std::uint32_t> count(kPasses * kBuckets, 0);
+  const int passes = (64 - low_bit + kBits - 1) / kBits;
+  std::vector<std::uint32_t> count(std::size_t(passes) * kBuckets, 0);
   for (const KeyIndex& k : keys)
-    for (int p = 0; p < kPasses; ++p)
-      ++count[p * kBuckets + ((k.key >> (p * kBits)) & (kBuckets - 1))];
-  std::vector<KeyIndex> tmp(keys.size());
-  for (int p = 0; p < kPasses; ++p) {
+    for (int p = 0; p < passes; ++p)
+      ++count[p * kBuckets + ((k.key >> (low_bit + p * kBits)) & (kBuckets - 1))];
+  std::vector<KeyIndex> tmp = huge_vector<KeyIndex>(keys.size());
+  for (int p = 0; p < passes; ++p) {
     std::uint32_t* c = count.data() + p * kBuckets;
     if (std::any_of(c, c + kBuckets, [&](std::uint32_t n) { return n == keys.size(); })) continue;
     std::uint32_t sum = 0;
     for (std::size_t b = 0; b < kBuckets; ++b) sum += std::exchange(c[b], sum);
-    for (const KeyIndex& k : keys) tmp[c[(k.key >> (p * kBits)) & (kBuckets - 1)]++] = k;
+    const int shift = low_bit + p * kBits;
+    for (const KeyIndex& k : keys) tmp[c[(k.key >> shift) & (kBuckets - 1)]++] = k;
+    keys.swap(tmp);
+  }
+}
+
+// The same order as radix_sort, by `chunks` fixed chunks of the keys on up to `threads` threads:
+// each pass counts the chunks apart, and each chunk scatters after the earlier chunks' keys of
+// the same digit (the stable order one scatter gives).
+void radix_sort_chunked(std::vector<KeyIndex>& keys, int low_bit, std::size_t chunks,
+                        unsigned threads) {
+  constexpr int kBits = 11;
+  constexpr std::size_t kBuckets = std::size_t(1) << kBits;
+  const int passes = (64 - low_bit + kBits - 1) / kBits;
+  const std::size_t n = keys.size(), chunk = (n + chunks - 1) / chunks;
+  std::vector<std::uint32_t> count(chunks * kBuckets);
+  std::vector<KeyIndex> tmp = huge_vector<KeyIndex>(n);
+  for (int p = 0; p < passes; ++p) {
+    const int shift = low_bit + p * kBits;
+    parallel_for(chunks, threads, [&](std::size_t c) {
+      std::uint32_t* h = count.data() + c * kBuckets;
+      std::fill(h, h + kBuckets, 0u);
+      for (std::size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
+        ++h[(keys[i].key >> shift) & (kBuckets - 1)];
+    });
+    std::uint32_t sum = 0;
+    bool constant = false;  // one digit for every key: the pass would change nothing
+    for (std::size_t b = 0; b < kBuckets; ++b) {
+      const std::uint32_t before = sum;
+      for (std::size_t c = 0; c < chunks; ++c) sum += std::exchange(count[c * kBuckets + b], sum);
+      constant |= sum - before == n;
+    }
+    if (constant) continue;
+    parallel_for(chunks, threads, [&](std::size_t c) {
+      std::uint32_t* h = count.data() + c * kBuckets;
+      for (std::size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
+        tmp[h[(keys[i].key >> shift) & (kBuckets - 1)]++] = keys[i];
+    });
     keys.swap(tmp);
   }
 }
@@ -46,17 +88,34 @@ constexpr std::size_t kRadixSort = 2048;  // radix sort from this many reference
 
 }  // namespace
 
-void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimRef>& out) {
+void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimRef>& out,
+                      unsigned threads) {
   // Sorting 12-byte keys, then gathering once, costs a fraction of sorting 28-byte references.
-  std::vector<KeyIndex> keys(refs.size());
-  for (std::size_t i = 0; i < refs.size(); ++i)
-    keys[i] = {centroid_key(refs[i], axis), std::uint32_t(i)};
-  if (keys.size() >= kRadixSort)
-    radix_sort(keys);
-  else
+  const std::size_t n = refs.size();
+  const std::size_t chunks = n >= kRadixSort ? std::max(1u, threads) : 1;
+  const std::size_t chunk = (n + chunks - 1) / chunks;
+  std::vector<KeyIndex> keys = huge_vector<KeyIndex>(n);
+  std::vector<char> prim_order(chunks, 1);  // ids ascending (the root's refs): centroids only
+  parallel_for(chunks, threads, [&](std::size_t c) {
+    for (std::size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) {
+      keys[i] = {centroid_key(refs[i], axis), std::uint32_t(i)};
+      prim_order[c] &= i == 0 || refs[i - 1].prim < refs[i].prim;
+    }
+  });
+  const int low_bit =
+      std::all_of(prim_order.begin(), prim_order.end(), [](char o) { return o; }) ? 32 : 0;
+  if (n < kRadixSort)
     std::sort(keys.begin(), keys.end());
-  out.resize(refs.size());
-  for (std::size_t i = 0; i < refs.size(); ++i) out[i] = refs[keys[i].index];
+  else if (chunks == 1)
+    radix_sort(keys, low_bit);
+  else
+    radix_sort_chunked(keys, low_bit, chunks, threads);
+  reserve_huge(out, n);
+  out.resize(n);
+  parallel_for(chunks, threads, [&](std::size_t c) {
+    for (std::size_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i)
+      out[i] = refs[keys[i].index];
+  });
 }
 
 namespace {
@@ -159,12 +218,14 @@ void partition_object_split(SortedRefs&& refs, int axis, std::size_t left_count,
   auto& split = refs.axis[axis];
   const std::size_t n = split.size();
   const std::uint64_t pivot = centroid_key(split[left_count], axis);
+  reserve_huge(right.axis[axis], n - left_count);
   right.axis[axis].assign(split.begin() + std::ptrdiff_t(left_count), split.end());
   split.resize(left_count);
   parallel_for(2, threads, [&](std::size_t other) {  // the two other axes, apart
     const int a = (axis + 1 + int(other)) % 3;
     auto& v = refs.axis[a];
     auto& r = right.axis[a];
+    reserve_huge(r, n - left_count);
     r.resize(n - left_count);
     PrimRef* lp = v.data();
     PrimRef* rp = r.data();

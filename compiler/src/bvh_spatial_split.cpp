@@ -5,6 +5,7 @@
 
 #include "bvh_build_simd.hpp"
 #include "bvh_splits.hpp"
+#include "huge_pages.hpp"
 #include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
@@ -359,6 +360,7 @@ Side side_of(const PrimRef& r, int axis, float pos) {
 // computed once.
 void merge_on_axis(std::span<const PrimRef> sorted, std::span<const PrimRef> pieces, int axis,
                    std::vector<PrimRef>& out) {
+  reserve_huge(out, sorted.size() + pieces.size());
   out.resize(sorted.size() + pieces.size());
   PrimRef* o = out.data();
   std::size_t i = 0, j = 0;
@@ -399,6 +401,57 @@ void children_on_axis(const std::vector<PrimRef>& parent, int axis, int split_ax
   merge_on_axis(whole_right, pieces, axis, right);
 }
 
+// The references that lie whole on a side of the plane (their boxes and counts), and the
+// straddlers in order, each with its two clipped boxes.
+struct Sides {
+  format::Box3f left_box, right_box;
+  std::size_t left_whole = 0, right_whole = 0;
+  std::vector<const PrimRef*> straddling;
+  std::vector<std::pair<format::Box3f, format::Box3f>> clipped;  // [straddler]: left, right
+};
+
+void classify(std::span<const PrimRef> refs, int axis, float pos, const Scene& scene, Sides& out) {
+  for (const auto& r : refs) {
+    switch (side_of(r, axis, pos)) {
+      case Side::kLeft:
+        out.left_box.grow(r.box), ++out.left_whole;
+        break;
+      case Side::kRight:
+        out.right_box.grow(r.box), ++out.right_whole;
+        break;
+      case Side::kStraddle:
+        out.straddling.push_back(&r);
+        auto& [l, rr] = out.clipped.emplace_back();
+        split_reference(r, axis, pos, scene, l, rr);
+    }
+  }
+}
+
+// classify in fixed chunks on up to `threads` threads, merged in order: boxes grow by min/max,
+// which keeps the first of equal bounds either way, so the result is one pass's.
+Sides classify_all(std::span<const PrimRef> refs, int axis, float pos, const Scene& scene,
+                   unsigned threads) {
+  Sides all;
+  if (threads == 1 || refs.size() < kParallelSweep) {
+    classify(refs, axis, pos, scene, all);
+    return all;
+  }
+  const std::size_t chunks = (refs.size() + kSpatialChunk - 1) / kSpatialChunk;
+  std::vector<Sides> part(chunks);
+  parallel_for(chunks, threads, [&](std::size_t c) {
+    const std::size_t begin = c * kSpatialChunk;
+    classify(refs.subspan(begin, std::min(kSpatialChunk, refs.size() - begin)), axis, pos, scene,
+             part[c]);
+  });
+  for (const Sides& p : part) {
+    all.left_box.grow(p.left_box), all.right_box.grow(p.right_box);
+    all.left_whole += p.left_whole, all.right_whole += p.right_whole;
+    all.straddling.insert(all.straddling.end(), p.straddling.begin(), p.straddling.end());
+    all.clipped.insert(all.clipped.end(), p.clipped.begin(), p.clipped.end());
+  }
+  return all;
+}
+
 }  // namespace
 
 std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
@@ -406,29 +459,18 @@ std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& ref
                                 unsigned threads) {
   const int axis = split.axis;
   const float pos = split.position;
-  format::Box3f left_box, right_box;
-  std::vector<const PrimRef*> straddling;
-  std::size_t left_whole = 0, right_whole = 0;
-  for (const auto& r : refs.axis[order_axis]) {
-    switch (side_of(r, axis, pos)) {
-      case Side::kLeft:
-        left_box.grow(r.box), ++left_whole;
-        break;
-      case Side::kRight:
-        right_box.grow(r.box), ++right_whole;
-        break;
-      case Side::kStraddle:
-        straddling.push_back(&r);
-    }
-  }
+  Sides sides = classify_all(refs.axis[order_axis], axis, pos, scene, threads);
+  format::Box3f left_box = sides.left_box, right_box = sides.right_box;
+  const std::vector<const PrimRef*>& straddling = sides.straddling;
+  const std::size_t left_whole = sides.left_whole, right_whole = sides.right_whole;
   // Straddlers in the parent's order, as they were decided before the arrays were kept sorted.
   std::vector<PrimRef> left, right;
   std::size_t left_count = left_whole + straddling.size();
   std::size_t right_count = right_whole + straddling.size();
   std::size_t added = 0;
-  for (const PrimRef* r : straddling) {
-    format::Box3f l, rr;
-    split_reference(*r, axis, pos, scene, l, rr);
+  for (std::size_t k = 0; k < straddling.size(); ++k) {
+    const PrimRef* r = straddling[k];
+    const auto& [l, rr] = sides.clipped[k];
     if (l.empty()) {  // clipping left nothing on one side: no duplicate needed
       right.push_back(*r);
       right_box.grow(r->box);

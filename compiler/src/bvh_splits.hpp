@@ -31,8 +31,10 @@ struct SortedRefs {
   }
 };
 
-/// Sorts `refs` by centroid_key on `axis` into `out`.
-void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimRef>& out);
+/// Sorts `refs` by centroid_key on `axis` into `out`, on up to `threads` threads (large arrays
+/// in that many chunks; the keys are unique, so the order does not depend on them).
+void sort_by_centroid(std::span<const PrimRef> refs, int axis, std::vector<PrimRef>& out,
+                      unsigned threads = 1);
 
 struct ObjectSplit {
   float cost = std::numeric_limits<float>::infinity();

@@ -4,7 +4,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <exception>
+#include <functional>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -55,6 +58,66 @@ class WorkerSlots {
   std::atomic<int> free_;
 };
 
+/// Right children that their thread will emit after the left one, listed while it does so: a
+/// forked thread that has finished its own subtree takes the largest (and builds it apart)
+/// before it ends, so a free core need not wait for the next split that may fork. The owner
+/// appends a taken one (waiting for it if need be) where it would have emitted it: the nodes
+/// are the same wherever a subtree is built.
+class PendingRights {
+ public:
+  struct Entry {
+    std::size_t size = 0;
+    std::function<void(std::vector<format::BvhNode>&)> build;
+    std::vector<format::BvhNode> nodes;
+    std::exception_ptr error;
+    bool done = false;
+  };
+  void add(Entry* e) {
+    const std::lock_guard lock(mutex_);
+    list_.push_back(e);
+  }
+  /// The owner takes `e` back: true if no thread took it, else false once it is built.
+  bool reclaim(Entry* e, WorkerSlots& slots) {
+    std::unique_lock lock(mutex_);
+    if (const auto it = std::find(list_.begin(), list_.end(), e); it != list_.end()) {
+      list_.erase(it);
+      return true;
+    }
+    slots.block();
+    done_.wait(lock, [&] { return e->done; });
+    slots.resume();
+    return false;
+  }
+  /// Builds the largest listed entry on this thread; false when none is listed.
+  bool build_one() {
+    Entry* e = nullptr;
+    {
+      const std::lock_guard lock(mutex_);
+      if (list_.empty()) return false;
+      const auto it = std::max_element(list_.begin(), list_.end(),
+                                       [](Entry* a, Entry* b) { return a->size < b->size; });
+      e = *it;
+      list_.erase(it);
+    }
+    try {
+      e->build(e->nodes);
+    } catch (...) {
+      e->error = std::current_exception();
+    }
+    {
+      const std::lock_guard lock(mutex_);
+      e->done = true;
+    }
+    done_.notify_all();
+    return true;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable done_;
+  std::vector<Entry*> list_;
+};
+
 /// Emits a node's two children after it, in turn, with `emit(child, nodes)`; returns where the
 /// second one starts.
 template <class Child, class Emit>
@@ -74,7 +137,8 @@ std::uint32_t emit_bvh_children_in_turn(const Child& left, const Child& right,
 template <class Child, class Emit>
 void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child& left,
                                  const Child& right, std::size_t reserve, std::size_t index,
-                                 std::vector<format::BvhNode>& nodes, const Emit& emit) {
+                                 std::vector<format::BvhNode>& nodes, const Emit& emit,
+                                 PendingRights* pending = nullptr) {
   std::uint32_t second;
   if (may_fork && slots.try_take()) {
     std::vector<format::BvhNode> r;
@@ -84,6 +148,8 @@ void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child&
       std::jthread worker([&] {
         try {
           emit(right, r);
+          while (pending && pending->build_one()) {
+          }
         } catch (...) {
           error = std::current_exception();
         }
@@ -97,6 +163,27 @@ void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child&
     if (error) std::rethrow_exception(error);
     second = std::uint32_t(nodes.size());
     append_bvh_subtree(nodes, r);
+  } else if (may_fork && pending) {
+    PendingRights::Entry entry;
+    entry.size = reserve;
+    entry.build = [&](std::vector<format::BvhNode>& out) {
+      out.reserve(reserve);
+      emit(right, out);
+    };
+    pending->add(&entry);
+    try {
+      emit(left, nodes);
+    } catch (...) {
+      pending->reclaim(&entry, slots);  // a thread building it refers to this frame: wait
+      throw;
+    }
+    second = std::uint32_t(nodes.size());
+    if (pending->reclaim(&entry, slots)) {
+      emit(right, nodes);
+    } else {
+      if (entry.error) std::rethrow_exception(entry.error);
+      append_bvh_subtree(nodes, entry.nodes);
+    }
   } else {
     second = emit_bvh_children_in_turn(left, right, nodes, emit);
   }
