@@ -654,22 +654,31 @@ TEST(PolygonIndex, SharedCountyBordersGoToExactlyOneSide) {
   EXPECT_LT(anomalies, shared / 1000);
 }
 
+// The 42,049 ZIP points of the shared data, (longitude, latitude) in file order.
+std::vector<Double2> zip_points() {
+  const InputBytes csv = read_input_bytes(kGeo + "zipcodes.csv.zst");
+  CsvReader reader("zipcodes.csv", std::string_view(reinterpret_cast<const char*>(csv.bytes.data()),
+                                                    csv.bytes.size()));
+  std::vector<std::string_view> fields;
+  std::vector<Double2> points;
+  if (!reader.next(fields)) return points;
+  const auto lat = csv_column(fields, "latitude"), lon = csv_column(fields, "longitude");
+  if (!lat || !lon) return points;
+  while (reader.next(fields))
+    points.push_back({std::stod(std::string(fields[*lon])), std::stod(std::string(fields[*lat]))});
+  return points;
+}
+
 TEST(PolygonIndex, ZipPointsFallInTheCountiesTheManifestSays) {
   if (!have_shared()) GTEST_SKIP() << "../shared/data/geo is absent";
   const PolygonLayer layer = load_layer(kGeo + "us-counties-10m.geojson.zst");
   const FlatPolygonIndex index = build_polygon_index(view_of(layer), {});
   const PolygonIndexView view = open_view(layer, index);
-  const InputBytes csv = read_input_bytes(kGeo + "zipcodes.csv.zst");
-  CsvReader reader("zipcodes.csv", std::string_view(reinterpret_cast<const char*>(csv.bytes.data()),
-                                                    csv.bytes.size()));
-  std::vector<std::string_view> fields;
-  ASSERT_TRUE(reader.next(fields));
-  const auto lat = csv_column(fields, "latitude"), lon = csv_column(fields, "longitude");
-  ASSERT_TRUE(lat && lon);
+  const std::vector<Double2> points = zip_points();
+  ASSERT_EQ(points.size(), 42049u);
   std::size_t one = 0, none = 0, two = 0;
   std::vector<std::uint32_t> all;
-  while (reader.next(fields)) {
-    const Double2 p{std::stod(std::string(fields[*lon])), std::stod(std::string(fields[*lat]))};
+  for (const Double2& p : points) {
     view.locate_all(p, all);
     (all.empty() ? none : all.size() == 1 ? one : two)++;
   }
@@ -895,18 +904,12 @@ TEST(PolygonIndexBlob, ZipPointsFromTheCommandLineOnOneAndTwoThreads) {
   const Blob opened = Blob::open_file(blob);
   const auto structure = open_structure(opened, "polygon-index");
   const PolygonQueries& view = *structure->polygons();
-  const InputBytes csv = read_input_bytes(kGeo + "zipcodes.csv.zst");
-  CsvReader reader("zipcodes.csv", std::string_view(reinterpret_cast<const char*>(csv.bytes.data()),
-                                                    csv.bytes.size()));
-  std::vector<std::string_view> fields;
-  ASSERT_TRUE(reader.next(fields));
-  const auto lat = csv_column(fields, "latitude"), lon = csv_column(fields, "longitude");
   std::vector<double> xy;
   std::vector<std::uint32_t> want, all;
-  while (reader.next(fields)) {
-    xy.push_back(std::stod(std::string(fields[*lon])));
-    xy.push_back(std::stod(std::string(fields[*lat])));
-    view.locate_all({xy[xy.size() - 2], xy.back()}, all);
+  for (const Double2& p : zip_points()) {
+    xy.push_back(p.x);
+    xy.push_back(p.y);
+    view.locate_all(p, all);
     want.push_back(all.empty() ? PolygonQueries::kNone : all[0]);
   }
   ASSERT_EQ(std::count(want.begin(), want.end(), PolygonQueries::kNone), 446);
@@ -931,6 +934,7 @@ TEST(PolygonIndexBlob, ZipPointsFromTheCommandLineOnOneAndTwoThreads) {
   }
   EXPECT_EQ(text[0], text[1]);
   CsvReader rows("zip1.csv", text[0]);
+  std::vector<std::string_view> fields;
   ASSERT_TRUE(rows.next(fields));
   const auto column = csv_column(fields, "polygon_index");
   ASSERT_TRUE(column);
