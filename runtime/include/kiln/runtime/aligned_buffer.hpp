@@ -26,4 +26,11 @@ class AlignedBuffer {
   std::size_t size_ = 0;
 };
 
+/// Asks Linux to back the whole 2 MiB pages inside [p, p + bytes) with transparent huge pages
+/// when they are first touched (madvise MADV_HUGEPAGE; elsewhere a no-op), as Embree's allocator
+/// does for its trees and build arrays: a large array then takes a page fault per 2 MiB, not per
+/// 4 KiB, and rays walking a tree at random miss the TLB less. Only a hint: the bytes never
+/// change, and nothing happens where the kernel declines.
+void advise_huge_pages(const void* p, std::size_t bytes);
+
 }  // namespace kiln
