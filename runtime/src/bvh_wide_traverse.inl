@@ -211,27 +211,33 @@ KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, 
 /// ahead when a child is entered.
 inline constexpr std::uint32_t kPrefetchLeafLines = 4;
 
-// Starts loading every entered child while the others are sorted and visited: a node with the
-// first lines of its own leaf packets, which follow it in the arena (so a node's leaves are on
-// their way one level before they are reached), or a leaf's first two packets. On meshes larger
-// than the caches, traversal waits on memory more than it computes.
+// Starts loading a child while other work goes on: a node with the first lines of its own leaf
+// packets, which follow it in the arena (so a node's leaves are on their way one level before
+// they are reached), or a leaf's first two packets. On meshes larger than the caches, traversal
+// waits on memory more than it computes.
+template <class Node>
+KILN_SIMD void prefetch_child(std::uint32_t word, std::uint32_t packets, const std::byte* arena) {
+  const char* p = reinterpret_cast<const char*>(arena) +
+                  std::size_t(word & ~format::kBvhLeafFlag) * format::kBvhArenaUnit;
+  std::size_t bytes;
+  if (word & format::kBvhLeafFlag) {
+    bytes = std::min<std::size_t>(packets, 2) * sizeof(format::BvhTrianglePacket);
+    __builtin_prefetch(p + bytes - 1);  // a leaf need not start on a line
+  } else {
+    bytes =
+        sizeof(Node) + format::kBvhArenaLine * std::min<std::uint32_t>(packets, kPrefetchLeafLines);
+  }
+  for (std::size_t line = 0; line < bytes; line += format::kBvhArenaLine)
+    __builtin_prefetch(p + line);
+}
+
+// Closest hit: every entered child, before they are sorted (the nearest is visited next, the
+// others are popped in distance order and most of them are visited).
 template <class Node>
 KILN_SIMD void prefetch_children(const Node& n, unsigned mask, const std::byte* arena) {
   for (; mask != 0; mask &= mask - 1) {
     const int slot = __builtin_ctz(mask);
-    const std::uint32_t word = n.child[slot];
-    const char* p = reinterpret_cast<const char*>(arena) +
-                    std::size_t(word & ~format::kBvhLeafFlag) * format::kBvhArenaUnit;
-    std::size_t bytes;
-    if (word & format::kBvhLeafFlag) {
-      bytes = std::min<std::size_t>(n.packets[slot], 2) * sizeof(format::BvhTrianglePacket);
-      __builtin_prefetch(p + bytes - 1);  // a leaf need not start on a line
-    } else {
-      bytes = sizeof(Node) +
-              format::kBvhArenaLine * std::min<std::uint32_t>(n.packets[slot], kPrefetchLeafLines);
-    }
-    for (std::size_t line = 0; line < bytes; line += format::kBvhArenaLine)
-      __builtin_prefetch(p + line);
+    prefetch_child<Node>(n.child[slot], n.packets[slot], arena);
   }
 }
 
@@ -259,8 +265,11 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
       if constexpr (kCount) cost->nodes += 1;
       const unsigned mask = test_children<Node, V>(n, box, tmin, V::set1(hit.t), dist);
       if (mask == 0) goto pop;
-      prefetch_children(n, mask, arena);
+      // Any hit: only the child visited next. The others wait on the stack until its whole
+      // subtree is done, and are not visited at all when the ray is blocked in it.
+      if constexpr (!kAny) prefetch_children(n, mask, arena);
       e = next_child<W, !kAny>(n, mask, dist, stack, top);
+      if constexpr (kAny) prefetch_child<Node>(e.word, e.packets, arena);
     }
     {
       const auto* p = reinterpret_cast<const format::BvhTrianglePacket*>(
