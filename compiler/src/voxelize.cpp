@@ -336,49 +336,103 @@ BrickOutput voxelize_brick_normals(const GridMesh& mesh, std::span<const std::ui
   return out;
 }
 
-// Each of `triangles`, in the given order, in the bin (Morton index within `cube`) of each brick
-// of side `brick` its voxels may reach: over each column of bricks along the triangle's dominant
-// axis, only the bricks its plane's slab (with margin) meets, not its whole bounding box.
-std::vector<std::vector<std::uint32_t>> bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
-                                                      std::span<const std::uint32_t> triangles,
-                                                      std::uint32_t brick) {
-  const std::uint32_t per_axis = cube.side / brick;
-  const VoxelRange whole = range_of(cube);
-  std::vector<std::vector<std::uint32_t>> bins(std::size_t(per_axis) * per_axis * per_axis);
-  TriangleColumns columns;
-  for (const std::uint32_t i : triangles) {
-    const GridTriangle t = mesh.triangle(i);
-    const VoxelRange r = candidate_range(t, whole);
-    if (is_empty(r)) continue;
-    if ((r.lo[0] - whole.lo[0]) / brick == (r.hi[0] - whole.lo[0]) / brick &&
-        (r.lo[1] - whole.lo[1]) / brick == (r.hi[1] - whole.lo[1]) / brick &&
-        (r.lo[2] - whole.lo[2]) / brick == (r.hi[2] - whole.lo[2]) / brick) {
-      bins[format::morton_code(std::uint32_t((r.lo[0] - whole.lo[0]) / brick),
-                               std::uint32_t((r.lo[1] - whole.lo[1]) / brick),
-                               std::uint32_t((r.lo[2] - whole.lo[2]) / brick))]
-          .push_back(i);  // one brick: nothing to prune
-      continue;
-    }
-    if (!columns.setup(t)) continue;
-    const int a = columns.dominant_axis(), u = (a + 1) % 3, v = (a + 2) % 3;
-    std::int64_t b[3];
-    for (b[u] = (r.lo[u] - whole.lo[u]) / brick; b[u] <= (r.hi[u] - whole.lo[u]) / brick; ++b[u])
-      for (b[v] = (r.lo[v] - whole.lo[v]) / brick; b[v] <= (r.hi[v] - whole.lo[v]) / brick;
-           ++b[v]) {
-        const std::int64_t u0 = std::max(r.lo[u], whole.lo[u] + b[u] * brick),
-                           u1 = std::min(r.hi[u], whole.lo[u] + b[u] * brick + brick - 1),
-                           v0 = std::max(r.lo[v], whole.lo[v] + b[v] * brick),
-                           v1 = std::min(r.hi[v], whole.lo[v] + b[v] * brick + brick - 1);
-        std::int64_t a0, a1;
-        columns.reach_along_a(u0, u1, v0, v1, a0, a1);
-        a0 = std::max(a0, r.lo[a]), a1 = std::min(a1, r.hi[a]);
-        if (a0 > a1) continue;
-        for (b[a] = (a0 - whole.lo[a]) / brick; b[a] <= (a1 - whole.lo[a]) / brick; ++b[a])
-          bins[format::morton_code(std::uint32_t(b[0]), std::uint32_t(b[1]), std::uint32_t(b[2]))]
-              .push_back(i);
-      }
+// emit(b) for each brick (Morton index within `cube`, bricks of side `brick`) that triangle t's
+// voxels may reach, ascending in Morton order within each column of bricks: over each column of
+// bricks along the triangle's dominant axis, only the bricks its plane's slab (with margin)
+// meets, not its whole bounding box.
+template <class Emit>
+void bricks_reached(const GridTriangle& t, const VoxelRange& whole, std::uint32_t brick,
+                    TriangleColumns& columns, Emit emit) {
+  const VoxelRange r = candidate_range(t, whole);
+  if (is_empty(r)) return;
+  std::int64_t lo[3], hi[3];
+  for (int k = 0; k < 3; ++k)
+    lo[k] = (r.lo[k] - whole.lo[k]) / brick, hi[k] = (r.hi[k] - whole.lo[k]) / brick;
+  if (lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2]) {
+    emit(format::morton_code(std::uint32_t(lo[0]), std::uint32_t(lo[1]), std::uint32_t(lo[2])));
+    return;  // one brick: nothing to prune
   }
-  return bins;
+  if (!columns.setup(t)) return;
+  const int a = columns.dominant_axis(), u = (a + 1) % 3, v = (a + 2) % 3;
+  std::int64_t b[3];
+  for (b[u] = lo[u]; b[u] <= hi[u]; ++b[u])
+    for (b[v] = lo[v]; b[v] <= hi[v]; ++b[v]) {
+      const std::int64_t u0 = std::max(r.lo[u], whole.lo[u] + b[u] * brick),
+                         u1 = std::min(r.hi[u], whole.lo[u] + b[u] * brick + brick - 1),
+                         v0 = std::max(r.lo[v], whole.lo[v] + b[v] * brick),
+                         v1 = std::min(r.hi[v], whole.lo[v] + b[v] * brick + brick - 1);
+      std::int64_t a0, a1;
+      columns.reach_along_a(u0, u1, v0, v1, a0, a1);
+      a0 = std::max(a0, r.lo[a]), a1 = std::min(a1, r.hi[a]);
+      if (a0 > a1) continue;
+      for (b[a] = (a0 - whole.lo[a]) / brick; b[a] <= (a1 - whole.lo[a]) / brick; ++b[a])
+        emit(format::morton_code(std::uint32_t(b[0]), std::uint32_t(b[1]), std::uint32_t(b[2])));
+    }
+}
+
+// Triangles in the bins of bricks: bin b holds items[offsets[b], offsets[b + 1]).
+struct BrickBins {
+  std::vector<std::size_t> offsets;
+  std::vector<std::uint32_t> items;
+  std::size_t size() const { return offsets.size() - 1; }
+  std::span<std::uint32_t> bin(std::size_t b) {
+    return {items.data() + offsets[b], offsets[b + 1] - offsets[b]};
+  }
+};
+
+// Binning splits the triangles into this many consecutive ranges, a function of the counts alone
+// (never of the thread count): ranges of at least 16k triangles, and at most 4M range-brick
+// counters.
+std::size_t bin_range_count(std::size_t triangles, std::size_t bricks) {
+  const std::size_t by_size = (triangles + (std::size_t{1} << 14) - 1) >> 14;
+  const std::size_t by_counters = std::max<std::size_t>(1, (std::size_t{1} << 22) / bricks);
+  return std::max<std::size_t>(1, std::min(by_size, by_counters));
+}
+
+// Each of `triangles`, in the given order, in the bin of each brick of side `brick` it may reach
+// (bricks_reached). In parallel and deterministic: each fixed range of triangles lists its
+// (brick, triangle) pairs and counts them per brick; a brick's bin is then its ranges' entries
+// in range order, so the order within a bin is the given order, whatever the thread count.
+BrickBins bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
+                        std::span<const std::uint32_t> triangles, std::uint32_t brick,
+                        unsigned threads) {
+  const std::size_t per_axis = cube.side / brick, bricks = per_axis * per_axis * per_axis;
+  const std::size_t ranges = bin_range_count(triangles.size(), bricks);
+  const VoxelRange whole = range_of(cube);
+  std::vector<std::uint32_t> counts(ranges * bricks, 0);  // then each range's start in a bin
+  std::vector<std::vector<std::uint64_t>> pairs(ranges);  // brick << 32 | triangle
+  parallel_for(ranges, threads, [&](std::size_t k) {
+    const std::size_t first = triangles.size() * k / ranges,
+                      last = triangles.size() * (k + 1) / ranges;
+    std::uint32_t* count = counts.data() + k * bricks;
+    TriangleColumns columns;
+    for (std::size_t j = first; j < last; ++j) {
+      const std::uint32_t i = triangles[j];
+      bricks_reached(mesh.triangle(i), whole, brick, columns, [&](std::uint64_t b) {
+        ++count[b];
+        pairs[k].push_back(b << 32 | i);
+      });
+    }
+  });
+  BrickBins out;
+  out.offsets.assign(bricks + 1, 0);
+  for (std::size_t b = 0; b < bricks; ++b) {
+    std::uint32_t n = 0;
+    for (std::size_t k = 0; k < ranges; ++k) {
+      std::uint32_t& c = counts[k * bricks + b];
+      const std::uint32_t here = c;
+      c = n, n += here;
+    }
+    out.offsets[b + 1] = out.offsets[b] + n;
+  }
+  out.items.resize(out.offsets[bricks]);
+  parallel_for(ranges, threads, [&](std::size_t k) {
+    std::uint32_t* start = counts.data() + k * bricks;
+    for (const std::uint64_t p : pairs[k])
+      out.items[out.offsets[p >> 32] + start[p >> 32]++] = std::uint32_t(p);
+    std::vector<std::uint64_t>().swap(pairs[k]);
+  });
+  return out;
 }
 
 }  // namespace
@@ -447,21 +501,21 @@ Voxels voxelize_surface_cube(const Scene& scene, const VoxelGrid& grid, const Vo
   out.grid = grid;
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
   const GridMesh mesh(scene, grid, triangles.size());
-  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(mesh, cube, triangles, brick);
+  BrickBins bins = bin_triangles(mesh, cube, triangles, brick, threads);
   std::vector<BrickOutput> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
-    if (bins[b].empty()) return;
+    const std::span<std::uint32_t> bin = bins.bin(b);
+    if (bin.empty()) return;
     const Brick frame = brick_of(cube, brick, b);
     if (normals) {
       // Normals are summed in ascending triangle order, whatever order the caller gave.
-      if (!std::is_sorted(bins[b].begin(), bins[b].end()))
-        std::sort(bins[b].begin(), bins[b].end());
-      bricks[b] = voxelize_brick_normals(mesh, bins[b], frame, brick);
+      if (!std::is_sorted(bin.begin(), bin.end())) std::sort(bin.begin(), bin.end());
+      bricks[b] = voxelize_brick_normals(mesh, bin, frame, brick);
     } else {
-      append_codes(voxelize_brick_leaves(mesh, bins[b], frame, brick), bricks[b].codes);
+      append_codes(voxelize_brick_leaves(mesh, bin, frame, brick), bricks[b].codes);
     }
-    std::vector<std::uint32_t>().swap(bins[b]);
   });
+  bins = {};
   std::size_t total = 0;
   for (const auto& b : bricks) total += b.codes.size();
   out.codes.reserve(total);
@@ -480,13 +534,14 @@ VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
   if (!is_valid_cube(grid, cube)) throw std::invalid_argument("voxel cube outside the grid");
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
   const GridMesh mesh(scene, grid, triangles.size());
-  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(mesh, cube, triangles, brick);
+  BrickBins bins = bin_triangles(mesh, cube, triangles, brick, threads);
   std::vector<VoxelLeaves> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
-    if (bins[b].empty()) return;
-    bricks[b] = voxelize_brick_leaves(mesh, bins[b], brick_of(cube, brick, b), brick);
-    std::vector<std::uint32_t>().swap(bins[b]);
+    const std::span<const std::uint32_t> bin = bins.bin(b);
+    if (bin.empty()) return;
+    bricks[b] = voxelize_brick_leaves(mesh, bin, brick_of(cube, brick, b), brick);
   });
+  bins = {};
   VoxelLeaves out;
   std::size_t total = 0;
   for (const auto& b : bricks) total += b.keys.size();
