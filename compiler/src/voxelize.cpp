@@ -58,6 +58,14 @@ class GridMesh {
     const auto& tri = scene.triangles[i];
     return {{corners_[tri.v[0]], corners_[tri.v[1]], corners_[tri.v[2]]}};
   }
+  // Hints that triangle(i) comes soon: its vertex indices, or (once those are cached) its
+  // corners. The triangles of a brick are scattered over the vertex array (MBs).
+  void prefetch_indices(std::uint32_t i) const { __builtin_prefetch(&scene.triangles[i]); }
+  void prefetch_corners(std::uint32_t i) const {
+    if (corners_.empty()) return;
+    const auto& tri = scene.triangles[i];
+    for (int k = 0; k < 3; ++k) __builtin_prefetch(&corners_[tri.v[k]]);
+  }
   const Scene& scene;
 
  private:
@@ -211,7 +219,10 @@ void rasterize(const GridMesh& mesh, std::span<const std::uint32_t> triangles, c
                OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
   TriangleColumns columns;
   const std::int64_t* o = brick.clip.lo;
-  for (const std::uint32_t i : triangles) {
+  for (std::size_t k = 0; k < triangles.size(); ++k) {
+    if (k + 8 < triangles.size()) mesh.prefetch_indices(triangles[k + 8]);
+    if (k + 4 < triangles.size()) mesh.prefetch_corners(triangles[k + 4]);
+    const std::uint32_t i = triangles[k];
     if (!columns.setup(mesh.triangle(i))) continue;
     columns.walk(
         brick.clip,
@@ -345,9 +356,10 @@ void bricks_reached(const GridTriangle& t, const VoxelRange& whole, std::uint32_
                     TriangleColumns& columns, Emit emit) {
   const VoxelRange r = candidate_range(t, whole);
   if (is_empty(r)) return;
+  const int shift = std::countr_zero(brick);  // r lies in `whole`: shifts, not 64-bit divisions
   std::int64_t lo[3], hi[3];
   for (int k = 0; k < 3; ++k)
-    lo[k] = (r.lo[k] - whole.lo[k]) / brick, hi[k] = (r.hi[k] - whole.lo[k]) / brick;
+    lo[k] = (r.lo[k] - whole.lo[k]) >> shift, hi[k] = (r.hi[k] - whole.lo[k]) >> shift;
   if (lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2]) {
     emit(format::morton_code(std::uint32_t(lo[0]), std::uint32_t(lo[1]), std::uint32_t(lo[2])));
     return;  // one brick: nothing to prune
@@ -365,7 +377,7 @@ void bricks_reached(const GridTriangle& t, const VoxelRange& whole, std::uint32_
       columns.reach_along_a(u0, u1, v0, v1, a0, a1);
       a0 = std::max(a0, r.lo[a]), a1 = std::min(a1, r.hi[a]);
       if (a0 > a1) continue;
-      for (b[a] = (a0 - whole.lo[a]) / brick; b[a] <= (a1 - whole.lo[a]) / brick; ++b[a])
+      for (b[a] = (a0 - whole.lo[a]) >> shift; b[a] <= (a1 - whole.lo[a]) >> shift; ++b[a])
         emit(format::morton_code(std::uint32_t(b[0]), std::uint32_t(b[1]), std::uint32_t(b[2])));
     }
 }
@@ -405,6 +417,7 @@ BrickBins bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
     const std::size_t first = triangles.size() * k / ranges,
                       last = triangles.size() * (k + 1) / ranges;
     std::uint32_t* count = counts.data() + k * bricks;
+    pairs[k].reserve(last - first + (last - first) / 8);  // most triangles reach one brick
     TriangleColumns columns;
     for (std::size_t j = first; j < last; ++j) {
       const std::uint32_t i = triangles[j];
@@ -416,15 +429,16 @@ BrickBins bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
   });
   BrickBins out;
   out.offsets.assign(bricks + 1, 0);
-  for (std::size_t b = 0; b < bricks; ++b) {
-    std::uint32_t n = 0;
-    for (std::size_t k = 0; k < ranges; ++k) {
+  for (std::size_t k = 0; k < ranges; ++k)  // row by row: the counts of a range are contiguous
+    for (std::size_t b = 0; b < bricks; ++b) out.offsets[b + 1] += counts[k * bricks + b];
+  for (std::size_t b = 0; b < bricks; ++b) out.offsets[b + 1] += out.offsets[b];
+  std::vector<std::uint32_t> filled(bricks, 0);
+  for (std::size_t k = 0; k < ranges; ++k)
+    for (std::size_t b = 0; b < bricks; ++b) {
       std::uint32_t& c = counts[k * bricks + b];
       const std::uint32_t here = c;
-      c = n, n += here;
+      c = filled[b], filled[b] += here;
     }
-    out.offsets[b + 1] = out.offsets[b] + n;
-  }
   out.items.resize(out.offsets[bricks]);
   parallel_for(ranges, threads, [&](std::size_t k) {
     std::uint32_t* start = counts.data() + k * bricks;
