@@ -452,6 +452,15 @@ BrickBins bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
 
 }  // namespace
 
+double voxelizer_binning_bytes(std::uint32_t side, std::size_t triangles) {
+  const std::size_t per_axis = std::max<std::uint32_t>(1, side / kBrickSide);
+  const std::size_t bricks = per_axis * per_axis * per_axis;
+  // Offsets (8 bytes a brick), counters (4 a brick and range), and per binned triangle a
+  // (brick, triangle) pair and its place in the bins (8 + 4 bytes).
+  return double(bricks) * double(8 + 4 * bin_range_count(triangles, bricks)) +
+         12.0 * double(triangles);
+}
+
 VoxelGrid fit_voxel_grid(const format::Box3f& bounds, std::uint32_t resolution) {
   const double lo[3] = {bounds.min.x, bounds.min.y, bounds.min.z};
   const double hi[3] = {bounds.max.x, bounds.max.y, bounds.max.z};
