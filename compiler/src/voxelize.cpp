@@ -47,12 +47,13 @@ GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::uint3
 // doubles); otherwise each triangle converts its corners.
 class GridMesh {
  public:
-  GridMesh(const Scene& scene, const VoxelGrid& grid, std::size_t triangle_count)
+  GridMesh(const Scene& scene, const VoxelGrid& grid, std::size_t triangle_count, unsigned threads)
       : scene(scene), grid_(grid) {
     if (2 * triangle_count < scene.positions.size()) return;
     corners_.resize(scene.positions.size());
-    for (std::size_t k = 0; k < corners_.size(); ++k)
+    parallel_for_batched(corners_.size(), std::size_t{1} << 15, threads, [&](std::size_t k) {
       corners_[k] = grid_point(grid, scene.positions[k]);
+    });
   }
   GridTriangle triangle(std::uint32_t i) const {
     if (corners_.empty()) return grid_triangle(scene, grid_, i);
@@ -524,7 +525,7 @@ Voxels voxelize_surface_cube(const Scene& scene, const VoxelGrid& grid, const Vo
   Voxels out;
   out.grid = grid;
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
-  const GridMesh mesh(scene, grid, triangles.size());
+  const GridMesh mesh(scene, grid, triangles.size(), threads);
   BrickBins bins = bin_triangles(mesh, cube, triangles, brick, threads);
   std::vector<BrickOutput> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
@@ -557,7 +558,7 @@ VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
                                     unsigned threads) {
   if (!is_valid_cube(grid, cube)) throw std::invalid_argument("voxel cube outside the grid");
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
-  const GridMesh mesh(scene, grid, triangles.size());
+  const GridMesh mesh(scene, grid, triangles.size(), threads);
   BrickBins bins = bin_triangles(mesh, cube, triangles, brick, threads);
   std::vector<VoxelLeaves> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
