@@ -427,6 +427,7 @@ BrickBins bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
     pairs[k].reserve(last - first + (last - first) / 8);  // most triangles reach one brick
     TriangleColumns columns;
     for (std::size_t j = first; j < last; ++j) {
+      if (j + 8 < last) mesh.prefetch_corners(triangles[j + 8]);
       const std::uint32_t i = triangles[j];
       bricks_reached(mesh.triangle(i), whole, brick, columns, [&](std::uint64_t b) {
         ++count[b];
