@@ -11,7 +11,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "huge_pages.hpp"
 #include "kiln/compiler/voxelizer.hpp"
 #include "kiln/formats/voxel_grid.hpp"
 #include "kiln/runtime/parallel.hpp"
@@ -576,8 +575,8 @@ VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
   VoxelLeaves out;
   std::size_t total = 0;
   for (const auto& b : bricks) total += b.keys.size();
-  reserve_huge(out.keys, total);  // tens of MB, written once: fewer page faults
-  reserve_huge(out.masks, total);
+  out.keys.reserve(total);
+  out.masks.reserve(total);
   for (auto& b : bricks) {
     out.keys.insert(out.keys.end(), b.keys.begin(), b.keys.end());
     out.masks.insert(out.masks.end(), b.masks.begin(), b.masks.end());
