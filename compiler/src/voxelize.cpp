@@ -1,5 +1,7 @@
 // Surface voxelization brick by brick: triangles are binned to the bricks (128^3 voxels, in
-// Morton order) their plane's slab reaches; each brick walks its triangles column by column along
+// Morton order) their plane's slab reaches, in parallel over fixed ranges of triangles whose
+// entries are joined per brick in range order (so each bin lists its triangles in the given
+// order whatever the thread count); each brick walks its triangles column by column along
 // each triangle's dominant axis, where every separating-axis test is an interval of the column
 // (voxelize_columns.hpp: closed form, exact via margins), and sets bits in a per-thread bit array
 // laid out in Morton order, whose words are the 4x4x4 leaves. Leaves come out in order without
