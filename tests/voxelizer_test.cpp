@@ -477,6 +477,39 @@ TEST(Voxelizer, LeavesByteIdenticalAcrossThreadsAndCubes) {
   }
 }
 
+// Enough triangles for the binning to split them into several fixed ranges (of 16k), given in a
+// shuffled order, many crossing brick boundaries: with 1, 2 and 7 threads the leaves and the
+// codes with normals (summed in ascending triangle order) equal the predicate's.
+TEST(Voxelizer, BinningInRangesSameForAnyThreadCount) {
+  std::mt19937 rng(20);
+  std::uniform_int_distribution<int> corner(0, 8 * 255), step(-8, 8), big(-8 * 24, 8 * 24);
+  std::vector<std::array<Float3, 3>> triangles;
+  for (int i = 0; i < 40000; ++i) {
+    Float3 p[3];
+    p[0] = {float(corner(rng)) / 8, float(corner(rng)) / 8, float(corner(rng)) / 8};
+    if (i % 4 == 0) format::at(p[0], i / 4 % 3) = 128 + float(step(rng)) / 8;  // at a brick face
+    for (int j = 1; j < 3; ++j)
+      for (int a = 0; a < 3; ++a)
+        format::at(p[j], a) = std::clamp(
+            format::at(p[0], a) + float(i % 500 == 0 ? big(rng) : step(rng)) / 8, 0.0f, 256.0f);
+    triangles.push_back({p[0], p[1], p[2]});
+  }
+  const Scene scene = grid_unit_scene(triangles);
+  const VoxelGrid grid = unit_grid(256);
+  const Voxels want = reference_voxels(scene, grid, true);
+  std::vector<std::uint32_t> order = all_triangles(scene);
+  std::shuffle(order.begin(), order.end(), rng);
+  const VoxelCube cube{{0, 0, 0}, 256};
+  for (const unsigned threads : {1u, 2u, 7u}) {
+    const std::string what = std::to_string(threads) + " threads";
+    expect_leaves_equal(voxelize_surface_leaves(scene, grid, cube, order, threads),
+                        leaves_of(want.codes), what);
+    const Voxels got = voxelize_surface_cube(scene, grid, cube, order, true, threads);
+    EXPECT_EQ(got.codes, want.codes) << what;
+    EXPECT_EQ(got.normals, want.normals) << what;
+  }
+}
+
 TEST(VoxelDag, ExpandsToExactlyTheVoxelSet) {
   std::vector<std::pair<std::string, std::pair<std::vector<std::uint64_t>, std::uint32_t>>> sets;
   sets.push_back({"one voxel", {{format::morton_code(5, 1, 7)}, 8}});

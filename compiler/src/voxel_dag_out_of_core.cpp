@@ -34,8 +34,6 @@ namespace {
 // bricks are concatenated), then the leaves (16 per 4x4x4 block) and their reduction (12 per
 // block); a block holds at least one voxel.
 constexpr double kBytesPerVoxel = 32;
-// The voxelizer bins a cube's triangles into bricks of this side (one vector each).
-constexpr std::uint32_t kVoxelizerBrick = 128;
 // Budget-driven splitting stops here: below, the per-cube overhead dominates.
 constexpr std::uint32_t kMinCubeSide = 64;
 
@@ -180,9 +178,8 @@ double CubeWalk::estimate(const VoxelCube& cube, std::span<const std::uint32_t> 
 bool CubeWalk::split(const VoxelCube& cube, std::span<const std::uint32_t> triangles) const {
   if (options_.cube_side != 0) return cube.side > options_.cube_side;
   if (cube.side <= kMinCubeSide) return false;
-  const double bricks = double(cube.side / kVoxelizerBrick);
-  const double bytes = estimate(cube, triangles) * kBytesPerVoxel + bricks * bricks * bricks * 24 +
-                       4.0 * triangles.size();
+  const double bytes = estimate(cube, triangles) * kBytesPerVoxel +
+                       voxelizer_binning_bytes(cube.side, triangles.size());
   return bytes > double(budget_) / 4;
 }
 

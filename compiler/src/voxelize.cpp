@@ -1,10 +1,16 @@
 // Surface voxelization brick by brick: triangles are binned to the bricks (128^3 voxels, in
-// Morton order) their plane's slab reaches; each brick walks its triangles column by column along
+// Morton order) their plane's slab reaches, in parallel over fixed ranges of triangles whose
+// entries are joined per brick in range order (so each bin lists its triangles in the given
+// order whatever the thread count); each brick walks its triangles column by column along
 // each triangle's dominant axis, where every separating-axis test is an interval of the column
 // (voxelize_columns.hpp: closed form, exact via margins), and sets bits in a per-thread bit array
 // laid out in Morton order, whose words are the 4x4x4 leaves. Leaves come out in order without
 // per-voxel codes or a sort; concatenating bricks in Morton order gives the global order, and
 // every brick is a pure function of its triangles, so any thread count gives the same bytes.
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -46,17 +52,26 @@ GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std::uint3
 // doubles); otherwise each triangle converts its corners.
 class GridMesh {
  public:
-  GridMesh(const Scene& scene, const VoxelGrid& grid, std::size_t triangle_count)
+  GridMesh(const Scene& scene, const VoxelGrid& grid, std::size_t triangle_count, unsigned threads)
       : scene(scene), grid_(grid) {
     if (2 * triangle_count < scene.positions.size()) return;
     corners_.resize(scene.positions.size());
-    for (std::size_t k = 0; k < corners_.size(); ++k)
+    parallel_for_batched(corners_.size(), std::size_t{1} << 15, threads, [&](std::size_t k) {
       corners_[k] = grid_point(grid, scene.positions[k]);
+    });
   }
   GridTriangle triangle(std::uint32_t i) const {
     if (corners_.empty()) return grid_triangle(scene, grid_, i);
     const auto& tri = scene.triangles[i];
     return {{corners_[tri.v[0]], corners_[tri.v[1]], corners_[tri.v[2]]}};
+  }
+  // Hints that triangle(i) comes soon: its vertex indices, or (once those are cached) its
+  // corners. The triangles of a brick are scattered over the vertex array (MBs).
+  void prefetch_indices(std::uint32_t i) const { __builtin_prefetch(&scene.triangles[i]); }
+  void prefetch_corners(std::uint32_t i) const {
+    if (corners_.empty()) return;
+    const auto& tri = scene.triangles[i];
+    for (int k = 0; k < 3; ++k) __builtin_prefetch(&corners_[tri.v[k]]);
   }
   const Scene& scene;
 
@@ -211,7 +226,10 @@ void rasterize(const GridMesh& mesh, std::span<const std::uint32_t> triangles, c
                OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
   TriangleColumns columns;
   const std::int64_t* o = brick.clip.lo;
-  for (const std::uint32_t i : triangles) {
+  for (std::size_t k = 0; k < triangles.size(); ++k) {
+    if (k + 8 < triangles.size()) mesh.prefetch_indices(triangles[k + 8]);
+    if (k + 4 < triangles.size()) mesh.prefetch_corners(triangles[k + 4]);
+    const std::uint32_t i = triangles[k];
     if (!columns.setup(mesh.triangle(i))) continue;
     columns.walk(
         brick.clip,
@@ -336,52 +354,143 @@ BrickOutput voxelize_brick_normals(const GridMesh& mesh, std::span<const std::ui
   return out;
 }
 
-// Each of `triangles`, in the given order, in the bin (Morton index within `cube`) of each brick
-// of side `brick` its voxels may reach: over each column of bricks along the triangle's dominant
-// axis, only the bricks its plane's slab (with margin) meets, not its whole bounding box.
-std::vector<std::vector<std::uint32_t>> bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
-                                                      std::span<const std::uint32_t> triangles,
-                                                      std::uint32_t brick) {
-  const std::uint32_t per_axis = cube.side / brick;
-  const VoxelRange whole = range_of(cube);
-  std::vector<std::vector<std::uint32_t>> bins(std::size_t(per_axis) * per_axis * per_axis);
-  TriangleColumns columns;
-  for (const std::uint32_t i : triangles) {
-    const GridTriangle t = mesh.triangle(i);
-    const VoxelRange r = candidate_range(t, whole);
-    if (is_empty(r)) continue;
-    if ((r.lo[0] - whole.lo[0]) / brick == (r.hi[0] - whole.lo[0]) / brick &&
-        (r.lo[1] - whole.lo[1]) / brick == (r.hi[1] - whole.lo[1]) / brick &&
-        (r.lo[2] - whole.lo[2]) / brick == (r.hi[2] - whole.lo[2]) / brick) {
-      bins[format::morton_code(std::uint32_t((r.lo[0] - whole.lo[0]) / brick),
-                               std::uint32_t((r.lo[1] - whole.lo[1]) / brick),
-                               std::uint32_t((r.lo[2] - whole.lo[2]) / brick))]
-          .push_back(i);  // one brick: nothing to prune
-      continue;
-    }
-    if (!columns.setup(t)) continue;
-    const int a = columns.dominant_axis(), u = (a + 1) % 3, v = (a + 2) % 3;
+// emit(b) for each brick (Morton index within `cube`, bricks of side `brick`) that triangle t's
+// voxels may reach. When its candidate range spans at most two bricks, both (a triangle near a
+// brick face nearly always reaches both, and setting it up here costs as much as a wasted setup
+// in the walk); otherwise over each column of bricks along the triangle's dominant axis only the
+// bricks its plane's slab (with margin) meets, not its whole bounding box.
+template <class Emit>
+void bricks_reached(const GridTriangle& t, const VoxelRange& whole, std::uint32_t brick,
+                    TriangleColumns& columns, Emit emit) {
+  const VoxelRange r = candidate_range(t, whole);
+  if (is_empty(r)) return;
+  const int shift = std::countr_zero(brick);  // r lies in `whole`: shifts, not 64-bit divisions
+  std::int64_t lo[3], hi[3];
+  for (int k = 0; k < 3; ++k)
+    lo[k] = (r.lo[k] - whole.lo[k]) >> shift, hi[k] = (r.hi[k] - whole.lo[k]) >> shift;
+  if ((hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) <= 2) {
     std::int64_t b[3];
-    for (b[u] = (r.lo[u] - whole.lo[u]) / brick; b[u] <= (r.hi[u] - whole.lo[u]) / brick; ++b[u])
-      for (b[v] = (r.lo[v] - whole.lo[v]) / brick; b[v] <= (r.hi[v] - whole.lo[v]) / brick;
-           ++b[v]) {
-        const std::int64_t u0 = std::max(r.lo[u], whole.lo[u] + b[u] * brick),
-                           u1 = std::min(r.hi[u], whole.lo[u] + b[u] * brick + brick - 1),
-                           v0 = std::max(r.lo[v], whole.lo[v] + b[v] * brick),
-                           v1 = std::min(r.hi[v], whole.lo[v] + b[v] * brick + brick - 1);
-        std::int64_t a0, a1;
-        columns.reach_along_a(u0, u1, v0, v1, a0, a1);
-        a0 = std::max(a0, r.lo[a]), a1 = std::min(a1, r.hi[a]);
-        if (a0 > a1) continue;
-        for (b[a] = (a0 - whole.lo[a]) / brick; b[a] <= (a1 - whole.lo[a]) / brick; ++b[a])
-          bins[format::morton_code(std::uint32_t(b[0]), std::uint32_t(b[1]), std::uint32_t(b[2]))]
-              .push_back(i);
-      }
+    for (b[2] = lo[2]; b[2] <= hi[2]; ++b[2])
+      for (b[1] = lo[1]; b[1] <= hi[1]; ++b[1])
+        for (b[0] = lo[0]; b[0] <= hi[0]; ++b[0])
+          emit(format::morton_code(std::uint32_t(b[0]), std::uint32_t(b[1]), std::uint32_t(b[2])));
+    return;
   }
-  return bins;
+  if (!columns.setup(t)) return;
+  const int a = columns.dominant_axis(), u = (a + 1) % 3, v = (a + 2) % 3;
+  std::int64_t b[3];
+  for (b[u] = lo[u]; b[u] <= hi[u]; ++b[u])
+    for (b[v] = lo[v]; b[v] <= hi[v]; ++b[v]) {
+      const std::int64_t u0 = std::max(r.lo[u], whole.lo[u] + b[u] * brick),
+                         u1 = std::min(r.hi[u], whole.lo[u] + b[u] * brick + brick - 1),
+                         v0 = std::max(r.lo[v], whole.lo[v] + b[v] * brick),
+                         v1 = std::min(r.hi[v], whole.lo[v] + b[v] * brick + brick - 1);
+      std::int64_t a0, a1;
+      columns.reach_along_a(u0, u1, v0, v1, a0, a1);
+      a0 = std::max(a0, r.lo[a]), a1 = std::min(a1, r.hi[a]);
+      if (a0 > a1) continue;
+      for (b[a] = (a0 - whole.lo[a]) >> shift; b[a] <= (a1 - whole.lo[a]) >> shift; ++b[a])
+        emit(format::morton_code(std::uint32_t(b[0]), std::uint32_t(b[1]), std::uint32_t(b[2])));
+    }
+}
+
+// Triangles in the bins of bricks: bin b holds items[offsets[b], offsets[b + 1]).
+struct BrickBins {
+  std::vector<std::size_t> offsets;
+  std::vector<std::uint32_t> items;
+  std::size_t size() const { return offsets.size() - 1; }
+  std::span<std::uint32_t> bin(std::size_t b) {
+    return {items.data() + offsets[b], offsets[b + 1] - offsets[b]};
+  }
+};
+
+// Binning splits the triangles into this many consecutive ranges, a function of the counts alone
+// (never of the thread count): ranges of at least 16k triangles, and at most 4M range-brick
+// counters.
+std::size_t bin_range_count(std::size_t triangles, std::size_t bricks) {
+  const std::size_t by_size = (triangles + (std::size_t{1} << 14) - 1) >> 14;
+  const std::size_t by_counters = std::max<std::size_t>(1, (std::size_t{1} << 22) / bricks);
+  return std::max<std::size_t>(1, std::min(by_size, by_counters));
+}
+
+// Each of `triangles`, in the given order, in the bin of each brick of side `brick` it may reach
+// (bricks_reached). In parallel and deterministic: each fixed range of triangles lists its
+// (brick, triangle) pairs and counts them per brick; a brick's bin is then its ranges' entries
+// in range order, so the order within a bin is the given order, whatever the thread count.
+BrickBins bin_triangles(const GridMesh& mesh, const VoxelCube& cube,
+                        std::span<const std::uint32_t> triangles, std::uint32_t brick,
+                        unsigned threads) {
+  const std::size_t per_axis = cube.side / brick, bricks = per_axis * per_axis * per_axis;
+  const std::size_t ranges = bin_range_count(triangles.size(), bricks);
+  const VoxelRange whole = range_of(cube);
+  std::vector<std::uint32_t> counts(ranges * bricks, 0);  // then each range's start in a bin
+  std::vector<std::vector<std::uint64_t>> pairs(ranges);  // brick << 32 | triangle
+  parallel_for(ranges, threads, [&](std::size_t k) {
+    const std::size_t first = triangles.size() * k / ranges,
+                      last = triangles.size() * (k + 1) / ranges;
+    std::uint32_t* count = counts.data() + k * bricks;
+    pairs[k].reserve(last - first + (last - first) / 8);  // most triangles reach one brick
+    TriangleColumns columns;
+    for (std::size_t j = first; j < last; ++j) {
+      if (j + 8 < last) mesh.prefetch_corners(triangles[j + 8]);
+      const std::uint32_t i = triangles[j];
+      bricks_reached(mesh.triangle(i), whole, brick, columns, [&](std::uint64_t b) {
+        ++count[b];
+        pairs[k].push_back(b << 32 | i);
+      });
+    }
+  });
+  BrickBins out;
+  out.offsets.assign(bricks + 1, 0);
+  for (std::size_t k = 0; k < ranges; ++k)  // row by row: the counts of a range are contiguous
+    for (std::size_t b = 0; b < bricks; ++b) out.offsets[b + 1] += counts[k * bricks + b];
+  for (std::size_t b = 0; b < bricks; ++b) out.offsets[b + 1] += out.offsets[b];
+  std::vector<std::uint32_t> filled(bricks, 0);
+  for (std::size_t k = 0; k < ranges; ++k)
+    for (std::size_t b = 0; b < bricks; ++b) {
+      std::uint32_t& c = counts[k * bricks + b];
+      const std::uint32_t here = c;
+      c = filled[b], filled[b] += here;
+    }
+  out.items.resize(out.offsets[bricks]);
+  parallel_for(ranges, threads, [&](std::size_t k) {
+    std::uint32_t* start = counts.data() + k * bricks;
+    for (const std::uint64_t p : pairs[k])
+      out.items[out.offsets[p >> 32] + start[p >> 32]++] = std::uint32_t(p);
+    std::vector<std::uint64_t>().swap(pairs[k]);
+  });
+  return out;
+}
+
+// Faults in the pages of v's capacity on all threads (MADV_POPULATE_WRITE, Linux 5.14 on;
+// elsewhere, or when refused, nothing), so that filling it later takes no page fault on one
+// thread. The contents are left as they are.
+template <class T>
+void populate(std::vector<T>& v, unsigned threads) {
+#if defined(__linux__) && defined(MADV_POPULATE_WRITE)
+  constexpr std::uintptr_t kPage = 4096, kChunk = std::uintptr_t{1} << 21;
+  const auto begin = (reinterpret_cast<std::uintptr_t>(v.data()) + kPage - 1) & ~(kPage - 1);
+  const auto end = reinterpret_cast<std::uintptr_t>(v.data() + v.capacity()) & ~(kPage - 1);
+  if (end <= begin + kChunk) return;  // small: not worth the threads
+  parallel_for((end - begin + kChunk - 1) / kChunk, threads, [&](std::size_t c) {
+    const std::uintptr_t from = begin + c * kChunk, to = std::min(end, from + kChunk);
+    ::madvise(reinterpret_cast<void*>(from), to - from, MADV_POPULATE_WRITE);
+  });
+#else
+  (void)v, (void)threads;
+#endif
 }
 
 }  // namespace
+
+double voxelizer_binning_bytes(std::uint32_t side, std::size_t triangles) {
+  const std::size_t per_axis = std::max<std::uint32_t>(1, side / kBrickSide);
+  const std::size_t bricks = per_axis * per_axis * per_axis;
+  // Offsets (8 bytes a brick), counters (4 a brick and range), and per binned triangle a
+  // (brick, triangle) pair and its place in the bins (8 + 4 bytes).
+  return double(bricks) * double(8 + 4 * bin_range_count(triangles, bricks)) +
+         12.0 * double(triangles);
+}
 
 VoxelGrid fit_voxel_grid(const format::Box3f& bounds, std::uint32_t resolution) {
   const double lo[3] = {bounds.min.x, bounds.min.y, bounds.min.z};
@@ -446,26 +555,27 @@ Voxels voxelize_surface_cube(const Scene& scene, const VoxelGrid& grid, const Vo
   Voxels out;
   out.grid = grid;
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
-  const GridMesh mesh(scene, grid, triangles.size());
-  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(mesh, cube, triangles, brick);
+  const GridMesh mesh(scene, grid, triangles.size(), threads);
+  BrickBins bins = bin_triangles(mesh, cube, triangles, brick, threads);
   std::vector<BrickOutput> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
-    if (bins[b].empty()) return;
+    const std::span<std::uint32_t> bin = bins.bin(b);
+    if (bin.empty()) return;
     const Brick frame = brick_of(cube, brick, b);
     if (normals) {
       // Normals are summed in ascending triangle order, whatever order the caller gave.
-      if (!std::is_sorted(bins[b].begin(), bins[b].end()))
-        std::sort(bins[b].begin(), bins[b].end());
-      bricks[b] = voxelize_brick_normals(mesh, bins[b], frame, brick);
+      if (!std::is_sorted(bin.begin(), bin.end())) std::sort(bin.begin(), bin.end());
+      bricks[b] = voxelize_brick_normals(mesh, bin, frame, brick);
     } else {
-      append_codes(voxelize_brick_leaves(mesh, bins[b], frame, brick), bricks[b].codes);
+      append_codes(voxelize_brick_leaves(mesh, bin, frame, brick), bricks[b].codes);
     }
-    std::vector<std::uint32_t>().swap(bins[b]);
   });
+  bins = {};
   std::size_t total = 0;
   for (const auto& b : bricks) total += b.codes.size();
   out.codes.reserve(total);
   if (normals) out.normals.reserve(total);
+  populate(out.codes, threads), populate(out.normals, threads);
   for (auto& b : bricks) {  // bricks in Morton order give the global order
     out.codes.insert(out.codes.end(), b.codes.begin(), b.codes.end());
     out.normals.insert(out.normals.end(), b.normals.begin(), b.normals.end());
@@ -479,19 +589,21 @@ VoxelLeaves voxelize_surface_leaves(const Scene& scene, const VoxelGrid& grid,
                                     unsigned threads) {
   if (!is_valid_cube(grid, cube)) throw std::invalid_argument("voxel cube outside the grid");
   const std::uint32_t brick = std::min(cube.side, kBrickSide);
-  const GridMesh mesh(scene, grid, triangles.size());
-  std::vector<std::vector<std::uint32_t>> bins = bin_triangles(mesh, cube, triangles, brick);
+  const GridMesh mesh(scene, grid, triangles.size(), threads);
+  BrickBins bins = bin_triangles(mesh, cube, triangles, brick, threads);
   std::vector<VoxelLeaves> bricks(bins.size());
   parallel_for(bins.size(), threads, [&](std::size_t b) {
-    if (bins[b].empty()) return;
-    bricks[b] = voxelize_brick_leaves(mesh, bins[b], brick_of(cube, brick, b), brick);
-    std::vector<std::uint32_t>().swap(bins[b]);
+    const std::span<const std::uint32_t> bin = bins.bin(b);
+    if (bin.empty()) return;
+    bricks[b] = voxelize_brick_leaves(mesh, bin, brick_of(cube, brick, b), brick);
   });
+  bins = {};
   VoxelLeaves out;
   std::size_t total = 0;
   for (const auto& b : bricks) total += b.keys.size();
   out.keys.reserve(total);
   out.masks.reserve(total);
+  populate(out.keys, threads), populate(out.masks, threads);
   for (auto& b : bricks) {
     out.keys.insert(out.keys.end(), b.keys.begin(), b.keys.end());
     out.masks.insert(out.masks.end(), b.masks.begin(), b.masks.end());

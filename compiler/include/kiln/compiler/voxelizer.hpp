@@ -97,6 +97,11 @@ struct VoxelLeaves {
 };
 VoxelLeaves leaves_of(std::span<const std::uint64_t> codes);
 
+/// Bytes the voxelizer holds to bin `triangles` triangles into the bricks of a cube of `side`
+/// (its per-brick offsets and per-range counters, and about 12 bytes per triangle), besides the
+/// voxels it outputs.
+double voxelizer_binning_bytes(std::uint32_t side, std::size_t triangles);
+
 /// The surface voxels of `cube` as 4x4x4 blocks with global keys: equal to
 /// leaves_of(voxelize_surface_cube(scene, grid, cube, triangles, false, threads).codes), and for
 /// the whole grid to leaves_of(voxelize_surface(...).codes), without the per-voxel codes.
