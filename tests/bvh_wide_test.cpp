@@ -322,7 +322,7 @@ TEST(WideBvh, ForgedArenasAreRefused) {
   ASSERT_GE(interior, 0);
   ASSERT_GE(leaf, 0);
   auto expect_refused = [&](const char* what, std::size_t at, auto&& forge) {
-    Bytes bad = wide.arena;
+    Bytes bad(wide.arena.begin(), wide.arena.end());
     forge(bad, *reinterpret_cast<Node*>(bad.data() + at));
     EXPECT_THROW(BvhWideView(4, false, bad, "test", BvhKernel::kScalar), BlobError) << what;
   };

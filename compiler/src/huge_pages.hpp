@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "kiln/compiler/uninitialized_allocator.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"  // advise_huge_pages
 
 namespace kiln {
@@ -21,6 +22,17 @@ void reserve_huge(std::vector<T, A>& v, std::size_t n) {
 template <class T>
 std::vector<T> huge_vector(std::size_t n) {
   std::vector<T> v;
+  reserve_huge(v, n);
+  v.resize(n);
+  return v;
+}
+
+/// A vector of `n` uninitialised (default-initialised) elements on huge pages, for arrays whose
+/// every element is written before it is read: no serial zeroing pass, and the pages are first
+/// touched by whichever thread writes them.
+template <class T>
+UninitializedVector<T> huge_uninitialized(std::size_t n) {
+  UninitializedVector<T> v;
   reserve_huge(v, n);
   v.resize(n);
   return v;
