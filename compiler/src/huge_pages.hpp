@@ -27,15 +27,12 @@ std::vector<T> huge_vector(std::size_t n) {
   return v;
 }
 
-/// A vector of `n` uninitialised (default-initialised) elements on huge pages, for arrays whose
-/// every element is written before it is read: no serial zeroing pass, and the pages are first
-/// touched by whichever thread writes them.
+/// A vector of `n` uninitialised (default-initialised) elements on huge pages
+/// (UninitializedAllocator), for arrays whose every element is written before it is read: no
+/// serial zeroing pass, and the pages are first touched by whichever thread writes them.
 template <class T>
 UninitializedVector<T> huge_uninitialized(std::size_t n) {
-  UninitializedVector<T> v;
-  reserve_huge(v, n);
-  v.resize(n);
-  return v;
+  return UninitializedVector<T>(n);
 }
 
 }  // namespace kiln

@@ -8,11 +8,15 @@
 #include <utility>
 #include <vector>
 
+#include "kiln/runtime/aligned_buffer.hpp"  // advise_huge_pages
+
 namespace kiln {
 
 /// std::allocator, except that construct(p) with no arguments default-initialises (no zeroing
-/// for trivial types). For buffers every byte of which the owner writes before reading, e.g.
-/// the wide BVH arena (kiln/compiler/bvh_collapse.hpp).
+/// for trivial types), and that every block is advised onto transparent huge pages
+/// (advise_huge_pages) before it is touched. For large arrays every byte of which the owner
+/// writes before reading (in parallel, first touching its pages where it writes): build
+/// references, the wide BVH arena (kiln/compiler/bvh_collapse.hpp).
 template <class T>
 struct UninitializedAllocator : std::allocator<T> {
   using value_type = T;
@@ -24,6 +28,11 @@ struct UninitializedAllocator : std::allocator<T> {
   template <class U>
   UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
 
+  T* allocate(std::size_t n) {
+    T* p = std::allocator<T>::allocate(n);
+    advise_huge_pages(p, n * sizeof(T));
+    return p;
+  }
   template <class U>
   void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
     ::new (static_cast<void*>(p)) U;
