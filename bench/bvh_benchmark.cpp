@@ -824,7 +824,7 @@ struct Contestant {
 using KilnArenas = std::map<std::string, kiln::AlignedBuffer>;
 
 const kiln::AlignedBuffer& arena_copy(KilnArenas& arenas, const std::string& name,
-                                      const std::vector<std::byte>& arena) {
+                                      std::span<const std::byte> arena) {
   auto& buffer = arenas.emplace(name, kiln::AlignedBuffer(arena.size(), 64)).first->second;
   std::memcpy(buffer.data(), arena.data(), arena.size());
   return buffer;

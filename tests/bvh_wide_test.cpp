@@ -10,6 +10,7 @@
 #include <map>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "kiln/compiler/bvh_builder.hpp"
@@ -173,22 +174,26 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
 
 // Above 65,536 binary nodes the collapse sweeps subtrees on their own threads, and on more than
 // one thread it writes the subtrees below the top levels in parallel: the same arena, tree by
-// index and statistics as one thread.
+// index and statistics as one thread (which sizes nothing first: it appends, growing the arena
+// as it goes), for the programme and the greedy collapse.
 TEST(WideBvh, CollapseIsTheSameOnAnyThreadCount) {
   const Scene scene = test::icosphere(6);  // 81,920 triangles
   BvhBuildOptions o;
   o.leaf_triangles = false;
   const FlatBvh binary = build_bvh(scene, o);
   ASSERT_GE(binary.nodes.size(), 65536u);
-  for (const auto& [width, quantized] : {std::pair{8u, false}, std::pair{4u, true}}) {
+  for (const auto& [width, quantized, greedy] :
+       {std::tuple{8u, false, false}, std::tuple{4u, true, false}, std::tuple{8u, false, true}}) {
     std::vector<FlatWideBvh> wide;
     for (const unsigned threads : {1u, 2u, 8u}) {
       WideCollapseOptions c;
       c.threads = threads;
+      c.greedy = greedy;
       wide.push_back(collapse_bvh(binary, width, scene.triangles.size(), quantized, &scene, c));
     }
     for (std::size_t i = 1; i < wide.size(); ++i) {
-      EXPECT_EQ(wide[i].arena, wide[0].arena) << width << (quantized ? " u8" : "");
+      EXPECT_EQ(wide[i].arena, wide[0].arena)
+          << width << (quantized ? " u8" : "") << (greedy ? " greedy" : "");
       EXPECT_EQ(wide[i].nodes, wide[0].nodes);
       ASSERT_EQ(wide[i].packets.size(), wide[0].packets.size());
       EXPECT_EQ(0, std::memcmp(wide[i].packets.data(), wide[0].packets.data(),
@@ -200,6 +205,7 @@ TEST(WideBvh, CollapseIsTheSameOnAnyThreadCount) {
     // Without the tree by index, the same arena.
     WideCollapseOptions c;
     c.threads = 2;
+    c.greedy = greedy;
     c.index_tree = false;
     const FlatWideBvh arena_only =
         collapse_bvh(binary, width, scene.triangles.size(), quantized, &scene, c);
@@ -322,7 +328,7 @@ TEST(WideBvh, ForgedArenasAreRefused) {
   ASSERT_GE(interior, 0);
   ASSERT_GE(leaf, 0);
   auto expect_refused = [&](const char* what, std::size_t at, auto&& forge) {
-    Bytes bad = wide.arena;
+    Bytes bad(wide.arena.begin(), wide.arena.end());
     forge(bad, *reinterpret_cast<Node*>(bad.data() + at));
     EXPECT_THROW(BvhWideView(4, false, bad, "test", BvhKernel::kScalar), BlobError) << what;
   };

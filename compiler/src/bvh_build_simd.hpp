@@ -208,34 +208,8 @@ struct alignas(16) BuildRef {
 };
 static_assert(sizeof(BuildRef) == 32);
 
-/// An allocator whose value construction leaves trivial elements uninitialised: a reference
-/// array resized for a parallel fill is not first zeroed (and its pages faulted in) serially.
-template <class T>
-struct UninitAllocator : std::allocator<T> {
-  template <class U>
-  struct rebind {
-    using other = UninitAllocator<U>;
-  };
-  UninitAllocator() = default;
-  template <class U>
-  UninitAllocator(const UninitAllocator<U>&) noexcept {}
-  template <class U>
-  void construct(U* p) noexcept {
-    ::new (static_cast<void*>(p)) U;
-  }
-  template <class U, class... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-  T* allocate(std::size_t n) {  // large arrays on huge pages (huge_pages.hpp)
-    T* p = std::allocator<T>::allocate(n);
-    advise_huge_pages(p, n * sizeof(T));
-    return p;
-  }
-};
-
 /// Build references, allocated without zeroing.
-using BuildRefs = std::vector<BuildRef, UninitAllocator<BuildRef>>;
+using BuildRefs = UninitializedVector<BuildRef>;  // a parallel fill, no serial zeroing first
 
 /// A box as two vectors (fourth lanes ignored); empty as Box3f's default.
 struct VBox {

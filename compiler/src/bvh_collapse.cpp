@@ -107,17 +107,18 @@ struct TopLevels {
 template <int W>
 struct CollapseProgramme {
   using Row = std::array<double, W>;
-  std::vector<double> cost1;        // [node]: cost(node, 1)
-  std::vector<std::uint8_t> pick;   // [node * W + k - 1] k = 1: 1 = leaf; k > 1: 0 = as k - 1,
-                                    // else slots to the left
-  std::vector<std::uint8_t> split;  // a wide node's slots to the left child (of W)
+  // Every element of these is written by `visit` (split: interior nodes only) before any read.
+  UninitializedVector<double> cost1;        // [node]: cost(node, 1)
+  UninitializedVector<std::uint8_t> pick;   // [node * W + k - 1] k = 1: 1 = leaf; k > 1: 0 = as
+                                            // k - 1, else slots to the left
+  UninitializedVector<std::uint8_t> split;  // a wide node's slots to the left child (of W)
   using Rows = std::vector<std::pair<std::uint32_t, Row>>;  // pending rows: node, costs
   const WideCollapseOptions& o;
 
   CollapseProgramme(std::size_t nodes, const WideCollapseOptions& opt)
-      : cost1(huge_vector<double>(nodes)),
-        pick(huge_vector<std::uint8_t>(nodes * W)),
-        split(huge_vector<std::uint8_t>(nodes)),
+      : cost1(huge_uninitialized<double>(nodes)),
+        pick(huge_uninitialized<std::uint8_t>(nodes * W)),
+        split(huge_uninitialized<std::uint8_t>(nodes)),
         o(opt) {}
 
   // Node i, once its children (if any) have been visited.
@@ -130,6 +131,7 @@ struct CollapseProgramme {
     if (n.count > 0) {
       c.fill(leaf);
       p[0] = 1;
+      std::memset(p + 1, 0, W - 1);
       cost1[i] = leaf;
       rows.push_back({i, c});
       return;
@@ -185,19 +187,23 @@ struct Collapser {
   const Scene* scene;  // corners from here when bin.triangles is empty
   FlatWideBvh& out;
   const WideCollapseOptions& options;
-  std::vector<std::uint32_t> refs;                // references under each binary node
+  UninitializedVector<std::uint32_t> refs;        // references under each binary node
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
-  std::vector<double> triangle_area;              // under each binary node (kOcclusion)
-  std::vector<double> prim_area;                  // each scene triangle's (kOcclusion, no copies)
+  UninitializedVector<double> triangle_area;      // under each binary node (kOcclusion)
+  UninitializedVector<double> prim_area;          // each scene triangle's (kOcclusion, no copies)
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
-      : bin(b), scene(s), out(o), options(opt), refs(huge_vector<std::uint32_t>(b.nodes.size())) {
+      : bin(b),
+        scene(s),
+        out(o),
+        options(opt),
+        refs(huge_uninitialized<std::uint32_t>(b.nodes.size())) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
     if (!options.greedy) programme.emplace(bin.nodes.size(), options);
     const bool occlusion = options.order == WideSlotOrder::kOcclusion;
     if (occlusion) {
-      triangle_area = huge_vector<double>(bin.nodes.size());
+      triangle_area = huge_uninitialized<double>(bin.nodes.size());
       if (bin.triangles.empty()) prim_area = scene_triangle_areas(*scene, options.threads);
     }
     sweep(options.threads);
@@ -276,8 +282,8 @@ struct Collapser {
 
   // Every scene triangle's area, in scene order (its corners read in sequence, not in the
   // leaves' scattered order).
-  static std::vector<double> scene_triangle_areas(const Scene& scene, unsigned threads) {
-    std::vector<double> area = huge_vector<double>(scene.triangles.size());
+  static UninitializedVector<double> scene_triangle_areas(const Scene& scene, unsigned threads) {
+    UninitializedVector<double> area = huge_uninitialized<double>(scene.triangles.size());
     parallel_for_batched(area.size(), 65536, threads, [&](std::size_t i) {
       const auto& t = scene.triangles[i];
       area[i] =
@@ -338,13 +344,13 @@ struct Collapser {
     }
   }
 
-  // Packs subtree `i`'s references into packets at `dst`; returns their count.
-  std::uint8_t write_leaf(std::uint32_t i, std::byte* dst, WriteTally& tally) const {
-    std::vector<std::uint32_t>& list = tally.scratch;
-    distinct_refs(i, list);
+  // Packs subtree `i`'s references into packets at byte `at` of the arena; returns their count.
+  std::uint8_t write_leaf(std::uint32_t i, std::size_t at, WriteTally& tally) const {
+    const std::uint32_t packets = leaf_packets(i, tally.scratch);
+    const std::vector<std::uint32_t>& list = tally.scratch;
     const auto count = std::uint32_t(list.size());
     tally.lanes_used += count;
-    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+    std::byte* dst = room(at + packets * sizeof(format::BvhTrianglePacket)) + at;
     for (std::uint32_t p = 0; p < packets; ++p, dst += sizeof(format::BvhTrianglePacket)) {
       format::BvhTrianglePacket packet;
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
@@ -363,7 +369,8 @@ struct Collapser {
     return std::uint8_t(packets);
   }
 
-  // The packets of a leaf slot, checked against the format's limit.
+  // The packets of a leaf slot, checked against the format's limit; its distinct references in
+  // `scratch`.
   std::uint32_t leaf_packets(std::uint32_t i, std::vector<std::uint32_t>& scratch) const {
     distinct_refs(i, scratch);
     const auto count = std::uint32_t(scratch.size());
@@ -420,6 +427,13 @@ struct Collapser {
     }
   }
 
+  // The arena, at least `end` bytes long: one writer grows it as it goes (amortised, from an
+  // estimate); writers in parallel get it sized in full before, and only read its size here.
+  std::byte* room(std::size_t end) const {
+    if (out.arena.size() < end) out.arena.resize(end);
+    return out.arena.data();
+  }
+
   static std::uint32_t unit(std::size_t bytes) {
     if (bytes / format::kBvhArenaUnit >= format::kBvhLeafFlag)
       throw std::invalid_argument("BVH too large for 32-bit arena offsets");
@@ -429,8 +443,8 @@ struct Collapser {
     return (bytes + format::kBvhArenaLine - 1) / format::kBvhArenaLine * format::kBvhArenaLine;
   }
 
-  // The wide node of binary node `i` and its subtree, written into the arena (sized and zeroed
-  // before) at byte `at` (kiln/formats/bvh_wide.hpp): the node, its leaf packets, zeros to the
+  // The wide node of binary node `i` and its subtree, written into the arena (sized before, not
+  // zeroed) at byte `at` (kiln/formats/bvh_wide.hpp): the node, its leaf packets, zeros to the
   // next line, then its interior children's subtrees. Returns the end of the subtree; sets
   // `leaf_lines` to the lines its own leaf packets span. Interior children listed in `top` are
   // not written: their places (sized by `top`) are recorded there for writers of their own.
@@ -448,17 +462,17 @@ struct Collapser {
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
     Slots<W> kids = gather(i);
     order_slots(kids);
-    std::byte* const arena = out.arena.data();
     std::size_t end = at + sizeof(Node);
     for (int k = 0; k < kids.size; ++k) {
       const auto& b = bin.nodes[kids.node[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
       if (!is_leaf(kids.node[k])) continue;
       node.child[k] = format::kBvhLeafFlag | unit(end);
-      node.packets[k] = write_leaf(kids.node[k], arena + end, tally);
+      node.packets[k] = write_leaf(kids.node[k], end, tally);
       end += node.packets[k] * sizeof(format::BvhTrianglePacket);
     }
     leaf_lines = to_line(end - at - sizeof(Node)) / format::kBvhArenaLine;
+    std::memset(room(to_line(end)) + end, 0, to_line(end) - end);  // the arena is not zeroed
     end = to_line(end);
     for (int k = 0; k < kids.size; ++k) {
       if (is_leaf(kids.node[k])) continue;
@@ -473,10 +487,10 @@ struct Collapser {
       node.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
     }
     if constexpr (std::is_same_v<Node, format::BvhWideNode<W>>) {
-      std::memcpy(arena + at, &node, sizeof node);
+      std::memcpy(room(at + sizeof node) + at, &node, sizeof node);
     } else {
       const Node q = quantize(node);
-      std::memcpy(arena + at, &q, sizeof q);
+      std::memcpy(room(at + sizeof q) + at, &q, sizeof q);
     }
     return end;
   }
@@ -562,7 +576,7 @@ struct IndexTreeReader {
 
 // Writes the arena: serially, or (threads > 1) the top levels here and the subtrees below them
 // on their own threads, each into its place. The same bytes either way.
-void size_arena(std::vector<std::byte>& arena, std::size_t bytes) {
+void size_arena(UninitializedVector<std::byte>& arena, std::size_t bytes) {
   reserve_huge(arena, bytes);
   arena.resize(bytes);
 }
@@ -575,8 +589,11 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   WriteTally tally;
   std::size_t root_lines = 0;
   if (threads == 1 || collapser.is_leaf(0)) {
-    size_arena(out.arena, collapser.subtree_size(0, sizeof(Node), tally.scratch).first);
-    collapser.template write<Node>(0, 1, 0, root_lines, tally);
+    // One writer appends (pre-order), so no sizing pass: the arena grows from an estimate
+    // (reserved, so untouched pages cost nothing) and is cut to the bytes written.
+    reserve_huge(out.arena,
+                 std::size_t(collapser.refs.empty() ? 0 : collapser.refs[0]) * 80 + sizeof(Node));
+    out.arena.resize(collapser.template write<Node>(0, 1, 0, root_lines, tally));
   } else {
     TopLevels top;
     const std::uint32_t limit = std::max<std::uint32_t>(collapser.refs[0] / (16 * threads), 64);

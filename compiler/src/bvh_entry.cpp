@@ -161,7 +161,7 @@ BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, con
   FlatWideBvh collapsed =
       collapse_bvh(flat, o.width, scene.triangles.size(), o.quantized, &scene, c);
   const WideBvhStatistics w = collapsed.stats;
-  auto arena = std::make_shared<std::vector<std::byte>>(std::move(collapsed.arena));
+  auto arena = std::make_shared<UninitializedVector<std::byte>>(std::move(collapsed.arena));
   collapsed = {};
   BuiltStructure built;
   SectionPayload section = raw_section(format::kSectionBvhWideArena, *arena);

@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "kiln/compiler/uninitialized_allocator.hpp"
 #include "kiln/runtime/aligned_buffer.hpp"  // advise_huge_pages
 
 namespace kiln {
@@ -24,6 +25,14 @@ std::vector<T> huge_vector(std::size_t n) {
   reserve_huge(v, n);
   v.resize(n);
   return v;
+}
+
+/// A vector of `n` uninitialised (default-initialised) elements on huge pages
+/// (UninitializedAllocator), for arrays whose every element is written before it is read: no
+/// serial zeroing pass, and the pages are first touched by whichever thread writes them.
+template <class T>
+UninitializedVector<T> huge_uninitialized(std::size_t n) {
+  return UninitializedVector<T>(n);
 }
 
 }  // namespace kiln

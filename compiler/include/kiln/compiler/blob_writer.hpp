@@ -22,8 +22,8 @@ struct SectionPayload {
 };
 
 /// A required, compressible section over `values`' elements (borrowed: keep them alive).
-template <class T>
-SectionPayload raw_section(std::uint32_t kind, const std::vector<T>& values) {
+template <class T, class Allocator>
+SectionPayload raw_section(std::uint32_t kind, const std::vector<T, Allocator>& values) {
   return {kind,          std::uint16_t(format::SectionFlag::kRequired), sizeof(T),
           values.size(), std::as_bytes(std::span<const T>(values)),     true};
 }

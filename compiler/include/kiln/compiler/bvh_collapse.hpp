@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "kiln/compiler/bvh_builder.hpp"
+#include "kiln/compiler/uninitialized_allocator.hpp"
 #include "kiln/formats/bvh_wide.hpp"
 
 namespace kiln {
@@ -27,11 +28,12 @@ struct WideBvhStatistics {
 /// The same tree by index, for tests and tools: `nodes` holds node_count nodes of `width`
 /// children as raw bytes (BvhNode4/8, or BvhQNode4/8 when quantized) in depth-first pre-order,
 /// whose child words are node indices and leaf packet indices into `packets` instead of arena
-/// offsets (interior children's `packets` 0).
+/// offsets (interior children's `packets` 0). The arena's every byte is written (padding as
+/// zeros), so it is made without zeroing first.
 struct FlatWideBvh {
   std::uint32_t width = 8;
   bool quantized = false;  ///< nodes are BvhQNode4/8 (8-bit child boxes) instead of float ones
-  std::vector<std::byte> arena;
+  UninitializedVector<std::byte> arena;
   std::vector<std::byte> nodes;
   std::vector<format::BvhTrianglePacket> packets;
   WideBvhStatistics stats;
