@@ -123,7 +123,7 @@ struct SpatialBins {
   // computed once and serves the bins on both sides; the slab boxes are exact, as the sides
   // apply_spatial_split makes, where clipping the rest at each plane in turn (as Stich et al.
   // and Embree do) gives the intersection of two half-space boxes, larger in general.
-  void add(const PrimRef& r, const format::Float3 (&v)[3], int a) {
+  [[gnu::always_inline]] void add(const PrimRef& r, const format::Float3 (&v)[3], int a) {
     const std::size_t base = std::size_t(a) * k;
     const std::uint32_t first = bin_of(a, format::at(r.box.min, a));
     const std::uint32_t last = std::max(first, bin_of(a, format::at(r.box.max, a)));
@@ -137,8 +137,8 @@ struct SpatialBins {
   // cut (edge points on vectors) and its lower one the previous lane's. Every lane computes
   // what the scalar clipping did, operation for operation (the same bits), and min/max keep
   // Box3f::grow's and intersection's operand order.
-  void add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int a, std::uint32_t first,
-                 std::uint32_t last);
+  [[gnu::always_inline]] inline void add_slabs(const PrimRef& r, const format::Float3 (&v)[3],
+                                               int a, std::uint32_t first, std::uint32_t last);
 };
 
 // The box of the points where a triangle's edges cross the plane axis a = hi, per lane (empty
@@ -167,8 +167,8 @@ struct SpatialBins {
   }
 }
 
-void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int a,
-                            std::uint32_t first, std::uint32_t last) {
+inline void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int a,
+                                   std::uint32_t first, std::uint32_t last) {
   using namespace bvh_simd;
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const V4 inf = splat(kInf), ninf = splat(-kInf);
@@ -229,7 +229,8 @@ namespace {
 
 // Bins the references of [begin, end) on every axis with extent, reference by reference (its
 // corners loaded once).
-void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
+[[gnu::always_inline]] inline void bin_each(std::span<const PrimRef> refs, const Scene& scene,
+                                            SpatialBins& bins) {
   // The triangles and corners of references in sorted order are scattered over the scene:
   // prefetched, the triangle kTriangleAhead references ahead, its corners kCornersAhead ahead.
   constexpr std::size_t kTriangleAhead = 16, kCornersAhead = 8;
@@ -245,6 +246,29 @@ void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBi
     for (int a = 0; a < 3; ++a)
       if (bins.valid[a]) bins.add(r, v, a);
   }
+}
+
+void bin_references_sse(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
+  bin_each(refs, scene, bins);
+}
+
+#if (defined(__x86_64__) || defined(__i386__)) && defined(__GNUC__)
+#define KILN_SPATIAL_EVEX 1
+// The same code, operation for operation, in EVEX encodings: AVX-512VL's 32 vector registers
+// hold add_slabs's corners, cuts and boxes, which spill on SSE's 16. Still four lanes, and no
+// FMA (the project builds with -ffp-contract=off), so the bins are the same bits.
+__attribute__((target("avx2,avx512f,avx512vl"))) void bin_references_evex(
+    std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
+  bin_each(refs, scene, bins);
+}
+#endif
+
+void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
+#if defined(KILN_SPATIAL_EVEX)
+  static const bool evex = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
+  if (evex) return bin_references_evex(refs, scene, bins);
+#endif
+  bin_references_sse(refs, scene, bins);
 }
 
 // Bin boxes grow by min/max and counts add, so merging chunks in any order gives the same bins.
