@@ -1,6 +1,7 @@
 // SBVH spatial splits (Stich, Friedrich, Dietrich 2009).
 #include <algorithm>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "bvh_build_simd.hpp"
@@ -119,24 +120,35 @@ struct SpatialBins {
   }
   float plane(int a, std::uint32_t b) const { return origin[a] + width[a] * float(b); }
 
+  // The bins a reference's box spans on axis a.
+  [[gnu::always_inline]] std::pair<std::uint32_t, std::uint32_t> span_of(const PrimRef& r,
+                                                                         int a) const {
+    const std::uint32_t first = bin_of(a, format::at(r.box.min, a));
+    return {first, std::max(first, bin_of(a, format::at(r.box.max, a)))};
+  }
+
+  // Counts the reference's entry and exit on axis a. One inside a single bin grows it by its box
+  // and is done; for one that crosses a plane, true: its pieces are still to add (clip).
+  [[gnu::always_inline]] bool count(const PrimRef& r, int a) {
+    const auto [first, last] = span_of(r, a);
+    enter[std::size_t(a) * k + first] += 1;
+    exit[std::size_t(a) * k + last] += 1;
+    // A PrimRef's box is min x y z, max x y z, prim: four floats from each corner stay in it.
+    if (first == last) grow(a, first, bvh_simd::loadu(&r.box.min.x), bvh_simd::loadu(&r.box.max.x));
+    return first != last;
+  }
+
   // Grows every bin that the reference crosses on axis a by the box of its triangle's part in
   // that bin's slab (within the reference's box). Each plane's cut through the triangle is
   // computed once and serves the bins on both sides; the slab boxes are exact, as the sides
   // apply_spatial_split makes, where clipping the rest at each plane in turn (as Stich et al.
   // and Embree do) gives the intersection of two half-space boxes, larger in general.
-  [[gnu::always_inline]] void add(const PrimRef& r, const format::Float3 (&v)[3], int a) {
-    const std::size_t base = std::size_t(a) * k;
-    const std::uint32_t first = bin_of(a, format::at(r.box.min, a));
-    const std::uint32_t last = std::max(first, bin_of(a, format::at(r.box.max, a)));
-    enter[base + first] += 1;
-    exit[base + last] += 1;
-    // A PrimRef's box is min x y z, max x y z, prim: four floats from each corner stay in it.
-    if (first == last)
-      return grow(a, first, bvh_simd::loadu(&r.box.min.x), bvh_simd::loadu(&r.box.max.x));
+  [[gnu::always_inline]] void clip(const PrimRef& r, const format::Float3 (&v)[3], int a) {
+    const auto [first, last] = span_of(r, a);
     add_slabs(r, v, a, first, last);
   }
 
-  // add's pieces, bin by bin on x y z vectors: each plane's cut (the points where the edges
+  // clip's pieces, bin by bin on x y z vectors: each plane's cut (the points where the edges
   // cross it) once, each bin's box from its lower and upper cuts and the corners between its
   // planes. Every lane computes what the scalar clipping did, operation for operation (the same
   // bits), and min/max keep Box3f::grow's and intersection's operand order.
@@ -202,48 +214,72 @@ inline void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3
 
 namespace {
 
-// Bins the references of [begin, end) on every axis with extent, reference by reference (its
-// corners loaded once).
-[[gnu::always_inline]] inline void bin_each(std::span<const PrimRef> refs, const Scene& scene,
-                                            SpatialBins& bins) {
-  // The triangles and corners of references in sorted order are scattered over the scene:
-  // prefetched, the triangle kTriangleAhead references ahead, its corners kCornersAhead ahead.
-  constexpr std::size_t kTriangleAhead = 16, kCornersAhead = 8;
-  const std::size_t n = refs.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i + kTriangleAhead < n) __builtin_prefetch(&scene.triangles[refs[i + kTriangleAhead].prim]);
-    if (i + kCornersAhead < n)
-      for (const auto v : scene.triangles[refs[i + kCornersAhead].prim].v)
-        __builtin_prefetch(&scene.positions[v]);
-    const PrimRef& r = refs[i];
-    format::Float3 v[3];
-    load_corners(r, scene, v);
+// A reference that crosses a bin plane on some axis: its index and a bit per such axis.
+struct Straddler {
+  std::uint32_t index;
+  std::uint32_t axes;
+};
+
+// The first of spatial binning's two passes, on every axis with extent: counts every reference
+// from its box alone, grows the bins of those inside one bin (most of a large node's
+// references) and lists the others, whose triangles are clipped only if a plane may pay.
+void count_references(std::span<const PrimRef> refs, SpatialBins& bins,
+                      std::vector<Straddler>& straddlers) {
+  straddlers.clear();
+  for (std::size_t i = 0; i < refs.size(); ++i) {
+    std::uint32_t axes = 0;
     for (int a = 0; a < 3; ++a)
-      if (bins.valid[a]) bins.add(r, v, a);
+      if (bins.valid[a] && bins.count(refs[i], a)) axes |= 1u << a;
+    if (axes != 0) straddlers.push_back({std::uint32_t(i), axes});
   }
 }
 
-void bin_references_sse(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
-  bin_each(refs, scene, bins);
+// The second pass: the listed references' pieces, their corners loaded once for all axes.
+[[gnu::always_inline]] inline void clip_each(std::span<const PrimRef> refs,
+                                             std::span<const Straddler> straddlers,
+                                             const Scene& scene, SpatialBins& bins) {
+  // The triangles and corners are scattered over the scene: prefetched, the triangle
+  // kTriangleAhead straddlers ahead, its corners kCornersAhead ahead.
+  constexpr std::size_t kTriangleAhead = 16, kCornersAhead = 8;
+  const std::size_t n = straddlers.size();
+  for (std::size_t s = 0; s < n; ++s) {
+    if (s + kTriangleAhead < n)
+      __builtin_prefetch(&scene.triangles[refs[straddlers[s + kTriangleAhead].index].prim]);
+    if (s + kCornersAhead < n)
+      for (const auto v : scene.triangles[refs[straddlers[s + kCornersAhead].index].prim].v)
+        __builtin_prefetch(&scene.positions[v]);
+    const PrimRef& r = refs[straddlers[s].index];
+    format::Float3 v[3];
+    load_corners(r, scene, v);
+    for (int a = 0; a < 3; ++a)
+      if (straddlers[s].axes >> a & 1) bins.clip(r, v, a);
+  }
+}
+
+void clip_references_sse(std::span<const PrimRef> refs, std::span<const Straddler> straddlers,
+                         const Scene& scene, SpatialBins& bins) {
+  clip_each(refs, straddlers, scene, bins);
 }
 
 #if (defined(__x86_64__) || defined(__i386__)) && defined(__GNUC__)
 #define KILN_SPATIAL_EVEX 1
 // The same code, operation for operation, in EVEX encodings: AVX-512VL's 32 vector registers
-// hold add_slabs's corners, cuts and boxes, which spill on SSE's 16. Still four lanes, and no
-// FMA (the project builds with -ffp-contract=off), so the bins are the same bits.
-__attribute__((target("avx2,avx512f,avx512vl"))) void bin_references_evex(
-    std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
-  bin_each(refs, scene, bins);
+// hold the corners, cuts and boxes, which spill on SSE's 16. Still four lanes, and no FMA (the
+// project builds with -ffp-contract=off), so the bins are the same bits.
+__attribute__((target("avx2,avx512f,avx512vl"))) void clip_references_evex(
+    std::span<const PrimRef> refs, std::span<const Straddler> straddlers, const Scene& scene,
+    SpatialBins& bins) {
+  clip_each(refs, straddlers, scene, bins);
 }
 #endif
 
-void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
+void clip_references(std::span<const PrimRef> refs, std::span<const Straddler> straddlers,
+                     const Scene& scene, SpatialBins& bins) {
 #if defined(KILN_SPATIAL_EVEX)
   static const bool evex = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
-  if (evex) return bin_references_evex(refs, scene, bins);
+  if (evex) return clip_references_evex(refs, straddlers, scene, bins);
 #endif
-  bin_references_sse(refs, scene, bins);
+  clip_references_sse(refs, straddlers, scene, bins);
 }
 
 // Bin boxes grow by min/max and counts add, so merging chunks in any order gives the same bins.
@@ -312,9 +348,50 @@ unsigned spatial_axes(const format::Box3f& node_box, int object_axis) {
   return (1u << longest) | (object_axis >= 0 ? 1u << object_axis : 0u);
 }
 
+namespace {
+
+// Whether some plane may cost less than `to_beat`, judged on bins that hold counts and the
+// boxes of unclipped references only. Their boxes lie inside the full bins' (the clipped pieces
+// only add to them) and the counts are exact, and the SAH sweep's arithmetic grows with the
+// areas (round to nearest is monotone; an empty box has area 0). So its cost is a lower bound
+// of every plane's: where it is not below `to_beat`, clipping cannot find a cheaper plane.
+bool may_beat(const SpatialBins& bins, float node_area, const BvhBuildOptions& options,
+              float to_beat) {
+  SpatialSplit lower;
+  for (int axis = 0; axis < 3; ++axis)
+    if (bins.valid[axis]) best_plane_on_axis(bins, axis, node_area, options, lower);
+  return lower.cost < to_beat;
+}
+
+// Both passes in fixed chunks (by count, not by thread), each into its own bins, merged: the
+// same bins on any number of threads.
+bool bin_in_chunks(std::span<const PrimRef> refs, const format::Box3f& node_box, const Scene& scene,
+                   const BvhBuildOptions& options, float to_beat, unsigned threads,
+                   SpatialBins& bins) {
+  const std::size_t chunks = (refs.size() + kSpatialChunk - 1) / kSpatialChunk;
+  const auto chunk = [&](std::size_t c) {
+    return refs.subspan(c * kSpatialChunk,
+                        std::min(kSpatialChunk, refs.size() - c * kSpatialChunk));
+  };
+  std::vector<SpatialBins> part(chunks, bins);
+  std::vector<std::vector<Straddler>> straddlers(chunks);
+  parallel_for(chunks, threads,
+               [&](std::size_t c) { count_references(chunk(c), part[c], straddlers[c]); });
+  for (const auto& p : part) merge_bins(bins, p);
+  if (!may_beat(bins, node_box.half_area(), options, to_beat)) return false;
+  const SpatialBins empty(node_box, bins.k);  // boxes only: the counts are in `bins`
+  std::fill(part.begin(), part.end(), empty);
+  parallel_for(chunks, threads,
+               [&](std::size_t c) { clip_references(chunk(c), straddlers[c], scene, part[c]); });
+  for (const auto& p : part) merge_bins(bins, p);
+  return true;
+}
+
+}  // namespace
+
 SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
                                 const Scene& scene, const BvhBuildOptions& options, int object_axis,
-                                unsigned threads) {
+                                unsigned threads, float to_beat) {
   const float node_area = node_box.half_area();
   const std::uint32_t k = spatial_bin_count(refs.size(), options.bins);
   SpatialSplit best;
@@ -323,18 +400,12 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box
   const unsigned axes = spatial_axes(node_box, object_axis);
   for (int a = 0; a < 3; ++a) bins.valid[a] = bins.valid[a] && (axes >> a & 1);
   if (refs.size() >= kParallelSpatial) {
-    // Fixed chunks (by count, not by thread), each into its own bins: the same bins on any
-    // number of threads.
-    const std::size_t chunks = (refs.size() + kSpatialChunk - 1) / kSpatialChunk;
-    std::vector<SpatialBins> part(chunks, SpatialBins(node_box, k));
-    parallel_for(chunks, threads, [&](std::size_t c) {
-      const std::size_t begin = c * kSpatialChunk;
-      bin_references(refs.subspan(begin, std::min(kSpatialChunk, refs.size() - begin)), scene,
-                     part[c]);
-    });
-    for (const auto& p : part) merge_bins(bins, p);
+    if (!bin_in_chunks(refs, node_box, scene, options, to_beat, threads, bins)) return best;
   } else {
-    bin_references(refs, scene, bins);
+    thread_local std::vector<Straddler> straddlers;
+    count_references(refs, bins, straddlers);
+    if (!may_beat(bins, node_area, options, to_beat)) return best;
+    clip_references(refs, straddlers, scene, bins);
   }
   for (int axis = 0; axis < 3; ++axis)
     if (bins.valid[axis]) best_plane_on_axis(bins, axis, node_area, options, best);
