@@ -138,6 +138,25 @@ struct SpatialBins {
     return first != last;
   }
 
+  // Whether every bin the reference crosses on axis a already holds the reference's box cut to
+  // the bin's slab: each clipped piece lies in that box (add_slabs ends by clamping to the slab
+  // and the reference's box), so clipping could not change a bit of these bins.
+  [[gnu::always_inline]] bool covers(const PrimRef& r, int a) const {
+    using namespace bvh_simd;
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    const auto [first, last] = span_of(r, a);
+    const V4 on_axis = {lt(splat(0.0f), set(a == 0, a == 1, a == 2, 0))};
+    const V4 rmin = loadu(&r.box.min.x), rmax = loadu(&r.box.max.x);
+    for (std::uint32_t b = first; b <= last; ++b) {
+      const V4 lo = blend(on_axis, splat(b > first ? plane(a, b) : -kInf), splat(-kInf));
+      const V4 hi = blend(on_axis, splat(b < last ? plane(a, b + 1) : kInf), splat(kInf));
+      const float* x = at(a, b);
+      if (mask_bits(lt(vmax(lo, rmin), loadu(x)) | lt(loadu(x + 4), vmin(hi, rmax))) & 7)
+        return false;
+    }
+    return true;
+  }
+
   // Grows every bin that the reference crosses on axis a by the box of its triangle's part in
   // that bin's slab (within the reference's box). Each plane's cut through the triangle is
   // computed once and serves the bins on both sides; the slab boxes are exact, as the sides
@@ -249,10 +268,14 @@ void count_references(std::span<const PrimRef> refs, SpatialBins& bins,
       for (const auto v : scene.triangles[refs[straddlers[s + kCornersAhead].index].prim].v)
         __builtin_prefetch(&scene.positions[v]);
     const PrimRef& r = refs[straddlers[s].index];
+    std::uint32_t axes = straddlers[s].axes;
+    for (int a = 0; a < 3; ++a)
+      if ((axes >> a & 1) && bins.covers(r, a)) axes &= ~(1u << a);
+    if (axes == 0) continue;  // nothing to clip: its corners are not even loaded
     format::Float3 v[3];
     load_corners(r, scene, v);
     for (int a = 0; a < 3; ++a)
-      if (straddlers[s].axes >> a & 1) bins.clip(r, v, a);
+      if (axes >> a & 1) bins.clip(r, v, a);
   }
 }
 
