@@ -145,7 +145,7 @@ struct SpatialBins {
     using namespace bvh_simd;
     constexpr float kInf = std::numeric_limits<float>::infinity();
     const auto [first, last] = span_of(r, a);
-    const V4 on_axis = {lt(splat(0.0f), set(a == 0, a == 1, a == 2, 0))};
+    const V4 on_axis = lt(splat(0.0f), set(a == 0, a == 1, a == 2, 0));  // lane a set
     const V4 rmin = loadu(&r.box.min.x), rmax = loadu(&r.box.max.x);
     for (std::uint32_t b = first; b <= last; ++b) {
       const V4 lo = blend(on_axis, splat(b > first ? plane(a, b) : -kInf), splat(-kInf));
@@ -201,7 +201,7 @@ inline void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3
   using namespace bvh_simd;
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const V4 inf = splat(kInf), ninf = splat(-kInf);
-  const V4 on_axis = {lt(splat(0.0f), set(a == 0, a == 1, a == 2, 0))};
+  const V4 on_axis = lt(splat(0.0f), set(a == 0, a == 1, a == 2, 0));  // lane a set
   V4 p[3];
   float c[3];
   for (int i = 0; i < 3; ++i) p[i] = set(v[i].x, v[i].y, v[i].z, 0.0f), c[i] = format::at(v[i], a);
