@@ -113,8 +113,8 @@ Choice choose_split(const BuildContext& ctx, const SortedRefs& refs, const forma
             ? format::Box3f::intersection(c.object.left_box, c.object.right_box).half_area()
             : box.half_area();
     if (!c.object.valid() || overlap > o.sbvh_alpha * ctx.root_area)
-      c.spatial =
-          find_spatial_split(refs.axis[c.order_axis], box, ctx.scene, o, c.object.axis, threads);
+      c.spatial = find_spatial_split(refs.axis[c.order_axis], box, ctx.scene, o, c.object.axis,
+                                     threads, c.object.cost);
   }
   return c;
 }

@@ -1,6 +1,7 @@
 // SBVH spatial splits (Stich, Friedrich, Dietrich 2009).
 #include <algorithm>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "bvh_build_simd.hpp"
@@ -74,21 +75,17 @@ void split_reference(const PrimRef& ref, int axis, float position, const Scene& 
 namespace {
 
 /// Spatial bins on the three axes over a node box: the planes, each bin's box of clipped pieces
-/// (structure of arrays: per axis, six rows of k floats, min x y z then max x y z, so that four
-/// consecutive bins grow as one vector), and how many references enter (start) and exit (end)
-/// in each bin.
+/// (two vectors per bin, min x y z and max x y z, the fourth lanes unused) and how many
+/// references enter (start) and exit (end) in each bin.
 struct SpatialBins {
   std::uint32_t k;
   float origin[3], width[3], inv_width[3];
   bool valid[3];
-  std::vector<float> bounds;  // 18 rows of k, then 4 floats a vector may run over into
+  std::vector<float> bounds;  // [axis][bin]: min x y z -, max x y z -
   std::vector<std::size_t> enter, exit;
 
   SpatialBins(const format::Box3f& node_box, std::uint32_t bins)
-      : k(bins),
-        bounds(18 * std::size_t(k) + 4, 0.0f),
-        enter(3 * std::size_t(k)),
-        exit(3 * std::size_t(k)) {
+      : k(bins), bounds(24 * std::size_t(k)), enter(3 * std::size_t(k)), exit(3 * std::size_t(k)) {
     constexpr float kInf = std::numeric_limits<float>::infinity();
     for (int a = 0; a < 3; ++a) {
       origin[a] = format::at(node_box.min, a);
@@ -96,21 +93,26 @@ struct SpatialBins {
       valid[a] = extent > 0.0f;
       width[a] = extent / float(k);
       inv_width[a] = float(k) / extent;
-      for (int c = 0; c < 6; ++c) std::fill_n(row(a, c), k, c < 3 ? kInf : -kInf);
+    }
+    for (std::size_t i = 0; i < bounds.size(); i += 8) {
+      std::fill_n(bounds.data() + i, 4, kInf);
+      std::fill_n(bounds.data() + i + 4, 4, -kInf);
     }
   }
-  float* row(int a, int c) { return bounds.data() + (std::size_t(a) * 6 + std::size_t(c)) * k; }
-  const float* row(int a, int c) const {
-    return bounds.data() + (std::size_t(a) * 6 + std::size_t(c)) * k;
+  float* at(int a, std::uint32_t b) { return bounds.data() + (std::size_t(a) * k + b) * 8; }
+  const float* at(int a, std::uint32_t b) const {
+    return bounds.data() + (std::size_t(a) * k + b) * 8;
   }
   format::Box3f box(int a, std::uint32_t b) const {
-    return {{row(a, 0)[b], row(a, 1)[b], row(a, 2)[b]}, {row(a, 3)[b], row(a, 4)[b], row(a, 5)[b]}};
+    const float* x = at(a, b);
+    return {{x[0], x[1], x[2]}, {x[4], x[5], x[6]}};
   }
-  void grow(int a, std::uint32_t b, const format::Box3f& x) {
-    for (int c = 0; c < 3; ++c) {
-      row(a, c)[b] = std::min(row(a, c)[b], format::at(x.min, c));
-      row(a, c + 3)[b] = std::max(row(a, c + 3)[b], format::at(x.max, c));
-    }
+  // Box3f::grow's operations and operand order, on vectors.
+  [[gnu::always_inline]] void grow(int a, std::uint32_t b, bvh_simd::V4 lo, bvh_simd::V4 hi) {
+    using namespace bvh_simd;
+    float* x = at(a, b);
+    storeu(x, vmin(lo, loadu(x)));
+    storeu(x + 4, vmax(hi, loadu(x + 4)));
   }
   std::uint32_t bin_of(int a, float x) const {
     return std::min<std::uint32_t>(k - 1,
@@ -118,108 +120,112 @@ struct SpatialBins {
   }
   float plane(int a, std::uint32_t b) const { return origin[a] + width[a] * float(b); }
 
+  // The bins a reference's box spans on axis a.
+  [[gnu::always_inline]] std::pair<std::uint32_t, std::uint32_t> span_of(const PrimRef& r,
+                                                                         int a) const {
+    const std::uint32_t first = bin_of(a, format::at(r.box.min, a));
+    return {first, std::max(first, bin_of(a, format::at(r.box.max, a)))};
+  }
+
+  // Counts the reference's entry and exit on axis a. One inside a single bin grows it by its box
+  // and is done; for one that crosses a plane, true: its pieces are still to add (clip).
+  [[gnu::always_inline]] bool count(const PrimRef& r, int a) {
+    const auto [first, last] = span_of(r, a);
+    enter[std::size_t(a) * k + first] += 1;
+    exit[std::size_t(a) * k + last] += 1;
+    // A PrimRef's box is min x y z, max x y z, prim: four floats from each corner stay in it.
+    if (first == last) grow(a, first, bvh_simd::loadu(&r.box.min.x), bvh_simd::loadu(&r.box.max.x));
+    return first != last;
+  }
+
+  // Whether every bin the reference crosses on axis a already holds the reference's box cut to
+  // the bin's slab: each clipped piece lies in that box (add_slabs ends by clamping to the slab
+  // and the reference's box), so clipping could not change a bit of these bins.
+  [[gnu::always_inline]] bool covers(const PrimRef& r, int a) const {
+    using namespace bvh_simd;
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    const auto [first, last] = span_of(r, a);
+    const V4 on_axis = lt(splat(0.0f), set(a == 0, a == 1, a == 2, 0));  // lane a set
+    const V4 rmin = loadu(&r.box.min.x), rmax = loadu(&r.box.max.x);
+    for (std::uint32_t b = first; b <= last; ++b) {
+      const V4 lo = blend(on_axis, splat(b > first ? plane(a, b) : -kInf), splat(-kInf));
+      const V4 hi = blend(on_axis, splat(b < last ? plane(a, b + 1) : kInf), splat(kInf));
+      const float* x = at(a, b);
+      if (mask_bits(lt(vmax(lo, rmin), loadu(x)) | lt(loadu(x + 4), vmin(hi, rmax))) & 7)
+        return false;
+    }
+    return true;
+  }
+
   // Grows every bin that the reference crosses on axis a by the box of its triangle's part in
   // that bin's slab (within the reference's box). Each plane's cut through the triangle is
   // computed once and serves the bins on both sides; the slab boxes are exact, as the sides
   // apply_spatial_split makes, where clipping the rest at each plane in turn (as Stich et al.
   // and Embree do) gives the intersection of two half-space boxes, larger in general.
-  void add(const PrimRef& r, const format::Float3 (&v)[3], int a) {
-    const std::size_t base = std::size_t(a) * k;
-    const std::uint32_t first = bin_of(a, format::at(r.box.min, a));
-    const std::uint32_t last = std::max(first, bin_of(a, format::at(r.box.max, a)));
-    enter[base + first] += 1;
-    exit[base + last] += 1;
-    if (first == last) return grow(a, first, r.box);
+  [[gnu::always_inline]] void clip(const PrimRef& r, const format::Float3 (&v)[3], int a) {
+    const auto [first, last] = span_of(r, a);
     add_slabs(r, v, a, first, last);
   }
 
-  // add's pieces, four bins at a time: lane j of a group is bin first + t + j, its upper plane
-  // cut (edge points on vectors) and its lower one the previous lane's. Every lane computes
-  // what the scalar clipping did, operation for operation (the same bits), and min/max keep
-  // Box3f::grow's and intersection's operand order.
-  void add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int a, std::uint32_t first,
-                 std::uint32_t last);
+  // clip's pieces, bin by bin on x y z vectors: each plane's cut (the points where the edges
+  // cross it) once, each bin's box from its lower and upper cuts and the corners between its
+  // planes. Every lane computes what the scalar clipping did, operation for operation (the same
+  // bits), and min/max keep Box3f::grow's and intersection's operand order.
+  [[gnu::always_inline]] inline void add_slabs(const PrimRef& r, const format::Float3 (&v)[3],
+                                               int a, std::uint32_t first, std::uint32_t last);
 };
 
-// The box of the points where a triangle's edges cross the plane axis a = hi, per lane (empty
-// where none does): edge_point's operations on vectors (corners p and their axis coordinates c,
-// splat).
-[[gnu::always_inline]] inline void plane_cuts(const bvh_simd::V4 (&p)[3][3],
-                                              const bvh_simd::V4 (&c)[3], int a, bvh_simd::V4 hi,
-                                              bvh_simd::V4 (&cut_min)[3],
-                                              bvh_simd::V4 (&cut_max)[3]) {
+// The box of the points where a triangle's edges cross the plane axis a = h (empty where none
+// does): edge_point's operations on x y z vectors (corners p, their axis coordinates c; lane a
+// of `on_axis` set).
+[[gnu::always_inline]] inline void plane_cut(const bvh_simd::V4 (&p)[3], const float (&c)[3],
+                                             bvh_simd::V4 on_axis, float h, bvh_simd::V4& cut_min,
+                                             bvh_simd::V4& cut_max) {
   using namespace bvh_simd;
   constexpr float kInf = std::numeric_limits<float>::infinity();
-  const V4 inf = splat(kInf), ninf = splat(-kInf), zero = splat(0.0f), one = splat(1.0f);
-  for (int q = 0; q < 3; ++q) cut_min[q] = inf, cut_max[q] = ninf;
+  cut_min = splat(kInf), cut_max = splat(-kInf);
   for (int i = 0; i < 3; ++i) {
     const int j = i == 2 ? 0 : i + 1;
-    const V4 cross = (lt(c[i], hi) & lt(hi, c[j])) | (lt(c[j], hi) & lt(hi, c[i]));
-    if (!mask_bits(cross)) continue;
-    // The edge vector, b - a as edge_point takes it (lane-wise, the same bits), only for an
-    // edge that crosses.
-    const V4 s = vmin(one, vmax(zero, (hi - c[i]) / (c[j] - c[i])));  // std::clamp(x, 0, 1)
-    for (int q = 0; q < 3; ++q) {
-      const V4 x = q == a ? hi : p[i][q] + (p[j][q] - p[i][q]) * s;
-      cut_min[q] = vmin(blend(cross, x, inf), cut_min[q]);
-      cut_max[q] = vmax(blend(cross, x, ninf), cut_max[q]);
-    }
+    // Without a branch (whether an edge crosses is hard to predict); an edge that does not
+    // cross may divide by zero, and its point is dropped.
+    const bool cross = ((c[i] < h) & (h < c[j])) | ((c[j] < h) & (h < c[i]));
+    const V4 s = vmin(splat(1.0f), vmax(splat(0.0f), splat((h - c[i]) / (c[j] - c[i]))));
+    const V4 x = blend(on_axis, splat(h), p[i] + (p[j] - p[i]) * s);
+    cut_min = vmin(select(cross, x, splat(kInf)), cut_min);
+    cut_max = vmax(select(cross, x, splat(-kInf)), cut_max);
   }
 }
 
-void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int a,
-                            std::uint32_t first, std::uint32_t last) {
+inline void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int a,
+                                   std::uint32_t first, std::uint32_t last) {
   using namespace bvh_simd;
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const V4 inf = splat(kInf), ninf = splat(-kInf);
-  V4 p[3][3], c[3];  // corners and their axis coordinates (splat)
-  for (int i = 0; i < 3; ++i) {
-    for (int q = 0; q < 3; ++q) p[i][q] = splat(format::at(v[i], q));
-    c[i] = p[i][a];
-  }
-  V4 rmin[3], rmax[3];
-  for (int q = 0; q < 3; ++q) rmin[q] = splat(format::at(r.box.min, q));
-  for (int q = 0; q < 3; ++q) rmax[q] = splat(format::at(r.box.max, q));
-  const std::uint32_t m = last - first + 1;
-  const V4 vm = splat(float(m)), vm1 = splat(float(m - 1));
-  V4 prev_hi = ninf, prev_min[3] = {inf, inf, inf}, prev_max[3] = {ninf, ninf, ninf};
-  for (std::uint32_t t = 0; t < m; t += 4) {
-    const V4 lane = set(float(t), float(t + 1), float(t + 2), float(t + 3));
-    const float b = float(first + t);
-    const V4 planes = splat(origin[a]) + splat(width[a]) * set(b + 1, b + 2, b + 3, b + 4);
-    const V4 hi = blend(lt(lane, vm1), planes, inf);  // the last bin has no upper plane
-    const V4 lo = shift_in(prev_hi, hi);
-    V4 cut_min[3], cut_max[3];
-    plane_cuts(p, c, a, hi, cut_min, cut_max);
-    V4 lo_box[3], hi_box[3];
-    for (int q = 0; q < 3; ++q) {
-      lo_box[q] = shift_in(prev_min[q], cut_min[q]);
-      hi_box[q] = shift_in(prev_max[q], cut_max[q]);
-    }
+  const V4 on_axis = lt(splat(0.0f), set(a == 0, a == 1, a == 2, 0));  // lane a set
+  V4 p[3];
+  float c[3];
+  for (int i = 0; i < 3; ++i) p[i] = set(v[i].x, v[i].y, v[i].z, 0.0f), c[i] = format::at(v[i], a);
+  const V4 rmin = loadu(&r.box.min.x), rmax = loadu(&r.box.max.x);
+  float lo = -kInf;
+  V4 lo_cut_min = inf, lo_cut_max = ninf;  // the cut at lo (none below the first bin)
+  for (std::uint32_t b = first; b <= last; ++b) {
+    const float hi = b < last ? plane(a, b + 1) : kInf;  // the last bin has no upper plane
+    V4 hi_cut_min = inf, hi_cut_max = ninf;
+    if (b < last) plane_cut(p, c, on_axis, hi, hi_cut_min, hi_cut_max);
+    V4 box_min = lo_cut_min, box_max = lo_cut_max;
     for (int i = 0; i < 3; ++i) {
-      const V4 in = le(lo, c[i]) & le(c[i], hi);
-      for (int q = 0; q < 3; ++q) {
-        lo_box[q] = vmin(blend(in, p[i][q], inf), lo_box[q]);
-        hi_box[q] = vmax(blend(in, p[i][q], ninf), hi_box[q]);
-      }
+      const bool in = lo <= c[i] && c[i] <= hi;
+      box_min = vmin(select(in, p[i], inf), box_min);
+      box_max = vmax(select(in, p[i], ninf), box_max);
     }
-    V4 empty = le(vm, lane);  // lanes past the last bin
-    for (int q = 0; q < 3; ++q) {
-      lo_box[q] = vmin(cut_min[q], lo_box[q]);
-      hi_box[q] = vmax(cut_max[q], hi_box[q]);
-      if (q == a) lo_box[q] = vmax(lo, lo_box[q]), hi_box[q] = vmin(hi, hi_box[q]);
-      lo_box[q] = vmax(rmin[q], lo_box[q]);
-      hi_box[q] = vmin(rmax[q], hi_box[q]);
-      empty = empty | lt(hi_box[q], lo_box[q]);
-    }
-    for (int q = 0; q < 3; ++q) {
-      float* lo_row = row(a, q) + first + t;
-      float* hi_row = row(a, q + 3) + first + t;
-      storeu(lo_row, vmin(blend(empty, inf, lo_box[q]), loadu(lo_row)));
-      storeu(hi_row, vmax(blend(empty, ninf, hi_box[q]), loadu(hi_row)));
-    }
-    prev_hi = hi;
-    for (int q = 0; q < 3; ++q) prev_min[q] = cut_min[q], prev_max[q] = cut_max[q];
+    box_min = vmin(hi_cut_min, box_min);
+    box_max = vmax(hi_cut_max, box_max);
+    box_min = vmax(blend(on_axis, splat(lo), ninf), box_min);
+    box_max = vmin(blend(on_axis, splat(hi), inf), box_max);
+    box_min = vmax(rmin, box_min);
+    box_max = vmin(rmax, box_max);
+    if ((mask_bits(lt(box_max, box_min)) & 7) == 0) grow(a, b, box_min, box_max);
+    lo = hi, lo_cut_min = hi_cut_min, lo_cut_max = hi_cut_max;
   }
 }
 
@@ -227,35 +233,83 @@ void SpatialBins::add_slabs(const PrimRef& r, const format::Float3 (&v)[3], int 
 
 namespace {
 
-// Bins the references of [begin, end) on every axis with extent, reference by reference (its
-// corners loaded once).
-void bin_references(std::span<const PrimRef> refs, const Scene& scene, SpatialBins& bins) {
-  // The triangles and corners of references in sorted order are scattered over the scene:
-  // prefetched, the triangle kTriangleAhead references ahead, its corners kCornersAhead ahead.
+// A reference that crosses a bin plane on some axis: its index and a bit per such axis.
+struct Straddler {
+  std::uint32_t index;
+  std::uint32_t axes;
+};
+
+// The first of spatial binning's two passes, on every axis with extent: counts every reference
+// from its box alone, grows the bins of those inside one bin (most of a large node's
+// references) and lists the others, whose triangles are clipped only if a plane may pay.
+void count_references(std::span<const PrimRef> refs, SpatialBins& bins,
+                      std::vector<Straddler>& straddlers) {
+  straddlers.clear();
+  for (std::size_t i = 0; i < refs.size(); ++i) {
+    std::uint32_t axes = 0;
+    for (int a = 0; a < 3; ++a)
+      if (bins.valid[a] && bins.count(refs[i], a)) axes |= 1u << a;
+    if (axes != 0) straddlers.push_back({std::uint32_t(i), axes});
+  }
+}
+
+// The second pass: the listed references' pieces, their corners loaded once for all axes.
+[[gnu::always_inline]] inline void clip_each(std::span<const PrimRef> refs,
+                                             std::span<const Straddler> straddlers,
+                                             const Scene& scene, SpatialBins& bins) {
+  // The triangles and corners are scattered over the scene: prefetched, the triangle
+  // kTriangleAhead straddlers ahead, its corners kCornersAhead ahead.
   constexpr std::size_t kTriangleAhead = 16, kCornersAhead = 8;
-  const std::size_t n = refs.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i + kTriangleAhead < n) __builtin_prefetch(&scene.triangles[refs[i + kTriangleAhead].prim]);
-    if (i + kCornersAhead < n)
-      for (const auto v : scene.triangles[refs[i + kCornersAhead].prim].v)
+  const std::size_t n = straddlers.size();
+  for (std::size_t s = 0; s < n; ++s) {
+    if (s + kTriangleAhead < n)
+      __builtin_prefetch(&scene.triangles[refs[straddlers[s + kTriangleAhead].index].prim]);
+    if (s + kCornersAhead < n)
+      for (const auto v : scene.triangles[refs[straddlers[s + kCornersAhead].index].prim].v)
         __builtin_prefetch(&scene.positions[v]);
-    const PrimRef& r = refs[i];
+    const PrimRef& r = refs[straddlers[s].index];
+    std::uint32_t axes = straddlers[s].axes;
+    for (int a = 0; a < 3; ++a)
+      if ((axes >> a & 1) && bins.covers(r, a)) axes &= ~(1u << a);
+    if (axes == 0) continue;  // nothing to clip: its corners are not even loaded
     format::Float3 v[3];
     load_corners(r, scene, v);
     for (int a = 0; a < 3; ++a)
-      if (bins.valid[a]) bins.add(r, v, a);
+      if (axes >> a & 1) bins.clip(r, v, a);
   }
+}
+
+void clip_references_sse(std::span<const PrimRef> refs, std::span<const Straddler> straddlers,
+                         const Scene& scene, SpatialBins& bins) {
+  clip_each(refs, straddlers, scene, bins);
+}
+
+#if (defined(__x86_64__) || defined(__i386__)) && defined(__GNUC__)
+#define KILN_SPATIAL_EVEX 1
+// The same code, operation for operation, in EVEX encodings: AVX-512VL's 32 vector registers
+// hold the corners, cuts and boxes, which spill on SSE's 16. Still four lanes, and no FMA (the
+// project builds with -ffp-contract=off), so the bins are the same bits.
+__attribute__((target("avx2,avx512f,avx512vl"))) void clip_references_evex(
+    std::span<const PrimRef> refs, std::span<const Straddler> straddlers, const Scene& scene,
+    SpatialBins& bins) {
+  clip_each(refs, straddlers, scene, bins);
+}
+#endif
+
+void clip_references(std::span<const PrimRef> refs, std::span<const Straddler> straddlers,
+                     const Scene& scene, SpatialBins& bins) {
+#if defined(KILN_SPATIAL_EVEX)
+  static const bool evex = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
+  if (evex) return clip_references_evex(refs, straddlers, scene, bins);
+#endif
+  clip_references_sse(refs, straddlers, scene, bins);
 }
 
 // Bin boxes grow by min/max and counts add, so merging chunks in any order gives the same bins.
 void merge_bins(SpatialBins& into, const SpatialBins& from) {
   for (int a = 0; a < 3; ++a)
-    for (int c = 0; c < 6; ++c) {
-      float* to = into.row(a, c);
-      const float* f = from.row(a, c);
-      for (std::uint32_t b = 0; b < into.k; ++b)
-        to[b] = c < 3 ? std::min(to[b], f[b]) : std::max(to[b], f[b]);
-    }
+    for (std::uint32_t b = 0; b < into.k; ++b)
+      into.grow(a, b, bvh_simd::loadu(from.at(a, b)), bvh_simd::loadu(from.at(a, b) + 4));
   for (std::size_t i = 0; i < into.enter.size(); ++i) {
     into.enter[i] += from.enter[i];
     into.exit[i] += from.exit[i];
@@ -317,9 +371,50 @@ unsigned spatial_axes(const format::Box3f& node_box, int object_axis) {
   return (1u << longest) | (object_axis >= 0 ? 1u << object_axis : 0u);
 }
 
+namespace {
+
+// Whether some plane may cost less than `to_beat`, judged on bins that hold counts and the
+// boxes of unclipped references only. Their boxes lie inside the full bins' (the clipped pieces
+// only add to them) and the counts are exact, and the SAH sweep's arithmetic grows with the
+// areas (round to nearest is monotone; an empty box has area 0). So its cost is a lower bound
+// of every plane's: where it is not below `to_beat`, clipping cannot find a cheaper plane.
+bool may_beat(const SpatialBins& bins, float node_area, const BvhBuildOptions& options,
+              float to_beat) {
+  SpatialSplit lower;
+  for (int axis = 0; axis < 3; ++axis)
+    if (bins.valid[axis]) best_plane_on_axis(bins, axis, node_area, options, lower);
+  return lower.cost < to_beat;
+}
+
+// Both passes in fixed chunks (by count, not by thread), each into its own bins, merged: the
+// same bins on any number of threads.
+bool bin_in_chunks(std::span<const PrimRef> refs, const format::Box3f& node_box, const Scene& scene,
+                   const BvhBuildOptions& options, float to_beat, unsigned threads,
+                   SpatialBins& bins) {
+  const std::size_t chunks = (refs.size() + kSpatialChunk - 1) / kSpatialChunk;
+  const auto chunk = [&](std::size_t c) {
+    return refs.subspan(c * kSpatialChunk,
+                        std::min(kSpatialChunk, refs.size() - c * kSpatialChunk));
+  };
+  std::vector<SpatialBins> part(chunks, bins);
+  std::vector<std::vector<Straddler>> straddlers(chunks);
+  parallel_for(chunks, threads,
+               [&](std::size_t c) { count_references(chunk(c), part[c], straddlers[c]); });
+  for (const auto& p : part) merge_bins(bins, p);
+  if (!may_beat(bins, node_box.half_area(), options, to_beat)) return false;
+  const SpatialBins empty(node_box, bins.k);  // boxes only: the counts are in `bins`
+  std::fill(part.begin(), part.end(), empty);
+  parallel_for(chunks, threads,
+               [&](std::size_t c) { clip_references(chunk(c), straddlers[c], scene, part[c]); });
+  for (const auto& p : part) merge_bins(bins, p);
+  return true;
+}
+
+}  // namespace
+
 SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
                                 const Scene& scene, const BvhBuildOptions& options, int object_axis,
-                                unsigned threads) {
+                                unsigned threads, float to_beat) {
   const float node_area = node_box.half_area();
   const std::uint32_t k = spatial_bin_count(refs.size(), options.bins);
   SpatialSplit best;
@@ -328,18 +423,12 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box
   const unsigned axes = spatial_axes(node_box, object_axis);
   for (int a = 0; a < 3; ++a) bins.valid[a] = bins.valid[a] && (axes >> a & 1);
   if (refs.size() >= kParallelSpatial) {
-    // Fixed chunks (by count, not by thread), each into its own bins: the same bins on any
-    // number of threads.
-    const std::size_t chunks = (refs.size() + kSpatialChunk - 1) / kSpatialChunk;
-    std::vector<SpatialBins> part(chunks, SpatialBins(node_box, k));
-    parallel_for(chunks, threads, [&](std::size_t c) {
-      const std::size_t begin = c * kSpatialChunk;
-      bin_references(refs.subspan(begin, std::min(kSpatialChunk, refs.size() - begin)), scene,
-                     part[c]);
-    });
-    for (const auto& p : part) merge_bins(bins, p);
+    if (!bin_in_chunks(refs, node_box, scene, options, to_beat, threads, bins)) return best;
   } else {
-    bin_references(refs, scene, bins);
+    thread_local std::vector<Straddler> straddlers;
+    count_references(refs, bins, straddlers);
+    if (!may_beat(bins, node_area, options, to_beat)) return best;
+    clip_references(refs, straddlers, scene, bins);
   }
   for (int axis = 0; axis < 3; ++axis)
     if (bins.valid[axis]) best_plane_on_axis(bins, axis, node_area, options, best);

@@ -100,10 +100,13 @@ unsigned spatial_axes(const format::Box3f& node_box, int object_axis);
 /// Stich et al. 2009: spatial bins over the node box, references clipped against bin planes,
 /// on spatial_axes(node_box, object_axis) with spatial_bin_count bins. Large nodes bin fixed
 /// chunks of references apart (in parallel) and merge them, so the split does not depend on
-/// the thread count (`threads` of them at most).
+/// the thread count (`threads` of them at most). Where no plane can cost less than `to_beat`
+/// (the object split's cost), judged by a lower bound from the references' boxes before any
+/// clipping, no split is returned, and the split the node takes is the same.
 SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box3f& node_box,
                                 const Scene& scene, const BvhBuildOptions& options, int object_axis,
-                                unsigned threads = 1);
+                                unsigned threads = 1,
+                                float to_beat = std::numeric_limits<float>::infinity());
 /// Distributes references (visited in their order on `order_axis`), unsplitting straddlers
 /// where cheaper, into children whose axis arrays stay sorted; returns the added references.
 std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
