@@ -209,7 +209,7 @@ Brick brick_of(const VoxelCube& cube, std::uint32_t brick, std::size_t b) {
 template <class OnRun, class OnLeaf, class OnVoxel>
 void rasterize(const GridMesh& mesh, std::span<const std::uint32_t> triangles, const Brick& brick,
                OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
-  TriangleColumns columns;
+  TriangleColumns columns(voxelize_detail::selected_window_kernel());
   const std::int64_t* o = brick.clip.lo;
   for (const std::uint32_t i : triangles) {
     if (!columns.setup(mesh.triangle(i))) continue;

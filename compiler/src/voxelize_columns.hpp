@@ -41,6 +41,7 @@
 #endif
 
 #include "kiln/compiler/voxelizer.hpp"
+#include "voxelize_window.hpp"
 
 namespace kiln::voxelize_detail {
 
@@ -246,6 +247,10 @@ inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
 
 class TriangleColumns {
  public:
+  /// window: the kernel for triangles whose candidate range is at most kWindowSide voxels on
+  /// every axis (voxelize_window.hpp), or nullptr: the column walk for every triangle (and
+  /// dominant_axis / reach_along_a valid after every setup, as the binning needs).
+  explicit TriangleColumns(WindowKernel window = nullptr) : window_(window) {}
   /// Prepares the tests; false when the triangle touches no voxel at all.
   bool setup(const GridTriangle& t);
   /// The candidate range (every voxel the predicate can accept lies in it).
@@ -298,6 +303,10 @@ class TriangleColumns {
   // voxels are added without a loop over leaves they cannot reach.)
   template <int a, int span, class Leaf, class Voxel>
   void walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel);
+  // walk for a window triangle (windowed_): the kernel's masks, the predicate on the lanes
+  // between them, the set lanes split into their leaves. r: the clipped range, local.
+  template <class Leaf>
+  void walk_window(const VoxelRange& r, Leaf leaf);
   template <int a, class Leaf, class Voxel>
   [[gnu::noinline]] void walk_small_any(const VoxelRange& r, Leaf leaf, Voxel voxel) {
     // The window's a range, from the start of its first leaf (global index modulo 4).
@@ -318,6 +327,8 @@ class TriangleColumns {
     centres_within(w, lo, hi, sure_inset_, maybe, sure);
   }
 
+  WindowKernel window_ = nullptr;
+  bool windowed_ = false;  // this triangle takes window_
   GridTriangle t_{};
   VoxelRange range_{};
   int a_ = 2, u_ = 0, v_ = 1;
@@ -399,6 +410,43 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
   leaves.report(leaf);
 }
 
+template <class Leaf>
+void TriangleColumns::walk_window(const VoxelRange& r, Leaf leaf) {
+  WindowJob job{&t_, p_, extent_, {}, {}};
+  std::uint64_t box = ~std::uint64_t{0};
+  std::int64_t first[3];  // the window's first leaf (global)
+  for (int k = 0; k < 3; ++k) {
+    const std::int64_t g = range_.lo[k];  // global
+    job.s[k] = unsigned(g & 3), first[k] = g & ~std::int64_t{3};
+    const std::int64_t lo = range_.lo[k] - origin_[k];  // local, as r
+    job.base[k] = double(lo) + 0.5;
+    box &= kWindowLaneMasks.box[k][job.s[k]][r.lo[k] - lo][r.hi[k] - lo];
+  }
+  const WindowMasks masks = window_(job);
+  const std::uint64_t maybe = masks.maybe & box;
+  std::uint64_t set = masks.sure & maybe;
+  for (std::uint64_t b = maybe & ~set; b != 0; b &= b - 1) {  // near a bound: rare
+    const int lane = std::countr_zero(b);
+    std::uint32_t x[3];
+    for (int k = 0; k < 3; ++k) {
+      const int c = window_coord(lane, k);
+      x[k] = std::uint32_t(first[k] + c + (unsigned(c) < job.s[k] ? 4 : 0));
+    }
+    if (triangle_touches_voxel(t_, x[0], x[1], x[2])) set |= std::uint64_t{1} << lane;
+  }
+  if (set == 0) return;
+  for (int l = 0; l < 8; ++l) {
+    std::uint64_t bits = set;
+    std::int64_t g[3];
+    for (int k = 0; k < 3; ++k) {
+      const std::uint64_t in_first = kWindowLaneMasks.first_leaf[k][job.s[k]];
+      bits &= (l >> k & 1) ? ~in_first : in_first;
+      g[k] = first[k] + 4 * (l >> k & 1);
+    }
+    if (bits != 0) leaf(g, bits);
+  }
+}
+
 template <class Run, class Leaf, class Voxel>
 void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel voxel) {
   VoxelRange r;
@@ -406,8 +454,10 @@ void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel vox
     r.lo[k] = std::max(range_.lo[k], clip.lo[k]) - origin_[k],
     r.hi[k] = std::min(range_.hi[k], clip.hi[k]) - origin_[k];
   if (is_empty(r)) return;
-  if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
-      r.hi[2] - r.lo[2] < kSmallWindow)
+  if (windowed_)
+    walk_window(r, leaf);
+  else if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
+           r.hi[2] - r.lo[2] < kSmallWindow)
     a_ == 0   ? walk_small_any<0>(r, leaf, voxel)
     : a_ == 1 ? walk_small_any<1>(r, leaf, voxel)
               : walk_small_any<2>(r, leaf, voxel);

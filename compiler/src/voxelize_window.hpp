@@ -1,0 +1,187 @@
+// The voxelizer's brute-force window kernel for small triangles: every voxel of a triangle's
+// candidate range (at most kWindowSide = 4 voxels on every axis) against the ten non-box slab
+// tests of triangle_overlaps_box at once, in SIMD registers, with no filing of the tests by their
+// zero components and no divisions (the column walk, voxelize_columns.hpp, does both; it stays
+// the path for larger windows and for CPUs without AVX2).
+//
+// Lanes. The window is the 4x4x4 block of voxels starting at the candidate range's first voxel
+// g (global). Lane L (0..63) holds the voxel whose global coordinate along axis a is congruent to
+// coord_a(L) = bit a of L | bit (3 + a) of L << 1 modulo 4, i.e. the voxel g_a + ((coord_a(L) -
+// s_a) & 3) with s_a = g_a & 3. So a lane's index is its voxel's Morton index within its 4x4x4
+// leaf, and the leaf along a is g_a's (coord_a >= s_a) or the next one: the window's mask splits
+// into the (up to 8) leaves by ANDs with constant masks, with no bit shuffling.
+//
+// Tests. The plane test "c . n in [min_j p_j . n - r, max_j p_j . n + r]" (c: the local voxel
+// centre, p_j: the corners minus the integer origin) depends on all three coordinates and is
+// evaluated on the 64 lanes; an edge test on the axis cross(unit_i, e_j) has a zero i component,
+// so it is evaluated on the 16 (p, q) = (i + 1, i + 2) pairs (2D lane l: p0 | q0 << 1 | p1 << 2 |
+// q1 << 3) and its mask expanded along i by a table (kWindowExpand). The axes, projections and
+// radii are formed with add_test / add_edge_test's arithmetic, and each test carries the same
+// margin m (2048uM^3 for the plane, 256uM^2 for edges; u = 2^-53, M = extent + 2): maybe
+// interval [lo - r - m, hi + r + m], sure interval [lo - r + m, hi + r - m]. A voxel is set when
+// its centre is in every sure interval, decided by triangle_touches_voxel when it is in every
+// maybe interval only, skipped otherwise: the predicate's voxel set exactly, as argued next.
+//
+// Why the margins hold here (notation of voxelize_columns.cpp: the predicate's value of a test's
+// separating quantity differs from the exact one by <= 32uM^2 (edges) and <= 336uM^3 (plane)).
+// Our values, all in double, no FMA (the kernels multiply and add separately): corners minus the
+// integer origin err by <= uM per component, edges by <= 4uM, an edge axis (two edge components)
+// by <= 4uM per component, the normal by <= 48uM^2 (|N| <= 8M^2). Projections p . X: <= 20uM^2
+// (edges; two products and a sum) and <= 240uM^3 (plane); r: <= 4uM^2 and <= 55uM^3. The centre c
+// is exact (a half-integer, |c| <= M over the candidate range; lanes outside it are masked off),
+// c . X errs by |c| |X - X_exact| plus its own rounding: <= 8uM^2 + 8uM^2 (edges: two products, a
+// sum) and <= 144uM^3 + 72uM^3 (plane: three products, two sums). The bounds fl(fl(lo - r) -+ m)
+// round twice: <= 10uM^2 (|lo|, |hi| <= 4M^2, r <= 2M) and <= 60uM^3 (|lo| <= 24M^3, r <= 12M^2).
+// Our total: <= 50uM^2 and <= 571uM^3; with the predicate's, <= 82uM^2 < 256uM^2 and <= 907uM^3
+// < 2048uM^3: a centre inside the sure interval passes the predicate's test, one outside the
+// maybe interval fails it (an edge test the predicate skips, edge parallel to axis i, is skipped
+// here too: bounds +-inf). A degenerate triangle (n = 0) has the plane test "0 in [-m, m]": every
+// centre is maybe and none is sure, so the predicate decides every voxel, as in the column walk.
+// Small windows have M <= 7, so there are no overflows or underflows to consider.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+
+#include "kiln/compiler/voxelizer.hpp"
+
+namespace kiln::voxelize_detail {
+
+constexpr int kWindowSide = 4;  // candidate ranges of at most 4 voxels per axis take the kernel
+
+/// What a window kernel needs: the triangle (for the edge-parallel rule), its corners minus the
+/// integer origin, M, the local centre of the window's first voxel per axis and s_a = g_a & 3.
+struct WindowJob {
+  const GridTriangle* t;
+  const std::array<double, 3>* p;  // three corners, local
+  double extent;
+  double base[3];
+  unsigned s[3];
+};
+
+/// The window's lanes (see above) in every maybe interval and in every sure interval.
+struct WindowMasks {
+  std::uint64_t maybe, sure;
+};
+
+/// The ten slab tests as the kernels evaluate them: the plane test, then the edge tests by axis i
+/// (entry 3 i + j: edge j's axis cross(unit_i, e_j), components xp, xq along i + 1, i + 2).
+struct WindowTests {
+  double n[3], plane[4];  // plane: maybe lo, maybe hi, sure lo, sure hi
+  double xp[9], xq[9], lo[9], hi[9], slo[9], shi[9];
+};
+
+using WindowKernel = WindowMasks (*)(const WindowJob&);
+
+/// The kernels (nullptr when not compiled for this target); a caller checks the CPU first.
+WindowKernel window_kernel_avx2();
+WindowKernel window_kernel_avx512();
+/// The kernel voxel_kernel() selects (nullptr: the column walk for every triangle).
+WindowKernel selected_window_kernel();
+
+constexpr int window_coord(int lane, int a) {
+  return (lane >> a & 1) | (lane >> (3 + a) & 1) << 1;
+}
+
+// Per axis a and s_a: lanes with coord_a >= s_a (in the first leaf along a), and lanes whose
+// offset (coord_a - s_a) & 3 lies in [lo, hi] (kBox[a][s][lo][hi]; empty when lo > hi).
+struct WindowLaneMasks {
+  std::uint64_t first_leaf[3][4];
+  std::uint64_t box[3][4][4][4];
+};
+constexpr WindowLaneMasks make_window_lane_masks() {
+  WindowLaneMasks t{};
+  for (int a = 0; a < 3; ++a)
+    for (int s = 0; s < 4; ++s)
+      for (int lane = 0; lane < 64; ++lane) {
+        const int c = window_coord(lane, a), offset = (c - s) & 3;
+        if (c >= s) t.first_leaf[a][s] |= std::uint64_t{1} << lane;
+        for (int lo = 0; lo < 4; ++lo)
+          for (int hi = lo; hi < 4; ++hi)
+            if (offset >= lo && offset <= hi) t.box[a][s][lo][hi] |= std::uint64_t{1} << lane;
+      }
+  return t;
+}
+inline constexpr WindowLaneMasks kWindowLaneMasks = make_window_lane_masks();
+
+// A 2D mask of the plane (i + 1, i + 2) as 3D lanes (every coord_i): the low byte (q1 = 0)
+// through the table, the high byte through the table shifted to q1 = 1 (Morton bit 3 + q).
+struct WindowExpand {
+  std::uint64_t bits[3][256];
+};
+constexpr WindowExpand make_window_expand() {
+  WindowExpand t{};
+  for (int i = 0; i < 3; ++i) {
+    const int p = (i + 1) % 3, q = (i + 2) % 3;
+    for (int byte = 0; byte < 256; ++byte)
+      for (int l = 0; l < 8; ++l) {
+        if ((byte >> l & 1) == 0) continue;
+        const int cp = (l & 1) | (l >> 2 & 1) << 1, cq = l >> 1 & 1;
+        for (int ci = 0; ci < 4; ++ci) {
+          const int lane =
+              (cp & 1) << p | (cp >> 1) << (3 + p) | cq << q | (ci & 1) << i | (ci >> 1) << (3 + i);
+          t.bits[i][byte] |= std::uint64_t{1} << lane;
+        }
+      }
+  }
+  return t;
+}
+inline constexpr WindowExpand kWindowExpand = make_window_expand();
+
+[[gnu::always_inline]] inline std::uint64_t expand_window_mask(int i, unsigned mask16) {
+  const int q = (i + 2) % 3;
+  return kWindowExpand.bits[i][mask16 & 255] | kWindowExpand.bits[i][mask16 >> 8] << (8 << q);
+}
+
+// Centre offsets (coord - s) & 3 of coord = 0..3, per s.
+inline constexpr double kWindowRotation[4][4] = {
+    {0, 1, 2, 3}, {3, 0, 1, 2}, {2, 3, 0, 1}, {1, 2, 3, 0}};
+
+// The ten tests of the job's triangle (add_test / add_edge_test's arithmetic; see above).
+[[gnu::always_inline]] inline void window_tests(const WindowJob& job, WindowTests& w) {
+  constexpr double kRoundoff = 0x1p-53;
+  const std::array<double, 3>* p = job.p;
+  double e[3][3];
+  for (int j = 0; j < 3; ++j)
+    for (int k = 0; k < 3; ++k) e[j][k] = p[(j + 1) % 3][k] - p[j][k];
+  w.n[0] = e[0][1] * e[1][2] - e[0][2] * e[1][1];
+  w.n[1] = e[0][2] * e[1][0] - e[0][0] * e[1][2];
+  w.n[2] = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+  const double m = job.extent, m_plane = 2048 * kRoundoff * m * m * m,
+               m_edge = 256 * kRoundoff * m * m;
+  double lo = INFINITY, hi = -INFINITY;
+  for (int j = 0; j < 3; ++j) {
+    const double d = p[j][0] * w.n[0] + p[j][1] * w.n[1] + p[j][2] * w.n[2];
+    lo = std::min(lo, d), hi = std::max(hi, d);
+  }
+  double r = 0.5 * (std::fabs(w.n[0]) + std::fabs(w.n[1]) + std::fabs(w.n[2]));
+  w.plane[0] = (lo - r) - m_plane, w.plane[1] = (hi + r) + m_plane;
+  w.plane[2] = (lo - r) + m_plane, w.plane[3] = (hi + r) - m_plane;
+  for (int i = 0; i < 3; ++i) {
+    const int a = (i + 1) % 3, b = (i + 2) % 3;
+    for (int j = 0; j < 3; ++j) {
+      const int t = 3 * i + j;
+      const double xp = -e[j][b], xq = e[j][a];
+      if (xp == 0 && xq == 0 &&
+          format::at(job.t->v[(j + 1) % 3], a) == format::at(job.t->v[j], a) &&
+          format::at(job.t->v[(j + 1) % 3], b) == format::at(job.t->v[j], b)) {
+        w.xp[t] = w.xq[t] = 0;  // the predicate skips it: passes every centre
+        w.lo[t] = w.slo[t] = -INFINITY, w.hi[t] = w.shi[t] = INFINITY;
+        continue;
+      }
+      lo = INFINITY, hi = -INFINITY;
+      for (int k = 0; k < 3; ++k) {
+        const double d = p[k][a] * xp + p[k][b] * xq;
+        lo = std::min(lo, d), hi = std::max(hi, d);
+      }
+      r = 0.5 * (std::fabs(xp) + std::fabs(xq));
+      w.xp[t] = xp, w.xq[t] = xq;
+      w.lo[t] = (lo - r) - m_edge, w.hi[t] = (hi + r) + m_edge;
+      w.slo[t] = (lo - r) + m_edge, w.shi[t] = (hi + r) - m_edge;
+    }
+  }
+}
+
+}  // namespace kiln::voxelize_detail
