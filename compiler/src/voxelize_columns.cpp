@@ -24,6 +24,7 @@
 // rounds as the scalar code does.
 #include "voxelize_columns.hpp"
 
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 
@@ -156,8 +157,13 @@ bool TriangleColumns::setup(const GridTriangle& t) {
   t_ = t;
   windowed_ = false;
   if (!place(t)) return false;
-  if (window_ != nullptr && range_.hi[0] - range_.lo[0] < kWindowSide &&
-      range_.hi[1] - range_.lo[1] < kWindowSide && range_.hi[2] - range_.lo[2] < kWindowSide) {
+  static const int kMaxW = std::getenv("VOXW") ? std::atoi(std::getenv("VOXW")) : 1;
+  int windows = 1;
+  for (int k = 0; k < 3; ++k)
+    windows *= range_.hi[k] - range_.lo[k] < kWindowSide       ? 1
+               : range_.hi[k] - range_.lo[k] < 2 * kWindowSide ? 2
+                                                               : 99;
+  if (window_ != nullptr && windows <= kMaxW) {
     windowed_ = true;  // the kernel decides every test (voxelize_window.hpp)
     return true;
   }

@@ -307,6 +307,9 @@ class TriangleColumns {
   // between them, the set lanes split into their leaves. r: the clipped range, local.
   template <class Leaf>
   void walk_window(const VoxelRange& r, Leaf leaf);
+  template <class Leaf>
+  void window_leaves(const WindowMasks& masks, std::uint64_t box, const unsigned* s,
+                     const std::int64_t* at, Leaf leaf) const;
   template <int a, class Leaf, class Voxel>
   [[gnu::noinline]] void walk_small_any(const VoxelRange& r, Leaf leaf, Voxel voxel) {
     // The window's a range, from the start of its first leaf (global index modulo 4).
@@ -412,17 +415,38 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
 
 template <class Leaf>
 void TriangleColumns::walk_window(const VoxelRange& r, Leaf leaf) {
-  WindowJob job{&t_, p_, extent_, {}, {}};
-  std::uint64_t box = ~std::uint64_t{0};
-  std::int64_t first[3];  // the window's first leaf (global)
+  WindowJob job{&t_, p_, extent_, {}, {}, {}};
+  std::int64_t first[3], from[3], to[3];  // first leaf (global); the clipped range in the windows
   for (int k = 0; k < 3; ++k) {
-    const std::int64_t g = range_.lo[k];  // global
-    job.s[k] = unsigned(g & 3), first[k] = g & ~std::int64_t{3};
     const std::int64_t lo = range_.lo[k] - origin_[k];  // local, as r
+    job.s[k] = unsigned(range_.lo[k] & 3), first[k] = range_.lo[k] & ~std::int64_t{3};
     job.base[k] = double(lo) + 0.5;
-    box &= kWindowLaneMasks.box[k][job.s[k]][r.lo[k] - lo][r.hi[k] - lo];
+    job.windows[k] = range_.hi[k] - range_.lo[k] < kWindowSide ? 1 : 2;
+    from[k] = r.lo[k] - lo, to[k] = r.hi[k] - lo;
   }
-  const WindowMasks masks = window_(job);
+  WindowMasks masks[8];
+  window_(job, masks);
+  for (unsigned kz = 0; kz < job.windows[2]; ++kz)
+    for (unsigned ky = 0; ky < job.windows[1]; ++ky)
+      for (unsigned kx = 0; kx < job.windows[0]; ++kx) {
+        const unsigned k[3] = {kx, ky, kz};
+        std::uint64_t box = ~std::uint64_t{0};
+        std::int64_t at[3];  // this window's first leaf
+        for (int a = 0; a < 3; ++a) {
+          const std::int64_t lo = std::max<std::int64_t>(from[a] - 4 * k[a], 0),
+                             hi = std::min<std::int64_t>(to[a] - 4 * k[a], 3);
+          box = lo <= hi ? box & kWindowLaneMasks.box[a][job.s[a]][lo][hi] : 0;
+          at[a] = first[a] + 4 * k[a];
+        }
+        window_leaves(masks[kx + 2 * ky + 4 * kz], box, job.s, at, leaf);
+      }
+}
+
+// One window's voxels: the kernel's sure lanes and the maybe lanes the predicate accepts, within
+// `box`, reported per leaf (at: the window's first leaf, global; s: the range's first voxel & 3).
+template <class Leaf>
+void TriangleColumns::window_leaves(const WindowMasks& masks, std::uint64_t box, const unsigned* s,
+                                    const std::int64_t* at, Leaf leaf) const {
   const std::uint64_t maybe = masks.maybe & box;
   std::uint64_t set = masks.sure & maybe;
   for (std::uint64_t b = maybe & ~set; b != 0; b &= b - 1) {  // near a bound: rare
@@ -430,7 +454,7 @@ void TriangleColumns::walk_window(const VoxelRange& r, Leaf leaf) {
     std::uint32_t x[3];
     for (int k = 0; k < 3; ++k) {
       const int c = window_coord(lane, k);
-      x[k] = std::uint32_t(first[k] + c + (unsigned(c) < job.s[k] ? 4 : 0));
+      x[k] = std::uint32_t(at[k] + c + (unsigned(c) < s[k] ? 4 : 0));
     }
     if (triangle_touches_voxel(t_, x[0], x[1], x[2])) set |= std::uint64_t{1} << lane;
   }
@@ -439,9 +463,9 @@ void TriangleColumns::walk_window(const VoxelRange& r, Leaf leaf) {
     std::uint64_t bits = set;
     std::int64_t g[3];
     for (int k = 0; k < 3; ++k) {
-      const std::uint64_t in_first = kWindowLaneMasks.first_leaf[k][job.s[k]];
+      const std::uint64_t in_first = kWindowLaneMasks.first_leaf[k][s[k]];
       bits &= (l >> k & 1) ? ~in_first : in_first;
-      g[k] = first[k] + 4 * (l >> k & 1);
+      g[k] = at[k] + 4 * (l >> k & 1);
     }
     if (bits != 0) leaf(g, bits);
   }

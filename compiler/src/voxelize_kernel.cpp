@@ -54,8 +54,9 @@ bool voxel_kernel_supported(VoxelKernel kernel) {
   switch (kernel) {
     case VoxelKernel::kAvx512:
       return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-             __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx2") &&
-             __builtin_cpu_supports("fma") && voxelize_detail::window_kernel_avx512() != nullptr;
+             __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw") &&
+             __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+             voxelize_detail::window_kernel_avx512() != nullptr;
     case VoxelKernel::kAvx2:
       return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
              voxelize_detail::window_kernel_avx2() != nullptr;

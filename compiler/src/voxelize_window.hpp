@@ -59,6 +59,7 @@ struct WindowJob {
   double extent;
   double base[3];
   unsigned s[3];
+  unsigned windows[3];  // 4x4x4 windows along each axis (1 or 2), from the range's first voxel
 };
 
 /// The window's lanes (see above) in every maybe interval and in every sure interval.
@@ -73,7 +74,9 @@ struct WindowTests {
   double xp[9], xq[9], lo[9], hi[9], slo[9], shi[9];
 };
 
-using WindowKernel = WindowMasks (*)(const WindowJob&);
+/// Writes the masks of window (kx, ky, kz) (its first voxel 4 k_a after the range's first voxel
+/// along each axis a) to out[kx + 2 ky + 4 kz].
+using WindowKernel = void (*)(const WindowJob&, WindowMasks* out);
 
 /// The kernels (nullptr when not compiled for this target); a caller checks the CPU first.
 WindowKernel window_kernel_avx2();

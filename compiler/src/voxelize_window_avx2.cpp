@@ -75,22 +75,39 @@ KILN_AVX2_INLINE void edge_masks(const WindowTests& w, const __m256d* cen, int i
         sure16 |= unsigned(_mm256_movemask_pd(s[h])) << (4 * h);
 }
 
-KILN_AVX2 WindowMasks window_masks_avx2(const WindowJob& job) {
+KILN_AVX2 void window_masks_avx2(const WindowJob& job, WindowMasks* out) {
   WindowTests w;
   window_tests(job, w);
-  __m256d cen[3];
+  __m256d cen[3][2];
+  double cz[2][4];
   for (int a = 0; a < 3; ++a)
-    cen[a] =
-        _mm256_add_pd(_mm256_set1_pd(job.base[a]), _mm256_loadu_pd(kWindowRotation[job.s[a] & 3]));
-  double cz[4];
-  for (int k = 0; k < 4; ++k) cz[k] = job.base[2] + kWindowRotation[job.s[2] & 3][k];
-  WindowMasks out = plane_masks(w, cen, cz);
+    for (unsigned k = 0; k < job.windows[a]; ++k)
+      cen[a][k] = _mm256_add_pd(_mm256_set1_pd(job.base[a] + 4 * k),
+                                _mm256_loadu_pd(kWindowRotation[job.s[a] & 3]));
+  for (unsigned k = 0; k < job.windows[2]; ++k)
+    for (int c = 0; c < 4; ++c) cz[k][c] = (job.base[2] + 4 * k) + kWindowRotation[job.s[2] & 3][c];
+  // The edge masks per axis i and window pair (k_p, k_q), expanded along i.
+  WindowMasks edges[3][2][2];
   for (int i = 0; i < 3; ++i) {
-    unsigned maybe16, sure16;
-    edge_masks(w, cen, i, maybe16, sure16);
-    out.maybe &= expand_window_mask(i, maybe16), out.sure &= expand_window_mask(i, sure16);
+    const int p = (i + 1) % 3, q = (i + 2) % 3;
+    for (unsigned kp = 0; kp < job.windows[p]; ++kp)
+      for (unsigned kq = 0; kq < job.windows[q]; ++kq) {
+        __m256d pq[3];
+        pq[p] = cen[p][kp], pq[q] = cen[q][kq], pq[i] = cen[i][0];
+        unsigned maybe16, sure16;
+        edge_masks(w, pq, i, maybe16, sure16);
+        edges[i][kp][kq] = {expand_window_mask(i, maybe16), expand_window_mask(i, sure16)};
+      }
   }
-  return out;
+  for (unsigned kz = 0; kz < job.windows[2]; ++kz)
+    for (unsigned ky = 0; ky < job.windows[1]; ++ky)
+      for (unsigned kx = 0; kx < job.windows[0]; ++kx) {
+        const __m256d c[3] = {cen[0][kx], cen[1][ky], cen[2][kz]};
+        WindowMasks m = plane_masks(w, c, cz[kz]);
+        const WindowMasks* e[3] = {&edges[0][ky][kz], &edges[1][kz][kx], &edges[2][kx][ky]};
+        for (const WindowMasks* x : e) m.maybe &= x->maybe, m.sure &= x->sure;
+        out[kx + 2 * ky + 4 * kz] = m;
+      }
 }
 
 }  // namespace

@@ -5,9 +5,9 @@
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <immintrin.h>
 
-#define KILN_AVX512 __attribute__((target("avx2,fma,avx512f,avx512vl,avx512dq")))
+#define KILN_AVX512 __attribute__((target("avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")))
 #define KILN_AVX512_INLINE \
-  __attribute__((target("avx2,fma,avx512f,avx512vl,avx512dq"), always_inline)) inline
+  __attribute__((target("avx2,fma,avx512f,avx512vl,avx512dq,avx512bw"), always_inline)) inline
 
 namespace kiln::voxelize_detail {
 
@@ -43,20 +43,26 @@ KILN_AVX512_INLINE void within(__m512d x, const double* b, __mmask8& maybe, __mm
   sure = _mm512_mask_cmp_pd_mask(sure, x, _mm512_set1_pd(b[3]), _CMP_LE_OQ);
 }
 
+// Eight masks of eight lanes (m[v]: lanes 8v..8v+7) as one 64-bit mask, in mask registers.
+KILN_AVX512_INLINE std::uint64_t join(const __mmask8* m) {
+  const __mmask16 m01 = _mm512_kunpackb(m[1], m[0]), m23 = _mm512_kunpackb(m[3], m[2]),
+                  m45 = _mm512_kunpackb(m[5], m[4]), m67 = _mm512_kunpackb(m[7], m[6]);
+  return _cvtmask64_u64(_kunpackd_mask64(_kunpackw_mask32(m67, m45), _kunpackw_mask32(m23, m01)));
+}
+
 KILN_AVX512_INLINE WindowMasks plane_masks(const WindowTests& w, const __m512d* cen) {
   __m512d part[3][2];
   for (int a = 0; a < 3; ++a)
     for (int b = 0; b < 2; ++b)
       part[a][b] = _mm512_mul_pd(_mm512_set1_pd(w.n[a]), spread(cen[a], kPattern3[a][b]));
-  WindowMasks out{0, 0};
+  __mmask8 maybe[8], sure[8];
   for (int v = 0; v < 8; ++v) {
     const __m512d x =
         _mm512_add_pd(_mm512_add_pd(part[0][v & 1], part[1][v >> 1 & 1]), part[2][v >> 2 & 1]);
-    __mmask8 maybe = 0xff, sure = 0xff;
-    within(x, w.plane, maybe, sure);
-    out.maybe |= std::uint64_t(maybe) << (8 * v), out.sure |= std::uint64_t(sure) << (8 * v);
+    maybe[v] = sure[v] = 0xff;
+    within(x, w.plane, maybe[v], sure[v]);
   }
-  return out;
+  return {join(maybe), join(sure)};
 }
 
 // The three edge tests of axis i, as 16-bit masks of the plane (i + 1, i + 2).
@@ -72,22 +78,40 @@ KILN_AVX512_INLINE void edge_masks(const WindowTests& w, const __m512d* cen, int
     within(_mm512_add_pd(a, _mm512_mul_pd(xq, cq0)), b, m0, s0);
     within(_mm512_add_pd(a, _mm512_mul_pd(xq, cq1)), b, m1, s1);
   }
-  maybe16 = unsigned(m0) | unsigned(m1) << 8, sure16 = unsigned(s0) | unsigned(s1) << 8;
+  maybe16 = _cvtmask16_u32(_mm512_kunpackb(m1, m0)),
+  sure16 = _cvtmask16_u32(_mm512_kunpackb(s1, s0));
 }
 
-KILN_AVX512 WindowMasks window_masks_avx512(const WindowJob& job) {
+KILN_AVX512 void window_masks_avx512(const WindowJob& job, WindowMasks* out) {
   WindowTests w;
   window_tests(job, w);
-  __m512d cen[3];
+  __m512d cen[3][2];
   for (int a = 0; a < 3; ++a)
-    cen[a] = _mm512_add_pd(_mm512_set1_pd(job.base[a]), _mm512_load_pd(kRotation8[job.s[a] & 3]));
-  WindowMasks out = plane_masks(w, cen);
+    for (unsigned k = 0; k < job.windows[a]; ++k)
+      cen[a][k] = _mm512_add_pd(_mm512_set1_pd(job.base[a] + 4 * k),
+                                _mm512_load_pd(kRotation8[job.s[a] & 3]));
+  // The edge masks per axis i and window pair (k_p, k_q), expanded along i.
+  WindowMasks edges[3][2][2];
   for (int i = 0; i < 3; ++i) {
-    unsigned maybe16, sure16;
-    edge_masks(w, cen, i, maybe16, sure16);
-    out.maybe &= expand_window_mask(i, maybe16), out.sure &= expand_window_mask(i, sure16);
+    const int p = (i + 1) % 3, q = (i + 2) % 3;
+    for (unsigned kp = 0; kp < job.windows[p]; ++kp)
+      for (unsigned kq = 0; kq < job.windows[q]; ++kq) {
+        __m512d pq[3];
+        pq[p] = cen[p][kp], pq[q] = cen[q][kq], pq[i] = cen[i][0];
+        unsigned maybe16, sure16;
+        edge_masks(w, pq, i, maybe16, sure16);
+        edges[i][kp][kq] = {expand_window_mask(i, maybe16), expand_window_mask(i, sure16)};
+      }
   }
-  return out;
+  for (unsigned kz = 0; kz < job.windows[2]; ++kz)
+    for (unsigned ky = 0; ky < job.windows[1]; ++ky)
+      for (unsigned kx = 0; kx < job.windows[0]; ++kx) {
+        const __m512d c[3] = {cen[0][kx], cen[1][ky], cen[2][kz]};
+        WindowMasks m = plane_masks(w, c);
+        const WindowMasks* e[3] = {&edges[0][ky][kz], &edges[1][kz][kx], &edges[2][kx][ky]};
+        for (const WindowMasks* x : e) m.maybe &= x->maybe, m.sure &= x->sure;
+        out[kx + 2 * ky + 4 * kz] = m;
+      }
 }
 
 }  // namespace
