@@ -72,6 +72,10 @@ struct WindowMasks {
 struct WindowTests {
   double n[3], plane[4];  // plane: maybe lo, maybe hi, sure lo, sure hi
   double xp[9], xq[9], lo[9], hi[9], slo[9], shi[9];
+  // The slabs without margins ([lo - r, hi + r]; +-inf for skipped edges), r and the margins,
+  // for the float kernel's bounds (window_float_bounds).
+  double plane_slab[2], plane_r, plane_m;
+  double slab_lo[9], slab_hi[9], r[9], edge_m;
 };
 
 /// Writes the masks of window (kx, ky, kz) (its first voxel 4 k_a after the range's first voxel
@@ -160,6 +164,8 @@ inline constexpr double kWindowRotation[4][4] = {
     lo = std::min(lo, d), hi = std::max(hi, d);
   }
   double r = 0.5 * (std::fabs(w.n[0]) + std::fabs(w.n[1]) + std::fabs(w.n[2]));
+  w.plane_slab[0] = lo - r, w.plane_slab[1] = hi + r, w.plane_r = r, w.plane_m = m_plane;
+  w.edge_m = m_edge;
   w.plane[0] = (lo - r) - m_plane, w.plane[1] = (hi + r) + m_plane;
   w.plane[2] = (lo - r) + m_plane, w.plane[3] = (hi + r) - m_plane;
   for (int i = 0; i < 3; ++i) {
@@ -171,7 +177,8 @@ inline constexpr double kWindowRotation[4][4] = {
           format::at(job.t->v[(j + 1) % 3], a) == format::at(job.t->v[j], a) &&
           format::at(job.t->v[(j + 1) % 3], b) == format::at(job.t->v[j], b)) {
         w.xp[t] = w.xq[t] = 0;  // the predicate skips it: passes every centre
-        w.lo[t] = w.slo[t] = -INFINITY, w.hi[t] = w.shi[t] = INFINITY;
+        w.lo[t] = w.slo[t] = w.slab_lo[t] = -INFINITY, w.hi[t] = w.shi[t] = w.slab_hi[t] = INFINITY;
+        w.r[t] = 0;
         continue;
       }
       lo = INFINITY, hi = -INFINITY;
@@ -181,10 +188,26 @@ inline constexpr double kWindowRotation[4][4] = {
       }
       r = 0.5 * (std::fabs(xp) + std::fabs(xq));
       w.xp[t] = xp, w.xq[t] = xq;
+      w.slab_lo[t] = lo - r, w.slab_hi[t] = hi + r, w.r[t] = r;
       w.lo[t] = (lo - r) - m_edge, w.hi[t] = (hi + r) + m_edge;
       w.slo[t] = (lo - r) + m_edge, w.shi[t] = (hi + r) - m_edge;
     }
   }
+}
+
+// A test's maybe and sure bounds for the float kernel (see the header comment): the slab
+// [lo, hi] with margin m widened by the float evaluation's error 12 * 2^-24 * M * r (r: half the
+// sum of |X| components) and by the bounds' own rounding to float. Skipped tests stay +-inf.
+[[gnu::always_inline]] inline void window_float_bounds(double lo, double hi, double m, double r,
+                                                       double extent, float* out) {
+  if (!(lo > -INFINITY)) {
+    out[0] = out[2] = -INFINITY, out[1] = out[3] = INFINITY;
+    return;
+  }
+  const double e = m + 12 * 0x1p-24 * extent * r;
+  const double mf = e + 0x1p-22 * (std::max(std::fabs(lo), std::fabs(hi)) + e);
+  out[0] = float(lo - mf), out[1] = float(hi + mf), out[2] = float(lo + mf),
+  out[3] = float(hi - mf);
 }
 
 }  // namespace kiln::voxelize_detail
