@@ -120,11 +120,12 @@ class BrickBits {
     words_[i >> 6] |= std::uint64_t{1} << (i & 63);
     summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
   }
-  // The leaf whose first voxel is p (local) gets `mask` (Morton order within the leaf).
+  // The leaf whose first voxel is p (local) gets `mask` (Morton order within the leaf; may be
+  // empty).
   void set_leaf(const std::uint32_t p[3], std::uint64_t mask) {
     const std::uint32_t w = index(p[0], p[1], p[2]) >> 6;
     words_[w] |= mask;
-    summary_[w >> 6] |= std::uint64_t{1} << (w & 63);
+    summary_[w >> 6] |= std::uint64_t(mask != 0) << (w & 63);
   }
   // Voxels (x, y, z) with coordinate `a` from p[a] to last (local), a 4x4x4 leaf at a time: the
   // run's bits within a leaf come from a table, shifted to the column's place.

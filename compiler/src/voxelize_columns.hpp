@@ -459,16 +459,20 @@ void TriangleColumns::window_leaves(const WindowMasks& masks, std::uint64_t box,
     if (triangle_touches_voxel(t_, x[0], x[1], x[2])) set |= std::uint64_t{1} << lane;
   }
   if (set == 0) return;
-  for (int l = 0; l < 8; ++l) {
-    std::uint64_t bits = set;
-    std::int64_t g[3];
-    for (int k = 0; k < 3; ++k) {
-      const std::uint64_t in_first = kWindowLaneMasks.first_leaf[k][s[k]];
-      bits &= (l >> k & 1) ? ~in_first : in_first;
-      g[k] = at[k] + 4 * (l >> k & 1);
-    }
-    if (bits != 0) leaf(g, bits);
+  // Along each axis, the leaves (first: lanes with coord >= s) that hold set lanes: those lie in
+  // the clip, so every leaf of the loop does (some may be empty: leaf must accept zero bits).
+  std::uint64_t sel[3][2];
+  int from[3], to[3];
+  for (int k = 0; k < 3; ++k) {
+    sel[k][0] = kWindowLaneMasks.first_leaf[k][s[k]], sel[k][1] = ~sel[k][0];
+    from[k] = (set & sel[k][0]) != 0 ? 0 : 1, to[k] = (set & sel[k][1]) != 0 ? 1 : 0;
   }
+  for (int lz = from[2]; lz <= to[2]; ++lz)
+    for (int ly = from[1]; ly <= to[1]; ++ly)
+      for (int lx = from[0]; lx <= to[0]; ++lx) {
+        const std::int64_t g[3] = {at[0] + 4 * lx, at[1] + 4 * ly, at[2] + 4 * lz};
+        leaf(g, set & sel[0][lx] & sel[1][ly] & sel[2][lz]);
+      }
 }
 
 template <class Run, class Leaf, class Voxel>
