@@ -146,64 +146,73 @@ inline constexpr WindowExpand kWindowExpand = make_window_expand();
 inline constexpr double kWindowRotation[4][4] = {
     {0, 1, 2, 3}, {3, 0, 1, 2}, {2, 3, 0, 1}, {1, 2, 3, 0}};
 
-// The ten tests of the job's triangle (add_test / add_edge_test's arithmetic; see above).
-[[gnu::always_inline]] inline void window_tests(const WindowJob& job, WindowTests& w) {
-  constexpr double kRoundoff = 0x1p-53;
+// The edges e_j = p_(j+1) - p_j (e[j][axis]) and the plane test: the normal n (setup's
+// arithmetic), the slab [min_j p_j . n - r, max_j p_j . n + r], r and the margin 2048uM^3.
+struct WindowPlane {
+  double e[3][3], n[3], slab[2], r, m;
+};
+[[gnu::always_inline]] inline void window_plane(const WindowJob& job, WindowPlane& w) {
   const std::array<double, 3>* p = job.p;
-  double e[3][3];
   for (int j = 0; j < 3; ++j)
-    for (int k = 0; k < 3; ++k) e[j][k] = p[(j + 1) % 3][k] - p[j][k];
+    for (int k = 0; k < 3; ++k) w.e[j][k] = p[(j + 1) % 3][k] - p[j][k];
+  const double(&e)[3][3] = w.e;
   w.n[0] = e[0][1] * e[1][2] - e[0][2] * e[1][1];
   w.n[1] = e[0][2] * e[1][0] - e[0][0] * e[1][2];
   w.n[2] = e[0][0] * e[1][1] - e[0][1] * e[1][0];
-  const double m = job.extent, m_plane = 2048 * kRoundoff * m * m * m,
-               m_edge = 256 * kRoundoff * m * m;
   double lo = INFINITY, hi = -INFINITY;
   for (int j = 0; j < 3; ++j) {
     const double d = p[j][0] * w.n[0] + p[j][1] * w.n[1] + p[j][2] * w.n[2];
     lo = std::min(lo, d), hi = std::max(hi, d);
   }
-  double r = 0.5 * (std::fabs(w.n[0]) + std::fabs(w.n[1]) + std::fabs(w.n[2]));
-  w.plane_slab[0] = lo - r, w.plane_slab[1] = hi + r, w.plane_r = r, w.plane_m = m_plane;
-  w.edge_m = m_edge;
-  w.plane[0] = (lo - r) - m_plane, w.plane[1] = (hi + r) + m_plane;
-  w.plane[2] = (lo - r) + m_plane, w.plane[3] = (hi + r) - m_plane;
+  w.r = 0.5 * (std::fabs(w.n[0]) + std::fabs(w.n[1]) + std::fabs(w.n[2]));
+  w.slab[0] = lo - w.r, w.slab[1] = hi + w.r;
+  w.m = 2048 * 0x1p-53 * job.extent * job.extent * job.extent;
+}
+
+// The ten tests of the job's triangle (add_test / add_edge_test's arithmetic; see above). A
+// skipped edge test gets the slab [-1e30, 1e30] (passes every centre; finite, so that margins
+// added to it stay finite).
+[[gnu::always_inline]] inline void window_tests(const WindowJob& job, WindowTests& w) {
+  WindowPlane plane;
+  window_plane(job, plane);
+  const std::array<double, 3>* p = job.p;
+  const double(&e)[3][3] = plane.e;
+  const double m_plane = plane.m, m_edge = 256 * 0x1p-53 * job.extent * job.extent;
+  for (int k = 0; k < 3; ++k) w.n[k] = plane.n[k];
+  w.plane_slab[0] = plane.slab[0], w.plane_slab[1] = plane.slab[1];
+  w.plane_r = plane.r, w.plane_m = m_plane, w.edge_m = m_edge;
+  w.plane[0] = plane.slab[0] - m_plane, w.plane[1] = plane.slab[1] + m_plane;
+  w.plane[2] = plane.slab[0] + m_plane, w.plane[3] = plane.slab[1] - m_plane;
   for (int i = 0; i < 3; ++i) {
     const int a = (i + 1) % 3, b = (i + 2) % 3;
     for (int j = 0; j < 3; ++j) {
       const int t = 3 * i + j;
       const double xp = -e[j][b], xq = e[j][a];
+      double lo = INFINITY, hi = -INFINITY, r = 0.5 * (std::fabs(xp) + std::fabs(xq));
       if (xp == 0 && xq == 0 &&
           format::at(job.t->v[(j + 1) % 3], a) == format::at(job.t->v[j], a) &&
           format::at(job.t->v[(j + 1) % 3], b) == format::at(job.t->v[j], b)) {
-        w.xp[t] = w.xq[t] = 0;  // the predicate skips it: passes every centre
-        w.lo[t] = w.slo[t] = w.slab_lo[t] = -INFINITY, w.hi[t] = w.shi[t] = w.slab_hi[t] = INFINITY;
-        w.r[t] = 0;
-        continue;
+        lo = -1e30, hi = 1e30;  // the predicate skips it: passes every centre
+      } else {
+        for (int k = 0; k < 3; ++k) {
+          const double d = p[k][a] * xp + p[k][b] * xq;
+          lo = std::min(lo, d), hi = std::max(hi, d);
+        }
+        lo -= r, hi += r;
       }
-      lo = INFINITY, hi = -INFINITY;
-      for (int k = 0; k < 3; ++k) {
-        const double d = p[k][a] * xp + p[k][b] * xq;
-        lo = std::min(lo, d), hi = std::max(hi, d);
-      }
-      r = 0.5 * (std::fabs(xp) + std::fabs(xq));
       w.xp[t] = xp, w.xq[t] = xq;
-      w.slab_lo[t] = lo - r, w.slab_hi[t] = hi + r, w.r[t] = r;
-      w.lo[t] = (lo - r) - m_edge, w.hi[t] = (hi + r) + m_edge;
-      w.slo[t] = (lo - r) + m_edge, w.shi[t] = (hi + r) - m_edge;
+      w.slab_lo[t] = lo, w.slab_hi[t] = hi, w.r[t] = r;
+      w.lo[t] = lo - m_edge, w.hi[t] = hi + m_edge;
+      w.slo[t] = lo + m_edge, w.shi[t] = hi - m_edge;
     }
   }
 }
 
 // A test's maybe and sure bounds for the float kernel (see the header comment): the slab
 // [lo, hi] with margin m widened by the float evaluation's error 12 * 2^-24 * M * r (r: half the
-// sum of |X| components) and by the bounds' own rounding to float. Skipped tests stay +-inf.
+// sum of |X| components) and by the bounds' own rounding to float.
 [[gnu::always_inline]] inline void window_float_bounds(double lo, double hi, double m, double r,
                                                        double extent, float* out) {
-  if (!(lo > -INFINITY)) {
-    out[0] = out[2] = -INFINITY, out[1] = out[3] = INFINITY;
-    return;
-  }
   const double e = m + 12 * 0x1p-24 * extent * r;
   const double mf = e + 0x1p-22 * (std::max(std::fabs(lo), std::fabs(hi)) + e);
   out[0] = float(lo - mf), out[1] = float(hi + mf), out[2] = float(lo + mf),

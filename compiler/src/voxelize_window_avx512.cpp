@@ -4,6 +4,8 @@
 // evaluation's error (window_float_bounds), so the decisions stay the predicate's.
 #include "voxelize_window.hpp"
 
+#include <algorithm>
+
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <immintrin.h>
 
@@ -46,19 +48,87 @@ KILN_AVX512_INLINE std::uint64_t join(const __mmask16* m) {
   return _cvtmask64_u64(_kunpackd_mask64(_mm512_kunpackw(m[3], m[2]), _mm512_kunpackw(m[1], m[0])));
 }
 
-// The float form of the tests: axes rounded to float, bounds from window_float_bounds.
+// The float form of the tests: axes rounded to float, bounds from window_float_bounds' formula;
+// the edge tests t = 3i + j in entries 0..8 (9..15: copies of test 8).
 struct FloatTests {
   float n[3], plane[4];
-  float xp[9], xq[9], b[9][4];
+  alignas(32) float xp[16], xq[16], lo[16], hi[16], slo[16], shi[16];
 };
 
-KILN_AVX512_INLINE void float_tests(const WindowTests& w, double extent, FloatTests& f) {
-  for (int a = 0; a < 3; ++a) f.n[a] = float(w.n[a]);
-  window_float_bounds(w.plane_slab[0], w.plane_slab[1], w.plane_m, w.plane_r, extent, f.plane);
-  for (int t = 0; t < 9; ++t) {
-    f.xp[t] = float(w.xp[t]), f.xq[t] = float(w.xq[t]);
-    window_float_bounds(w.slab_lo[t], w.slab_hi[t], w.edge_m, w.r[t], extent, f.b[t]);
+// Flat indices (3 corner + axis, < 9) per edge test t = 3i + j, a = i + 1, b = i + 2: corner j
+// along b and a (also e_j's components: xp = -e_j[b], xq = e_j[a]), corner j + 2 and j + 1.
+struct EdgeIndex {
+  alignas(64) long long jb[16], ja[16], kb[16], ka[16], nb[16], na[16];
+};
+constexpr EdgeIndex make_edge_index() {
+  EdgeIndex x{};
+  for (int t = 0; t < 16; ++t) {
+    const int i = std::min(t, 8) / 3, j = std::min(t, 8) % 3, a = (i + 1) % 3, b = (i + 2) % 3;
+    x.jb[t] = 3 * j + b, x.ja[t] = 3 * j + a;
+    x.kb[t] = 3 * ((j + 2) % 3) + b, x.ka[t] = 3 * ((j + 2) % 3) + a;
+    x.nb[t] = 3 * ((j + 1) % 3) + b, x.na[t] = 3 * ((j + 1) % 3) + a;
   }
+  return x;
+}
+constexpr EdgeIndex kEdgeIndex = make_edge_index();
+
+// flat[index[l]] for the eight lanes l (flat: 16 doubles, the first 9 used).
+KILN_AVX512_INLINE __m512d pick(const double* flat, const long long* index) {
+  return _mm512_permutex2var_pd(_mm512_loadu_pd(flat), _mm512_load_si512(index),
+                                _mm512_loadu_pd(flat + 8));
+}
+
+// Edge tests 8h..8h+7 as window_tests forms them (the projections of corners j and j + 2 only:
+// corner j + 1's exact projection equals corner j's, so the min and max carry the same error
+// bound), with window_float_bounds' bounds.
+KILN_AVX512_INLINE void float_edges(const double* p, const double* e, const double* v, int h,
+                                    double m, double extent, FloatTests& f) {
+  const EdgeIndex& x = kEdgeIndex;
+  const __m512d sign = _mm512_set1_pd(-0.0), zero = _mm512_setzero_pd();
+  const __m512d xp = _mm512_xor_pd(pick(e, x.jb + 8 * h), sign), xq = pick(e, x.ja + 8 * h);
+  const __m512d d1 = _mm512_add_pd(_mm512_mul_pd(pick(p, x.ja + 8 * h), xp),
+                                   _mm512_mul_pd(pick(p, x.jb + 8 * h), xq));
+  const __m512d d3 = _mm512_add_pd(_mm512_mul_pd(pick(p, x.ka + 8 * h), xp),
+                                   _mm512_mul_pd(pick(p, x.kb + 8 * h), xq));
+  const __m512d r =
+      _mm512_mul_pd(_mm512_set1_pd(0.5), _mm512_add_pd(_mm512_abs_pd(xp), _mm512_abs_pd(xq)));
+  __m512d lo = _mm512_sub_pd(_mm512_maskz_min_pd(0xff, d1, d3), r),
+          hi = _mm512_add_pd(_mm512_maskz_max_pd(0xff, d1, d3), r);
+  // Skipped: an edge parallel to axis i (its corners equal along a and b).
+  __mmask8 skip = _mm512_cmp_pd_mask(xp, zero, _CMP_EQ_OQ);
+  skip = _mm512_mask_cmp_pd_mask(skip, xq, zero, _CMP_EQ_OQ);
+  skip = _mm512_mask_cmp_pd_mask(skip, pick(v, x.na + 8 * h), pick(v, x.ja + 8 * h), _CMP_EQ_OQ);
+  skip = _mm512_mask_cmp_pd_mask(skip, pick(v, x.nb + 8 * h), pick(v, x.jb + 8 * h), _CMP_EQ_OQ);
+  lo = _mm512_mask_blend_pd(skip, lo, _mm512_set1_pd(-1e30));
+  hi = _mm512_mask_blend_pd(skip, hi, _mm512_set1_pd(1e30));
+  const __m512d err =
+      _mm512_add_pd(_mm512_set1_pd(m), _mm512_mul_pd(_mm512_set1_pd(12 * 0x1p-24 * extent), r));
+  const __m512d mf = _mm512_add_pd(
+      err,
+      _mm512_mul_pd(
+          _mm512_set1_pd(0x1p-22),
+          _mm512_add_pd(_mm512_maskz_max_pd(0xff, _mm512_abs_pd(lo), _mm512_abs_pd(hi)), err)));
+  _mm256_store_ps(f.xp + 8 * h, _mm512_maskz_cvtpd_ps(0xff, xp));
+  _mm256_store_ps(f.xq + 8 * h, _mm512_maskz_cvtpd_ps(0xff, xq));
+  _mm256_store_ps(f.lo + 8 * h, _mm512_maskz_cvtpd_ps(0xff, _mm512_sub_pd(lo, mf)));
+  _mm256_store_ps(f.hi + 8 * h, _mm512_maskz_cvtpd_ps(0xff, _mm512_add_pd(hi, mf)));
+  _mm256_store_ps(f.slo + 8 * h, _mm512_maskz_cvtpd_ps(0xff, _mm512_add_pd(lo, mf)));
+  _mm256_store_ps(f.shi + 8 * h, _mm512_maskz_cvtpd_ps(0xff, _mm512_sub_pd(hi, mf)));
+}
+
+KILN_AVX512_INLINE void float_tests(const WindowJob& job, FloatTests& f) {
+  WindowPlane w;
+  window_plane(job, w);
+  for (int a = 0; a < 3; ++a) f.n[a] = float(w.n[a]);
+  window_float_bounds(w.slab[0], w.slab[1], w.m, w.r, job.extent, f.plane);
+  double p[16], e[16], v[16];
+  for (int k = 0; k < 9; ++k)
+    p[k] = job.p[k / 3][std::size_t(k % 3)], e[k] = w.e[k / 3][k % 3],
+    v[k] = format::at(job.t->v[k / 3], k % 3);
+  for (int k = 9; k < 16; ++k) p[k] = e[k] = v[k] = 0;
+  const double m_edge = 256 * 0x1p-53 * job.extent * job.extent;
+  float_edges(p, e, v, 0, m_edge, job.extent, f);
+  float_edges(p, e, v, 1, m_edge, job.extent, f);
 }
 
 KILN_AVX512_INLINE WindowMasks plane_masks(const FloatTests& f, const __m512* cen) {
@@ -83,17 +153,16 @@ KILN_AVX512_INLINE WindowMasks edge_masks(const FloatTests& f, __m512 cen_p, __m
   for (int t = 3 * i; t < 3 * i + 3; ++t) {
     const __m512 x = _mm512_add_ps(_mm512_mul_ps(_mm512_set1_ps(f.xp[t]), cp),
                                    _mm512_mul_ps(_mm512_set1_ps(f.xq[t]), cq));
-    within(x, f.b[t], maybe, sure);
+    const float b[4] = {f.lo[t], f.hi[t], f.slo[t], f.shi[t]};
+    within(x, b, maybe, sure);
   }
   return {expand_window_mask(i, _cvtmask16_u32(maybe)),
           expand_window_mask(i, _cvtmask16_u32(sure))};
 }
 
 KILN_AVX512 void window_masks_avx512(const WindowJob& job, WindowMasks* out) {
-  WindowTests w;
-  window_tests(job, w);
   FloatTests f;
-  float_tests(w, job.extent, f);
+  float_tests(job, f);
   __m512 cen[3][2];
   for (int a = 0; a < 3; ++a)
     for (unsigned k = 0; k < job.windows[a]; ++k)
