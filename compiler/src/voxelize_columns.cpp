@@ -24,7 +24,6 @@
 // rounds as the scalar code does.
 #include "voxelize_columns.hpp"
 
-#include <cstdlib>
 #include <cstring>
 #include <limits>
 
@@ -157,13 +156,9 @@ bool TriangleColumns::setup(const GridTriangle& t) {
   t_ = t;
   windowed_ = false;
   if (!place(t)) return false;
-  static const int kMaxW = std::getenv("VOXW") ? std::atoi(std::getenv("VOXW")) : 1;
-  int windows = 1;
-  for (int k = 0; k < 3; ++k)
-    windows *= range_.hi[k] - range_.lo[k] < kWindowSide       ? 1
-               : range_.hi[k] - range_.lo[k] < 2 * kWindowSide ? 2
-                                                               : 99;
-  if (window_ != nullptr && windows <= kMaxW) {
+  if (window_ != nullptr && range_.hi[0] - range_.lo[0] < kWindowsPerAxis * kWindowSide &&
+      range_.hi[1] - range_.lo[1] < kWindowsPerAxis * kWindowSide &&
+      range_.hi[2] - range_.lo[2] < kWindowsPerAxis * kWindowSide) {
     windowed_ = true;  // the kernel decides every test (voxelize_window.hpp)
     return true;
   }

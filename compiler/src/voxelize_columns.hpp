@@ -421,10 +421,10 @@ void TriangleColumns::walk_window(const VoxelRange& r, Leaf leaf) {
     const std::int64_t lo = range_.lo[k] - origin_[k];  // local, as r
     job.s[k] = unsigned(range_.lo[k] & 3), first[k] = range_.lo[k] & ~std::int64_t{3};
     job.base[k] = double(lo) + 0.5;
-    job.windows[k] = range_.hi[k] - range_.lo[k] < kWindowSide ? 1 : 2;
+    job.windows[k] = unsigned(range_.hi[k] - range_.lo[k]) / kWindowSide + 1;
     from[k] = r.lo[k] - lo, to[k] = r.hi[k] - lo;
   }
-  WindowMasks masks[8];
+  WindowMasks masks[kWindowsMax];
   window_(job, masks);
   for (unsigned kz = 0; kz < job.windows[2]; ++kz)
     for (unsigned ky = 0; ky < job.windows[1]; ++ky)
@@ -438,7 +438,8 @@ void TriangleColumns::walk_window(const VoxelRange& r, Leaf leaf) {
           box = lo <= hi ? box & kWindowLaneMasks.box[a][job.s[a]][lo][hi] : 0;
           at[a] = first[a] + 4 * k[a];
         }
-        window_leaves(masks[kx + 2 * ky + 4 * kz], box, job.s, at, leaf);
+        window_leaves(masks[kx + kWindowsPerAxis * (ky + kWindowsPerAxis * kz)], box, job.s, at,
+                      leaf);
       }
 }
 

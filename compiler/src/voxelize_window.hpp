@@ -49,7 +49,9 @@
 
 namespace kiln::voxelize_detail {
 
-constexpr int kWindowSide = 4;  // candidate ranges of at most 4 voxels per axis take the kernel
+constexpr int kWindowSide = 4;      // a window's side
+constexpr int kWindowsPerAxis = 3;  // at most 3 windows per axis: candidate ranges up to 12
+constexpr int kWindowsMax = kWindowsPerAxis * kWindowsPerAxis * kWindowsPerAxis;
 
 /// What a window kernel needs: the triangle (for the edge-parallel rule), its corners minus the
 /// integer origin, M, the local centre of the window's first voxel per axis and s_a = g_a & 3.
@@ -59,7 +61,8 @@ struct WindowJob {
   double extent;
   double base[3];
   unsigned s[3];
-  unsigned windows[3];  // 4x4x4 windows along each axis (1 or 2), from the range's first voxel
+  unsigned windows[3];  // 4x4x4 windows along each axis (1..kWindowsPerAxis), from the range's
+                        // first voxel
 };
 
 /// The window's lanes (see above) in every maybe interval and in every sure interval.
@@ -79,7 +82,7 @@ struct WindowTests {
 };
 
 /// Writes the masks of window (kx, ky, kz) (its first voxel 4 k_a after the range's first voxel
-/// along each axis a) to out[kx + 2 ky + 4 kz].
+/// along each axis a) to out[kx + kWindowsPerAxis (ky + kWindowsPerAxis kz)].
 using WindowKernel = void (*)(const WindowJob&, WindowMasks* out);
 
 /// The kernels (nullptr when not compiled for this target); a caller checks the CPU first.

@@ -78,8 +78,8 @@ KILN_AVX2_INLINE void edge_masks(const WindowTests& w, const __m256d* cen, int i
 KILN_AVX2 void window_masks_avx2(const WindowJob& job, WindowMasks* out) {
   WindowTests w;
   window_tests(job, w);
-  __m256d cen[3][2];
-  double cz[2][4];
+  __m256d cen[3][kWindowsPerAxis];
+  double cz[kWindowsPerAxis][4];
   for (int a = 0; a < 3; ++a)
     for (unsigned k = 0; k < job.windows[a]; ++k)
       cen[a][k] = _mm256_add_pd(_mm256_set1_pd(job.base[a] + 4 * k),
@@ -87,7 +87,7 @@ KILN_AVX2 void window_masks_avx2(const WindowJob& job, WindowMasks* out) {
   for (unsigned k = 0; k < job.windows[2]; ++k)
     for (int c = 0; c < 4; ++c) cz[k][c] = (job.base[2] + 4 * k) + kWindowRotation[job.s[2] & 3][c];
   // The edge masks per axis i and window pair (k_p, k_q), expanded along i.
-  WindowMasks edges[3][2][2];
+  WindowMasks edges[3][kWindowsPerAxis][kWindowsPerAxis];
   for (int i = 0; i < 3; ++i) {
     const int p = (i + 1) % 3, q = (i + 2) % 3;
     for (unsigned kp = 0; kp < job.windows[p]; ++kp)
@@ -106,7 +106,7 @@ KILN_AVX2 void window_masks_avx2(const WindowJob& job, WindowMasks* out) {
         WindowMasks m = plane_masks(w, c, cz[kz]);
         const WindowMasks* e[3] = {&edges[0][ky][kz], &edges[1][kz][kx], &edges[2][kx][ky]};
         for (const WindowMasks* x : e) m.maybe &= x->maybe, m.sure &= x->sure;
-        out[kx + 2 * ky + 4 * kz] = m;
+        out[kx + kWindowsPerAxis * (ky + kWindowsPerAxis * kz)] = m;
       }
 }
 

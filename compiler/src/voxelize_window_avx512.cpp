@@ -163,12 +163,12 @@ KILN_AVX512_INLINE WindowMasks edge_masks(const FloatTests& f, __m512 cen_p, __m
 KILN_AVX512 void window_masks_avx512(const WindowJob& job, WindowMasks* out) {
   FloatTests f;
   float_tests(job, f);
-  __m512 cen[3][2];
+  __m512 cen[3][kWindowsPerAxis];
   for (int a = 0; a < 3; ++a)
     for (unsigned k = 0; k < job.windows[a]; ++k)
       cen[a][k] = _mm512_add_ps(_mm512_set1_ps(float(job.base[a] + 4 * k)),
                                 _mm512_load_ps(kRotation16[job.s[a] & 3]));
-  WindowMasks edges[3][2][2];  // per axis i and window pair (k_p, k_q)
+  WindowMasks edges[3][kWindowsPerAxis][kWindowsPerAxis];  // per axis i and window pair (k_p, k_q)
   for (int i = 0; i < 3; ++i) {
     const int p = (i + 1) % 3, q = (i + 2) % 3;
     for (unsigned kp = 0; kp < job.windows[p]; ++kp)
@@ -182,7 +182,7 @@ KILN_AVX512 void window_masks_avx512(const WindowJob& job, WindowMasks* out) {
         WindowMasks m = plane_masks(f, c);
         const WindowMasks* e[3] = {&edges[0][ky][kz], &edges[1][kz][kx], &edges[2][kx][ky]};
         for (const WindowMasks* x : e) m.maybe &= x->maybe, m.sure &= x->sure;
-        out[kx + 2 * ky + 4 * kz] = m;
+        out[kx + kWindowsPerAxis * (ky + kWindowsPerAxis * kz)] = m;
       }
 }
 
