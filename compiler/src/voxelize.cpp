@@ -53,6 +53,12 @@ class GridMesh {
     for (std::size_t k = 0; k < corners_.size(); ++k)
       corners_[k] = grid_point(grid, scene.positions[k]);
   }
+  // Starts loading triangle i's corners (the walk of the triangles before it hides the misses).
+  void prefetch(std::uint32_t i) const {
+    if (corners_.empty()) return;
+    const auto& tri = scene.triangles[i];
+    for (const std::uint32_t v : tri.v) __builtin_prefetch(&corners_[v]);
+  }
   GridTriangle triangle(std::uint32_t i) const {
     if (corners_.empty()) return grid_triangle(scene, grid_, i);
     const auto& tri = scene.triangles[i];
@@ -212,7 +218,11 @@ void rasterize(const GridMesh& mesh, std::span<const std::uint32_t> triangles, c
                OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
   TriangleColumns columns(voxelize_detail::selected_window_kernel());
   const std::int64_t* o = brick.clip.lo;
-  for (const std::uint32_t i : triangles) {
+  constexpr std::size_t kAhead = 4;  // triangles whose corners are prefetched ahead
+  for (std::size_t k = 0; k < std::min(kAhead, triangles.size()); ++k) mesh.prefetch(triangles[k]);
+  for (std::size_t k = 0; k < triangles.size(); ++k) {
+    const std::uint32_t i = triangles[k];
+    if (k + kAhead < triangles.size()) mesh.prefetch(triangles[k + kAhead]);
     if (!columns.setup(mesh.triangle(i))) continue;
     columns.walk(
         brick.clip,
