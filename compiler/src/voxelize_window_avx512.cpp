@@ -72,17 +72,23 @@ constexpr EdgeIndex make_edge_index() {
 }
 constexpr EdgeIndex kEdgeIndex = make_edge_index();
 
-// flat[index[l]] for the eight lanes l (flat: 16 doubles, the first 9 used).
-KILN_AVX512_INLINE __m512d pick(const double* flat, const long long* index) {
-  return _mm512_permutex2var_pd(_mm512_loadu_pd(flat), _mm512_load_si512(index),
-                                _mm512_loadu_pd(flat + 8));
+// Nine doubles in registers: lanes 0..7 of lo, lane 0 of hi.
+struct Nine {
+  __m512d lo, hi;
+};
+KILN_AVX512_INLINE Nine load_nine(const double* flat) {
+  return {_mm512_loadu_pd(flat), _mm512_maskz_loadu_pd(1, flat + 8)};
+}
+// x[index[l]] for the eight lanes l.
+KILN_AVX512_INLINE __m512d pick(const Nine& x, const long long* index) {
+  return _mm512_permutex2var_pd(x.lo, _mm512_load_si512(index), x.hi);
 }
 
 // Edge tests 8h..8h+7 as window_tests forms them (the projections of corners j and j + 2 only:
 // corner j + 1's exact projection equals corner j's, so the min and max carry the same error
-// bound), with window_float_bounds' bounds.
-KILN_AVX512_INLINE void float_edges(const double* p, const double* e, const double* v, int h,
-                                    double m, double extent, FloatTests& f) {
+// bound), with window_float_bounds' bounds. p, e, v: corners (local), edges, corners (global).
+KILN_AVX512_INLINE void float_edges(const Nine& p, const Nine& e, const Nine& v, int h, double m,
+                                    double extent, FloatTests& f) {
   const EdgeIndex& x = kEdgeIndex;
   const __m512d sign = _mm512_set1_pd(-0.0), zero = _mm512_setzero_pd();
   const __m512d xp = _mm512_xor_pd(pick(e, x.jb + 8 * h), sign), xq = pick(e, x.ja + 8 * h);
@@ -121,11 +127,12 @@ KILN_AVX512_INLINE void float_tests(const WindowJob& job, FloatTests& f) {
   window_plane(job, w);
   for (int a = 0; a < 3; ++a) f.n[a] = float(w.n[a]);
   window_float_bounds(w.slab[0], w.slab[1], w.m, w.r, job.extent, f.plane);
-  double p[16], e[16], v[16];
-  for (int k = 0; k < 9; ++k)
-    p[k] = job.p[k / 3][std::size_t(k % 3)], e[k] = w.e[k / 3][k % 3],
-    v[k] = format::at(job.t->v[k / 3], k % 3);
-  for (int k = 9; k < 16; ++k) p[k] = e[k] = v[k] = 0;
+  static_assert(sizeof(std::array<double, 3>) == 3 * sizeof(double) &&
+                sizeof(format::Double3) == 3 * sizeof(double));
+  const Nine p = load_nine(job.p[0].data()), v = load_nine(&job.t->v[0].x);
+  alignas(64) static constexpr long long kNext[16] = {3, 4, 5, 6, 7, 8, 0, 1,
+                                                      2, 2, 2, 2, 2, 2, 2, 2};
+  const Nine e = {_mm512_sub_pd(pick(p, kNext), p.lo), _mm512_sub_pd(pick(p, kNext + 8), p.hi)};
   const double m_edge = 256 * 0x1p-53 * job.extent * job.extent;
   float_edges(p, e, v, 0, m_edge, job.extent, f);
   float_edges(p, e, v, 1, m_edge, job.extent, f);
