@@ -1,5 +1,8 @@
-// The window kernel (voxelize_window.hpp) with AVX2: four doubles per register, the comparisons
-// as all-ones lanes ANDed across the tests and read out with movemask.
+// The window kernel (voxelize_window.hpp) with AVX2 in single precision: eight floats per register
+// (a 4x4x4 window's plane test in eight registers, an edge test's 4x4 plane in two), comparisons
+// ANDed across the tests and read out with movemask. The tests are set up in scalar double
+// (window_tests) and widened by the float evaluation's error (window_float_bounds), so the
+// decisions stay the predicate's.
 #include "voxelize_window.hpp"
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -12,98 +15,103 @@ namespace kiln::voxelize_detail {
 
 namespace {
 
-// Lanes 4v + l of a 3D or 2D mask: l's two bits are coordinate bits 0 of the first two axes, so a
-// register holds cen[0..1] or cen[2..3] of them in one of two patterns.
-KILN_AVX2_INLINE __m256d alternate(__m256d cen, int high) {  // cen[k], cen[k + 1], ... by l & 1
-  return high ? _mm256_permute4x64_pd(cen, 0xEE) : _mm256_permute4x64_pd(cen, 0x44);
-}
-KILN_AVX2_INLINE __m256d pairs(__m256d cen, int high) {  // cen[k], cen[k], cen[k + 1], ...
-  return high ? _mm256_permute4x64_pd(cen, 0xFA) : _mm256_permute4x64_pd(cen, 0x50);
+// Index patterns over 8 lanes. 3D lanes 8v + l: l's bits are x0, y0, z0 and v's x1, y1, z1, so
+// each axis a has two patterns (by v's bit a). 2D lanes 8h + l: l's bits p0, q0, p1, h = q1.
+alignas(32) constexpr int kPattern3[3][2][8] = {
+    {{0, 1, 0, 1, 0, 1, 0, 1}, {2, 3, 2, 3, 2, 3, 2, 3}},
+    {{0, 0, 1, 1, 0, 0, 1, 1}, {2, 2, 3, 3, 2, 2, 3, 3}},
+    {{0, 0, 0, 0, 1, 1, 1, 1}, {2, 2, 2, 2, 3, 3, 3, 3}}};
+alignas(32) constexpr int kPatternP[8] = {0, 1, 0, 1, 2, 3, 2, 3};
+alignas(32) constexpr int kPatternQ[2][8] = {{0, 0, 1, 1, 0, 0, 1, 1}, {2, 2, 3, 3, 2, 2, 3, 3}};
+alignas(32) constexpr float kRotation8[4][8] = {
+    {0, 1, 2, 3}, {3, 0, 1, 2}, {2, 3, 0, 1}, {1, 2, 3, 0}};
+
+KILN_AVX2_INLINE __m256 spread(__m256 cen, const int (&index)[8]) {
+  return _mm256_permutevar8x32_ps(cen, _mm256_load_si256(reinterpret_cast<const __m256i*>(index)));
 }
 
-// acc_m &= lo <= x <= hi, acc_s &= slo <= x <= shi.
-KILN_AVX2_INLINE void within(__m256d x, const __m256d* b, __m256d& acc_m, __m256d& acc_s) {
-  acc_m = _mm256_and_pd(
-      acc_m, _mm256_and_pd(_mm256_cmp_pd(x, b[0], _CMP_GE_OQ), _mm256_cmp_pd(x, b[1], _CMP_LE_OQ)));
-  acc_s = _mm256_and_pd(
-      acc_s, _mm256_and_pd(_mm256_cmp_pd(x, b[2], _CMP_GE_OQ), _mm256_cmp_pd(x, b[3], _CMP_LE_OQ)));
+// The float form of the tests: axes rounded to float, bounds from window_float_bounds.
+struct FloatTests {
+  float n[3], plane[4];
+  float xp[9], xq[9], b[9][4];
+};
+
+KILN_AVX2_INLINE void float_tests(const WindowJob& job, FloatTests& f) {
+  WindowTests w;
+  window_tests(job, w);
+  for (int a = 0; a < 3; ++a) f.n[a] = float(w.n[a]);
+  window_float_bounds(w.plane_slab[0], w.plane_slab[1], w.plane_m, w.plane_r, job.extent, f.plane);
+  for (int t = 0; t < 9; ++t) {
+    f.xp[t] = float(w.xp[t]), f.xq[t] = float(w.xq[t]);
+    window_float_bounds(w.slab_lo[t], w.slab_hi[t], w.edge_m, w.r[t], job.extent, f.b[t]);
+  }
 }
 
-// 3D lanes 4v + l: coord_x = (l & 1) | (v >> 1 & 1) << 1, coord_y = (l >> 1) | (v >> 2 & 1) << 1,
-// coord_z = (v & 1) | (v >> 3) << 1.
-KILN_AVX2_INLINE WindowMasks plane_masks(const WindowTests& w, const __m256d* cen,
-                                         const double* cz) {
-  __m256d px[2], py[2], pz[4];
-  for (int b = 0; b < 2; ++b)
-    px[b] = _mm256_mul_pd(_mm256_set1_pd(w.n[0]), alternate(cen[0], b)),
-    py[b] = _mm256_mul_pd(_mm256_set1_pd(w.n[1]), pairs(cen[1], b));
-  for (int k = 0; k < 4; ++k) pz[k] = _mm256_mul_pd(_mm256_set1_pd(w.n[2]), _mm256_set1_pd(cz[k]));
-  __m256d b[4];
-  for (int k = 0; k < 4; ++k) b[k] = _mm256_set1_pd(w.plane[k]);
+// The lanes of x within b[0..1] (maybe) and b[2..3] (sure), as all-ones lanes.
+KILN_AVX2_INLINE void within(__m256 x, const float* b, __m256& maybe, __m256& sure) {
+  maybe = _mm256_and_ps(maybe, _mm256_and_ps(_mm256_cmp_ps(x, _mm256_set1_ps(b[0]), _CMP_GE_OQ),
+                                             _mm256_cmp_ps(x, _mm256_set1_ps(b[1]), _CMP_LE_OQ)));
+  sure = _mm256_and_ps(sure, _mm256_and_ps(_mm256_cmp_ps(x, _mm256_set1_ps(b[2]), _CMP_GE_OQ),
+                                           _mm256_cmp_ps(x, _mm256_set1_ps(b[3]), _CMP_LE_OQ)));
+}
+
+KILN_AVX2_INLINE WindowMasks plane_masks(const FloatTests& f, const __m256* cen) {
+  __m256 part[3][2];
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 2; ++b)
+      part[a][b] = _mm256_mul_ps(_mm256_set1_ps(f.n[a]), spread(cen[a], kPattern3[a][b]));
+  const __m256 ones = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
   WindowMasks out{0, 0};
-  const __m256d ones = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
-  for (int v = 0; v < 16; ++v) {
-    const __m256d x =
-        _mm256_add_pd(_mm256_add_pd(px[v >> 1 & 1], py[v >> 2 & 1]), pz[(v & 1) | (v >> 3) << 1]);
-    __m256d m = ones, s = ones;
-    within(x, b, m, s);
-    out.maybe |= std::uint64_t(_mm256_movemask_pd(m)) << (4 * v);
-    out.sure |= std::uint64_t(_mm256_movemask_pd(s)) << (4 * v);
+  for (int v = 0; v < 8; ++v) {
+    const __m256 x =
+        _mm256_add_ps(_mm256_add_ps(part[0][v & 1], part[1][v >> 1 & 1]), part[2][v >> 2 & 1]);
+    __m256 maybe = ones, sure = ones;
+    within(x, f.plane, maybe, sure);
+    out.maybe |= std::uint64_t(unsigned(_mm256_movemask_ps(maybe))) << (8 * v);
+    out.sure |= std::uint64_t(unsigned(_mm256_movemask_ps(sure))) << (8 * v);
   }
   return out;
 }
 
-// The three edge tests of axis i on the plane (p, q) = (i + 1, i + 2), 2D lanes 4h + l:
-// p = (l & 1) | (h & 1) << 1, q = (l >> 1) | (h >> 1) << 1.
-KILN_AVX2_INLINE void edge_masks(const WindowTests& w, const __m256d* cen, int i, unsigned& maybe16,
-                                 unsigned& sure16) {
-  const __m256d cp[2] = {alternate(cen[(i + 1) % 3], 0), alternate(cen[(i + 1) % 3], 1)};
-  const __m256d cq[2] = {pairs(cen[(i + 2) % 3], 0), pairs(cen[(i + 2) % 3], 1)};
-  const __m256d ones = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
-  __m256d m[4] = {ones, ones, ones, ones}, s[4] = {ones, ones, ones, ones};
+// The 16 lanes of two registers as bits.
+KILN_AVX2_INLINE unsigned bits16(const __m256* m) {
+  return unsigned(_mm256_movemask_ps(m[0])) | unsigned(_mm256_movemask_ps(m[1])) << 8;
+}
+
+// The three edge tests of axis i on the window pair's plane (i + 1, i + 2), expanded along i.
+KILN_AVX2_INLINE WindowMasks edge_masks(const FloatTests& f, __m256 cen_p, __m256 cen_q, int i) {
+  const __m256 cp = spread(cen_p, kPatternP);
+  const __m256 cq[2] = {spread(cen_q, kPatternQ[0]), spread(cen_q, kPatternQ[1])};
+  const __m256 ones = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+  __m256 maybe[2] = {ones, ones}, sure[2] = {ones, ones};
   for (int t = 3 * i; t < 3 * i + 3; ++t) {
-    const __m256d xp = _mm256_set1_pd(w.xp[t]), xq = _mm256_set1_pd(w.xq[t]);
-    const __m256d a[2] = {_mm256_mul_pd(xp, cp[0]), _mm256_mul_pd(xp, cp[1])};
-    const __m256d c[2] = {_mm256_mul_pd(xq, cq[0]), _mm256_mul_pd(xq, cq[1])};
-    const __m256d b[4] = {_mm256_set1_pd(w.lo[t]), _mm256_set1_pd(w.hi[t]),
-                          _mm256_set1_pd(w.slo[t]), _mm256_set1_pd(w.shi[t])};
-    for (int h = 0; h < 4; ++h) within(_mm256_add_pd(a[h & 1], c[h >> 1]), b, m[h], s[h]);
+    const __m256 a = _mm256_mul_ps(_mm256_set1_ps(f.xp[t]), cp), xq = _mm256_set1_ps(f.xq[t]);
+    for (int h = 0; h < 2; ++h)
+      within(_mm256_add_ps(a, _mm256_mul_ps(xq, cq[h])), f.b[t], maybe[h], sure[h]);
   }
-  maybe16 = sure16 = 0;
-  for (int h = 0; h < 4; ++h)
-    maybe16 |= unsigned(_mm256_movemask_pd(m[h])) << (4 * h),
-        sure16 |= unsigned(_mm256_movemask_pd(s[h])) << (4 * h);
+  return {expand_window_mask(i, bits16(maybe)), expand_window_mask(i, bits16(sure))};
 }
 
 KILN_AVX2 void window_masks_avx2(const WindowJob& job, WindowMasks* out) {
-  WindowTests w;
-  window_tests(job, w);
-  __m256d cen[3][kWindowsPerAxis];
-  double cz[kWindowsPerAxis][4];
+  FloatTests f;
+  float_tests(job, f);
+  __m256 cen[3][kWindowsPerAxis];
   for (int a = 0; a < 3; ++a)
     for (unsigned k = 0; k < job.windows[a]; ++k)
-      cen[a][k] = _mm256_add_pd(_mm256_set1_pd(job.base[a] + 4 * k),
-                                _mm256_loadu_pd(kWindowRotation[job.s[a] & 3]));
-  for (unsigned k = 0; k < job.windows[2]; ++k)
-    for (int c = 0; c < 4; ++c) cz[k][c] = (job.base[2] + 4 * k) + kWindowRotation[job.s[2] & 3][c];
-  // The edge masks per axis i and window pair (k_p, k_q), expanded along i.
-  WindowMasks edges[3][kWindowsPerAxis][kWindowsPerAxis];
+      cen[a][k] = _mm256_add_ps(_mm256_set1_ps(float(job.base[a] + 4 * k)),
+                                _mm256_load_ps(kRotation8[job.s[a] & 3]));
+  WindowMasks edges[3][kWindowsPerAxis][kWindowsPerAxis];  // per axis i and window pair
   for (int i = 0; i < 3; ++i) {
     const int p = (i + 1) % 3, q = (i + 2) % 3;
     for (unsigned kp = 0; kp < job.windows[p]; ++kp)
-      for (unsigned kq = 0; kq < job.windows[q]; ++kq) {
-        __m256d pq[3];
-        pq[p] = cen[p][kp], pq[q] = cen[q][kq], pq[i] = cen[i][0];
-        unsigned maybe16, sure16;
-        edge_masks(w, pq, i, maybe16, sure16);
-        edges[i][kp][kq] = {expand_window_mask(i, maybe16), expand_window_mask(i, sure16)};
-      }
+      for (unsigned kq = 0; kq < job.windows[q]; ++kq)
+        edges[i][kp][kq] = edge_masks(f, cen[p][kp], cen[q][kq], i);
   }
   for (unsigned kz = 0; kz < job.windows[2]; ++kz)
     for (unsigned ky = 0; ky < job.windows[1]; ++ky)
       for (unsigned kx = 0; kx < job.windows[0]; ++kx) {
-        const __m256d c[3] = {cen[0][kx], cen[1][ky], cen[2][kz]};
-        WindowMasks m = plane_masks(w, c, cz[kz]);
+        const __m256 c[3] = {cen[0][kx], cen[1][ky], cen[2][kz]};
+        WindowMasks m = plane_masks(f, c);
         const WindowMasks* e[3] = {&edges[0][ky][kz], &edges[1][kz][kx], &edges[2][kx][ky]};
         for (const WindowMasks* x : e) m.maybe &= x->maybe, m.sure &= x->sure;
         out[kx + kWindowsPerAxis * (ky + kWindowsPerAxis * kz)] = m;
