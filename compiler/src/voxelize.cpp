@@ -1,7 +1,8 @@
 // Surface voxelization brick by brick: triangles are binned to the bricks (128^3 voxels, in
 // Morton order) their plane's slab reaches; each brick walks its triangles column by column along
 // each triangle's dominant axis, where every separating-axis test is an interval of the column
-// (voxelize_columns.hpp: closed form, exact via margins), and sets bits in a per-thread bit array
+// (voxelize_columns.hpp: closed form, exact via margins; small triangles on AVX2 / AVX-512 CPUs:
+// every voxel of their range at once, voxelize_window.hpp), and sets bits in a per-thread bit array
 // laid out in Morton order, whose words are the 4x4x4 leaves. Leaves come out in order without
 // per-voxel codes or a sort; concatenating bricks in Morton order gives the global order, and
 // every brick is a pure function of its triangles, so any thread count gives the same bytes.

@@ -26,6 +26,11 @@
 // 4x4x4 leaf so that each leaf is written once. A voxel is then set when its centre lies in every
 // sure interval and tested when it lies in every maybe interval: the same decisions as the
 // column walk, so the same voxels.
+//
+// On CPUs with AVX2 or AVX-512, triangles whose candidate range is at most 12 voxels on every
+// axis (most of a dense mesh's) take the brute-force window kernel instead (voxelize_window.hpp:
+// every test on every voxel of 4x4x4 windows at once, no filing, no divisions); walk_small then
+// serves only 13-voxel ranges there, and every small triangle elsewhere.
 #pragma once
 
 #include <algorithm>

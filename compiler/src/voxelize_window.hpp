@@ -1,43 +1,63 @@
 // The voxelizer's brute-force window kernel for small triangles: every voxel of a triangle's
-// candidate range (at most kWindowSide = 4 voxels on every axis) against the ten non-box slab
-// tests of triangle_overlaps_box at once, in SIMD registers, with no filing of the tests by their
-// zero components and no divisions (the column walk, voxelize_columns.hpp, does both; it stays
-// the path for larger windows and for CPUs without AVX2).
+// candidate range (at most kWindowsPerAxis * kWindowSide = 12 voxels on every axis) against the
+// ten non-box slab tests of triangle_overlaps_box at once, in SIMD registers, with no filing of
+// the tests by their zero components and no divisions (the column walk, voxelize_columns.hpp,
+// does both; it stays the path for larger triangles and for CPUs without AVX2). Kernels: AVX-512
+// and AVX2 (voxelize_window_avx512.cpp, _avx2.cpp), chosen at run time (voxelize_kernel.cpp:
+// __builtin_cpu_supports, KILN_VOXEL_KERNEL, set_voxel_kernel); every kernel gives the voxel set
+// of triangle_touches_voxel exactly, as argued below.
 //
-// Lanes. The window is the 4x4x4 block of voxels starting at the candidate range's first voxel
-// g (global). Lane L (0..63) holds the voxel whose global coordinate along axis a is congruent to
-// coord_a(L) = bit a of L | bit (3 + a) of L << 1 modulo 4, i.e. the voxel g_a + ((coord_a(L) -
-// s_a) & 3) with s_a = g_a & 3. So a lane's index is its voxel's Morton index within its 4x4x4
-// leaf, and the leaf along a is g_a's (coord_a >= s_a) or the next one: the window's mask splits
-// into the (up to 8) leaves by ANDs with constant masks, with no bit shuffling.
+// Windows and lanes. The range is covered by 4x4x4 windows, 1 to 3 per axis, the first starting
+// at the range's first voxel g (global) and the next ones 4 voxels further along each axis. Lane L
+// (0..63) of a window holds the voxel whose global coordinate along axis a is congruent to
+// coord_a(L) = bit a of L | bit (3 + a) of L << 1 modulo 4, i.e. the window's voxel (start_a +
+// ((coord_a(L) - s_a) & 3)) with s_a = g_a & 3 (the same for every window). So a lane's index is
+// its voxel's Morton index within its 4x4x4 leaf, and the leaf along a is the window start's
+// (coord_a >= s_a) or the next one: a window's mask splits into its (up to 8) leaves by ANDs with
+// constant masks (kWindowLaneMasks), with no bit shuffling.
 //
 // Tests. The plane test "c . n in [min_j p_j . n - r, max_j p_j . n + r]" (c: the local voxel
 // centre, p_j: the corners minus the integer origin) depends on all three coordinates and is
 // evaluated on the 64 lanes; an edge test on the axis cross(unit_i, e_j) has a zero i component,
 // so it is evaluated on the 16 (p, q) = (i + 1, i + 2) pairs (2D lane l: p0 | q0 << 1 | p1 << 2 |
 // q1 << 3) and its mask expanded along i by a table (kWindowExpand). The axes, projections and
-// radii are formed with add_test / add_edge_test's arithmetic, and each test carries the same
-// margin m (2048uM^3 for the plane, 256uM^2 for edges; u = 2^-53, M = extent + 2): maybe
-// interval [lo - r - m, hi + r + m], sure interval [lo - r + m, hi + r - m]. A voxel is set when
-// its centre is in every sure interval, decided by triangle_touches_voxel when it is in every
-// maybe interval only, skipped otherwise: the predicate's voxel set exactly, as argued next.
+// radii are formed in double with add_test / add_edge_test's arithmetic (the AVX-512 setup
+// projects corners j and j + 2 only on edge j's axes: corner j + 1's exact projection equals
+// corner j's, so the min and max carry the same error bound), and each test carries the same
+// margin m (2048uM^3 for the plane, 256uM^2 for edges; u = 2^-53, M = extent + 2). The kernels
+// then evaluate c . X in single precision, so each test's margin grows by a bound e_f of that
+// evaluation's error (window_float_bounds): maybe interval [lo - r - m', hi + r + m'], sure
+// interval [lo - r + m', hi + r - m'] with m' >= m + e_f. A voxel is set when its centre is in
+// every sure interval, decided by triangle_touches_voxel when it is in every maybe interval only,
+// skipped otherwise.
 //
-// Why the margins hold here (notation of voxelize_columns.cpp: the predicate's value of a test's
-// separating quantity differs from the exact one by <= 32uM^2 (edges) and <= 336uM^3 (plane)).
-// Our values, all in double, no FMA (the kernels multiply and add separately): corners minus the
-// integer origin err by <= uM per component, edges by <= 4uM, an edge axis (two edge components)
-// by <= 4uM per component, the normal by <= 48uM^2 (|N| <= 8M^2). Projections p . X: <= 20uM^2
-// (edges; two products and a sum) and <= 240uM^3 (plane); r: <= 4uM^2 and <= 55uM^3. The centre c
-// is exact (a half-integer, |c| <= M over the candidate range; lanes outside it are masked off),
-// c . X errs by |c| |X - X_exact| plus its own rounding: <= 8uM^2 + 8uM^2 (edges: two products, a
-// sum) and <= 144uM^3 + 72uM^3 (plane: three products, two sums). The bounds fl(fl(lo - r) -+ m)
-// round twice: <= 10uM^2 (|lo|, |hi| <= 4M^2, r <= 2M) and <= 60uM^3 (|lo| <= 24M^3, r <= 12M^2).
-// Our total: <= 50uM^2 and <= 571uM^3; with the predicate's, <= 82uM^2 < 256uM^2 and <= 907uM^3
-// < 2048uM^3: a centre inside the sure interval passes the predicate's test, one outside the
-// maybe interval fails it (an edge test the predicate skips, edge parallel to axis i, is skipped
-// here too: bounds +-inf). A degenerate triangle (n = 0) has the plane test "0 in [-m, m]": every
-// centre is maybe and none is sure, so the predicate decides every voxel, as in the column walk.
-// Small windows have M <= 7, so there are no overflows or underflows to consider.
+// Why the double margins hold (notation of voxelize_columns.cpp: the predicate's value of a
+// test's separating quantity differs from the exact one by <= 32uM^2 (edges) and <= 336uM^3
+// (plane)). Our double values, no FMA: corners minus the integer origin err by <= uM per
+// component, edges by <= 4uM, an edge axis (two edge components) by <= 4uM per component, the
+// normal by <= 48uM^2 (|N| <= 8M^2). Projections p . X: <= 20uM^2 (edges; two products and a
+// sum) and <= 240uM^3 (plane); r: <= 4uM^2 and <= 55uM^3. The centre c is exact (a half-integer,
+// |c| <= M over the candidate range; lanes outside it are masked off), and c . X with our X
+// differs from c . X_exact by |c| |X - X_exact| <= 8uM^2 and <= 144uM^3. The bounds
+// fl(fl(lo - r) -+ m') round twice: <= 10uM^2 (|lo|, |hi| <= 4M^2, r <= 2M) and <= 60uM^3 (|lo| <=
+// 24M^3, r <= 12M^2). Our total: <= 42uM^2 and <= 499uM^3; with the predicate's, <= 74uM^2 <
+// 256uM^2 and <= 835uM^3 < 2048uM^3.
+//
+// Why the float evaluation holds. Each kernel rounds X to float (relative error <= 2^-24 per
+// component), takes the centre exactly (a half-integer below 2^23) and forms c . X with rounded
+// products and sums: ((n0 c0 + n1 c1) + n2 c2) for the plane, (xp cp + xq cq) for an edge; the
+// result differs from c . X (our X, exact arithmetic) by <= 5 * 2^-24 * sum_k |X_k| |c_k| <=
+// 5 * 2^-24 * M * 2r (r = sum_k |X_k| / 2), so e_f = 12 * 2^-24 * M * r bounds it. The bounds,
+// computed in double as lo - r -+ m' and hi + r -+ m' with m' = e + 2^-22 (max(|lo - r|,
+// |hi + r|) + e), e = m + e_f, are then rounded to float, which moves them by <= 2^-24
+// (|bound|) <= m' - e: the float maybe bounds still contain [lo - r - e, hi + r + e] and the
+// float sure bounds lie within [lo - r + e, hi + r - e]. So a lane in every float sure interval
+// has its exact centre value inside each slab by more than m (the predicate accepts it), and a
+// lane outside some float maybe interval has it outside by more than m (the predicate rejects
+// it). A test the predicate skips (edge parallel to axis i) gets the slab [-1e30, 1e30], which
+// every lane passes, maybe and sure. A degenerate triangle (n = 0) has the plane test "0 in
+// [-m', m']": every centre is maybe and none is sure, so the predicate decides every voxel, as in
+// the column walk. Windows have M <= 15 and |c . X| <= 1e5, so nothing overflows or underflows.
 #pragma once
 
 #include <algorithm>
