@@ -252,9 +252,10 @@ inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
 
 class TriangleColumns {
  public:
-  /// window: the kernel for triangles whose candidate range is at most kWindowSide voxels on
-  /// every axis (voxelize_window.hpp), or nullptr: the column walk for every triangle (and
-  /// dominant_axis / reach_along_a valid after every setup, as the binning needs).
+  /// window: the kernel for triangles whose candidate range is at most kWindowsPerAxis *
+  /// kWindowSide voxels on every axis (voxelize_window.hpp), or nullptr: the column walk for
+  /// every triangle (and dominant_axis / reach_along_a valid after every setup, as the binning
+  /// needs).
   explicit TriangleColumns(WindowKernel window = nullptr) : window_(window) {}
   /// Prepares the tests; false when the triangle touches no voxel at all.
   bool setup(const GridTriangle& t);
