@@ -189,7 +189,9 @@ TEST(VoxelDagOutOfCore, ProgressCountsEveryCube) {
   EXPECT_EQ(planned, stats.cubes);
   for (std::size_t i = 0; i < calls.size(); ++i) {
     EXPECT_EQ(calls[i].first, i + 1);
-    if (i > 0) EXPECT_GE(calls[i].second, calls[i - 1].second);
+    if (i > 0) {
+      EXPECT_GE(calls[i].second, calls[i - 1].second);
+    }
   }
   EXPECT_DOUBLE_EQ(calls.back().second, 1.0);
 }

@@ -3,6 +3,7 @@
 // set it was built from.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "kiln/compiler/build.hpp"
@@ -332,12 +333,12 @@ TEST(Voxelizer, FastPathsMatchReferenceOnWorstCases) {
 
 // Small triangles with corners on a 1/8-voxel lattice (as quantized meshes such as Draco's give:
 // many edges parallel to a grid plane), 1 to 9 voxels wide, at every offset from the 4x4x4
-// leaves, some across the 128^3 bricks: the window walk, its merged tests and its leaf masks.
-TEST(Voxelizer, FastPathsMatchReferenceOnSmallQuantizedTriangles) {
-  std::mt19937 rng(871);
+// leaves, some across the 128^3 bricks, in a 256^3 unit grid.
+std::vector<std::array<Float3, 3>> small_quantized_triangles(std::uint32_t seed, int count) {
+  std::mt19937 rng(seed);
   std::uniform_int_distribution<int> corner(0, 8 * 240), size(-8 * 9, 8 * 9);
   std::vector<std::array<Float3, 3>> triangles;
-  for (int i = 0; i < 1500; ++i) {
+  for (int i = 0; i < count; ++i) {
     Float3 p[3];
     p[0] = {float(corner(rng)) / 8, float(corner(rng)) / 8, float(corner(rng)) / 8};
     if (i % 3 == 0)  // across a brick boundary
@@ -352,7 +353,102 @@ TEST(Voxelizer, FastPathsMatchReferenceOnSmallQuantizedTriangles) {
       for (int a = 0; a < 3; ++a) format::at(q, a) = std::clamp(format::at(q, a), 0.0f, 256.0f);
     triangles.push_back({p[0], p[1], p[2]});
   }
-  expect_paths_match_reference(grid_unit_scene(triangles), unit_grid(256), "small quantized");
+  return triangles;
+}
+
+// The window walk, its merged tests and its leaf masks.
+TEST(Voxelizer, FastPathsMatchReferenceOnSmallQuantizedTriangles) {
+  expect_paths_match_reference(grid_unit_scene(small_quantized_triangles(871, 1500)),
+                               unit_grid(256), "small quantized");
+}
+
+// The voxels of `cube` each triangle touches, by the predicate over its bounding box (+-2).
+std::vector<std::uint64_t> cube_reference(const Scene& scene, const VoxelGrid& grid,
+                                          const VoxelCube& cube) {
+  std::vector<std::uint64_t> want;
+  for (const auto& tri : scene.triangles) {
+    const GridTriangle t = to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
+                                   scene.positions[tri.v[2]]);
+    std::int64_t lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      const double mn =
+          std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
+      const double mx =
+          std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
+      lo[a] = std::max<std::int64_t>(cube.origin[a], std::int64_t(std::floor(mn)) - 2);
+      hi[a] = std::min<std::int64_t>(std::int64_t(cube.origin[a]) + cube.side - 1,
+                                     std::int64_t(std::floor(mx)) + 2);
+    }
+    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
+      for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+        for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
+          if (triangle_touches_voxel(t, std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)))
+            want.push_back(
+                format::morton_code(std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)));
+  }
+  std::sort(want.begin(), want.end());
+  want.erase(std::unique(want.begin(), want.end()), want.end());
+  return want;
+}
+
+// Small triangles at the far corner of the largest grid (grid coordinates near 2^17, where a
+// float position's ulp is 2^-6): corners on the 1/64 lattice, on voxel faces and one ulp off
+// them, slivers and repeated corners, in a 64^3 sub-cube.
+std::vector<std::array<Float3, 3>> far_corner_triangles(float base, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> at(-4 * 64, 68 * 64), size(-64 * 6, 64 * 6);
+  std::vector<std::array<Float3, 3>> out;
+  for (int i = 0; i < 300; ++i) {
+    Float3 p[3];
+    for (int j = 0; j < 3; ++j)
+      for (int a = 0; a < 3; ++a)
+        format::at(p[j], a) =
+            j == 0 ? base + float(at(rng)) / 64 : format::at(p[0], a) + float(size(rng)) / 64;
+    if (i % 4 == 1)  // on voxel faces (integers), or one ulp off
+      for (auto& q : p) {
+        const int a = int(rng() % 3);
+        format::at(q, a) = std::round(format::at(q, a));
+        if (rng() & 1) format::at(q, a) = std::nextafter(format::at(q, a), 0.0f);
+      }
+    if (i % 6 == 2) p[2] = p[1];                                  // degenerate
+    if (i % 6 == 3) p[2] = {p[0].x, p[0].y, p[0].z + 1.0f / 64};  // sliver
+    if (i % 5 == 4) p[1].z = p[2].z = p[0].z;                     // axis-aligned plane
+    out.push_back({p[0], p[1], p[2]});
+  }
+  return out;
+}
+
+// Every small-triangle kernel the CPU runs (the column walk, the AVX2 and AVX-512 window
+// kernels), forced one after the other, against the predicate voxel by voxel on adversarial
+// triangles: the worst cases (faces, centres, ulps off faces, slivers, degenerate, axis-aligned),
+// small quantized ones at every leaf offset and across bricks, and small ones at the far corner of
+// the 131072^3 grid.
+TEST(Voxelizer, EveryKernelMatchesPredicateOnAdversarialTriangles) {
+  const Scene worst = grid_unit_scene(worst_case_triangles(16, 1620));
+  const Scene small = grid_unit_scene(small_quantized_triangles(4096, 1200));
+  constexpr std::uint32_t kMax = 131072;
+  const Scene far = triangles_scene(far_corner_triangles(float(kMax - 64), 7));
+  const VoxelCube far_cube{{kMax - 64, kMax - 64, kMax - 64}, 64};
+  const std::vector<std::uint64_t> far_want = cube_reference(far, unit_grid(kMax), far_cube);
+  ASSERT_GT(far_want.size(), 1000u);
+  for (const VoxelKernel kernel :
+       {VoxelKernel::kColumns, VoxelKernel::kAvx2, VoxelKernel::kAvx512}) {
+    const std::string name = voxel_kernel_name(kernel);
+    if (!voxel_kernel_supported(kernel)) {
+      std::printf("[ SKIPPED  ] kernel %s: this CPU cannot run it\n", name.c_str());
+      continue;
+    }
+    set_voxel_kernel(kernel);
+    ASSERT_EQ(voxel_kernel(), kernel);
+    expect_paths_match_reference(worst, unit_grid(16), name + ": worst cases");
+    expect_paths_match_reference(small, unit_grid(256), name + ": small quantized");
+    const std::vector<std::uint32_t> all = all_triangles(far);
+    expect_leaves_equal(voxelize_surface_leaves(far, unit_grid(kMax), far_cube, all, 2),
+                        leaves_of(far_want), name + ": far corner");
+    EXPECT_EQ(voxelize_surface_cube(far, unit_grid(kMax), far_cube, all, true, 2).codes, far_want)
+        << name;
+  }
+  set_voxel_kernel(VoxelKernel::kAuto);
 }
 
 // An indexed mesh of small triangles (a wavy sheet on a 1/8-voxel lattice, vertices shared):

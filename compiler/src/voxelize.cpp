@@ -3,7 +3,8 @@
 // entries are joined per brick in range order (so each bin lists its triangles in the given
 // order whatever the thread count); each brick walks its triangles column by column along
 // each triangle's dominant axis, where every separating-axis test is an interval of the column
-// (voxelize_columns.hpp: closed form, exact via margins), and sets bits in a per-thread bit array
+// (voxelize_columns.hpp: closed form, exact via margins; small triangles on AVX2 / AVX-512 CPUs:
+// every voxel of their range at once, voxelize_window.hpp), and sets bits in a per-thread bit array
 // laid out in Morton order, whose words are the 4x4x4 leaves. Leaves come out in order without
 // per-voxel codes or a sort; concatenating bricks in Morton order gives the global order, and
 // every brick is a pure function of its triangles, so any thread count gives the same bytes.
@@ -135,11 +136,12 @@ class BrickBits {
     words_[i >> 6] |= std::uint64_t{1} << (i & 63);
     summary_[i >> 12] |= std::uint64_t{1} << ((i >> 6) & 63);
   }
-  // The leaf whose first voxel is p (local) gets `mask` (Morton order within the leaf).
+  // The leaf whose first voxel is p (local) gets `mask` (Morton order within the leaf; may be
+  // empty).
   void set_leaf(const std::uint32_t p[3], std::uint64_t mask) {
     const std::uint32_t w = index(p[0], p[1], p[2]) >> 6;
     words_[w] |= mask;
-    summary_[w >> 6] |= std::uint64_t{1} << (w & 63);
+    summary_[w >> 6] |= std::uint64_t(mask != 0) << (w & 63);
   }
   // Voxels (x, y, z) with coordinate `a` from p[a] to last (local), a 4x4x4 leaf at a time: the
   // run's bits within a leaf come from a table, shifted to the column's place.
@@ -224,7 +226,7 @@ Brick brick_of(const VoxelCube& cube, std::uint32_t brick, std::size_t b) {
 template <class OnRun, class OnLeaf, class OnVoxel>
 void rasterize(const GridMesh& mesh, std::span<const std::uint32_t> triangles, const Brick& brick,
                OnRun on_run, OnLeaf on_leaf, OnVoxel on_voxel) {
-  TriangleColumns columns;
+  TriangleColumns columns(voxelize_detail::selected_window_kernel());
   const std::int64_t* o = brick.clip.lo;
   for (std::size_t k = 0; k < triangles.size(); ++k) {
     if (k + 8 < triangles.size()) mesh.prefetch_indices(triangles[k + 8]);

@@ -154,7 +154,14 @@ bool TriangleColumns::add_tests(const GridTriangle& t, const std::array<double, 
 
 bool TriangleColumns::setup(const GridTriangle& t) {
   t_ = t;
+  windowed_ = false;
   if (!place(t)) return false;
+  if (window_ != nullptr && range_.hi[0] - range_.lo[0] < kWindowsPerAxis * kWindowSide &&
+      range_.hi[1] - range_.lo[1] < kWindowsPerAxis * kWindowSide &&
+      range_.hi[2] - range_.lo[2] < kWindowsPerAxis * kWindowSide) {
+    windowed_ = true;  // the kernel decides every test (voxelize_window.hpp)
+    return true;
+  }
   std::array<double, 3> e[3];
   for (int j = 0; j < 3; ++j)
     for (std::size_t k = 0; k < 3; ++k) e[j][k] = p_[(j + 1) % 3][k] - p_[j][k];

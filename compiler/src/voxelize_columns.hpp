@@ -26,6 +26,11 @@
 // 4x4x4 leaf so that each leaf is written once. A voxel is then set when its centre lies in every
 // sure interval and tested when it lies in every maybe interval: the same decisions as the
 // column walk, so the same voxels.
+//
+// On CPUs with AVX2 or AVX-512, triangles whose candidate range is at most 12 voxels on every
+// axis (most of a dense mesh's) take the brute-force window kernel instead (voxelize_window.hpp:
+// every test on every voxel of 4x4x4 windows at once, no filing, no divisions); walk_small then
+// serves only 13-voxel ranges there, and every small triangle elsewhere.
 #pragma once
 
 #include <algorithm>
@@ -41,6 +46,7 @@
 #endif
 
 #include "kiln/compiler/voxelizer.hpp"
+#include "voxelize_window.hpp"
 
 namespace kiln::voxelize_detail {
 
@@ -246,6 +252,11 @@ inline unsigned centres_in(const WindowAxis& w, double lo, double hi) {
 
 class TriangleColumns {
  public:
+  /// window: the kernel for triangles whose candidate range is at most kWindowsPerAxis *
+  /// kWindowSide voxels on every axis (voxelize_window.hpp), or nullptr: the column walk for
+  /// every triangle (and dominant_axis / reach_along_a valid after every setup, as the binning
+  /// needs).
+  explicit TriangleColumns(WindowKernel window = nullptr) : window_(window) {}
   /// Prepares the tests; false when the triangle touches no voxel at all.
   bool setup(const GridTriangle& t);
   /// The candidate range (every voxel the predicate can accept lies in it).
@@ -298,6 +309,13 @@ class TriangleColumns {
   // voxels are added without a loop over leaves they cannot reach.)
   template <int a, int span, class Leaf, class Voxel>
   void walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel);
+  // walk for a window triangle (windowed_): the kernel's masks, the predicate on the lanes
+  // between them, the set lanes split into their leaves. r: the clipped range, local.
+  template <class Leaf>
+  void walk_window(const VoxelRange& r, Leaf leaf);
+  template <class Leaf>
+  void window_leaves(const WindowMasks& masks, std::uint64_t box, const unsigned* s,
+                     const std::int64_t* at, Leaf leaf) const;
   template <int a, class Leaf, class Voxel>
   [[gnu::noinline]] void walk_small_any(const VoxelRange& r, Leaf leaf, Voxel voxel) {
     // The window's a range, from the start of its first leaf (global index modulo 4).
@@ -318,6 +336,8 @@ class TriangleColumns {
     centres_within(w, lo, hi, sure_inset_, maybe, sure);
   }
 
+  WindowKernel window_ = nullptr;
+  bool windowed_ = false;  // this triangle takes window_
   GridTriangle t_{};
   VoxelRange range_{};
   int a_ = 2, u_ = 0, v_ = 1;
@@ -399,6 +419,69 @@ void TriangleColumns::walk_small(const VoxelRange& r, Leaf leaf, Voxel voxel) {
   leaves.report(leaf);
 }
 
+template <class Leaf>
+void TriangleColumns::walk_window(const VoxelRange& r, Leaf leaf) {
+  WindowJob job{&t_, p_, extent_, {}, {}, {}};
+  std::int64_t first[3], from[3], to[3];  // first leaf (global); the clipped range in the windows
+  for (int k = 0; k < 3; ++k) {
+    const std::int64_t lo = range_.lo[k] - origin_[k];  // local, as r
+    job.s[k] = unsigned(range_.lo[k] & 3), first[k] = range_.lo[k] & ~std::int64_t{3};
+    job.base[k] = double(lo) + 0.5;
+    job.windows[k] = unsigned(range_.hi[k] - range_.lo[k]) / kWindowSide + 1;
+    from[k] = r.lo[k] - lo, to[k] = r.hi[k] - lo;
+  }
+  WindowMasks masks[kWindowsMax];
+  window_(job, masks);
+  for (unsigned kz = 0; kz < job.windows[2]; ++kz)
+    for (unsigned ky = 0; ky < job.windows[1]; ++ky)
+      for (unsigned kx = 0; kx < job.windows[0]; ++kx) {
+        const unsigned k[3] = {kx, ky, kz};
+        std::uint64_t box = ~std::uint64_t{0};
+        std::int64_t at[3];  // this window's first leaf
+        for (int a = 0; a < 3; ++a) {
+          const std::int64_t lo = std::max<std::int64_t>(from[a] - 4 * k[a], 0),
+                             hi = std::min<std::int64_t>(to[a] - 4 * k[a], 3);
+          box = lo <= hi ? box & kWindowLaneMasks.box[a][job.s[a]][lo][hi] : 0;
+          at[a] = first[a] + 4 * k[a];
+        }
+        window_leaves(masks[kx + kWindowsPerAxis * (ky + kWindowsPerAxis * kz)], box, job.s, at,
+                      leaf);
+      }
+}
+
+// One window's voxels: the kernel's sure lanes and the maybe lanes the predicate accepts, within
+// `box`, reported per leaf (at: the window's first leaf, global; s: the range's first voxel & 3).
+template <class Leaf>
+void TriangleColumns::window_leaves(const WindowMasks& masks, std::uint64_t box, const unsigned* s,
+                                    const std::int64_t* at, Leaf leaf) const {
+  const std::uint64_t maybe = masks.maybe & box;
+  std::uint64_t set = masks.sure & maybe;
+  for (std::uint64_t b = maybe & ~set; b != 0; b &= b - 1) {  // near a bound: rare
+    const int lane = std::countr_zero(b);
+    std::uint32_t x[3];
+    for (int k = 0; k < 3; ++k) {
+      const int c = window_coord(lane, k);
+      x[k] = std::uint32_t(at[k] + c + (unsigned(c) < s[k] ? 4 : 0));
+    }
+    if (triangle_touches_voxel(t_, x[0], x[1], x[2])) set |= std::uint64_t{1} << lane;
+  }
+  if (set == 0) return;
+  // Along each axis, the leaves (first: lanes with coord >= s) that hold set lanes: those lie in
+  // the clip, so every leaf of the loop does (some may be empty: leaf must accept zero bits).
+  std::uint64_t sel[3][2];
+  int from[3], to[3];
+  for (int k = 0; k < 3; ++k) {
+    sel[k][0] = kWindowLaneMasks.first_leaf[k][s[k]], sel[k][1] = ~sel[k][0];
+    from[k] = (set & sel[k][0]) != 0 ? 0 : 1, to[k] = (set & sel[k][1]) != 0 ? 1 : 0;
+  }
+  for (int lz = from[2]; lz <= to[2]; ++lz)
+    for (int ly = from[1]; ly <= to[1]; ++ly)
+      for (int lx = from[0]; lx <= to[0]; ++lx) {
+        const std::int64_t g[3] = {at[0] + 4 * lx, at[1] + 4 * ly, at[2] + 4 * lz};
+        leaf(g, set & sel[0][lx] & sel[1][ly] & sel[2][lz]);
+      }
+}
+
 template <class Run, class Leaf, class Voxel>
 void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel voxel) {
   VoxelRange r;
@@ -406,8 +489,10 @@ void TriangleColumns::walk(const VoxelRange& clip, Run run, Leaf leaf, Voxel vox
     r.lo[k] = std::max(range_.lo[k], clip.lo[k]) - origin_[k],
     r.hi[k] = std::min(range_.hi[k], clip.hi[k]) - origin_[k];
   if (is_empty(r)) return;
-  if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
-      r.hi[2] - r.lo[2] < kSmallWindow)
+  if (windowed_)
+    walk_window(r, leaf);
+  else if (small_ && r.hi[0] - r.lo[0] < kSmallWindow && r.hi[1] - r.lo[1] < kSmallWindow &&
+           r.hi[2] - r.lo[2] < kSmallWindow)
     a_ == 0   ? walk_small_any<0>(r, leaf, voxel)
     : a_ == 1 ? walk_small_any<1>(r, leaf, voxel)
               : walk_small_any<2>(r, leaf, voxel);

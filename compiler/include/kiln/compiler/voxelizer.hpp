@@ -47,6 +47,21 @@ GridTriangle to_grid(const VoxelGrid& grid, const format::Float3& a, const forma
 bool triangle_touches_voxel(const GridTriangle& t, std::uint32_t x, std::uint32_t y,
                             std::uint32_t z);
 
+/// Which code decides the voxels of small triangles (candidate range at most 4 voxels on every
+/// axis; larger ones always take the column walk): the column walk (portable), or the
+/// brute-force window kernel with AVX2 or AVX-512 (run-time CPU dispatch). Every kernel gives
+/// the same voxels. kAuto: KILN_VOXEL_KERNEL (columns, avx2 or avx512) when set, else the widest
+/// kernel this CPU runs.
+enum class VoxelKernel { kAuto, kColumns, kAvx2, kAvx512 };
+const char* voxel_kernel_name(VoxelKernel kernel);
+bool voxel_kernel_supported(VoxelKernel kernel);
+/// Every later voxelization in this process uses `kernel` (kAuto: the default again). Throws
+/// std::invalid_argument when this CPU cannot run it.
+void set_voxel_kernel(VoxelKernel kernel);
+/// The kernel voxelizations use now (never kAuto). Throws std::invalid_argument when
+/// KILN_VOXEL_KERNEL names no kernel or one this CPU cannot run.
+VoxelKernel voxel_kernel();
+
 struct VoxelizeOptions {
   std::uint32_t resolution = 512;
   bool normals = false;  // also average the touching triangles' normals per voxel
