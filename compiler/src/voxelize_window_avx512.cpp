@@ -167,36 +167,20 @@ KILN_AVX512_INLINE WindowMasks edge_masks(const FloatTests& f, __m512 cen_p, __m
           expand_window_mask(i, _cvtmask16_u32(sure))};
 }
 
-KILN_AVX512 void window_masks_avx512(const WindowJob& job, WindowMasks* out) {
-  FloatTests f;
-  float_tests(job, f);
-  __m512 cen[3][kWindowsPerAxis];
-  for (int a = 0; a < 3; ++a)
-    for (unsigned k = 0; k < job.windows[a]; ++k)
-      cen[a][k] = _mm512_add_ps(_mm512_set1_ps(float(job.base[a] + 4 * k)),
-                                _mm512_load_ps(kRotation16[job.s[a] & 3]));
-  WindowMasks edges[3][kWindowsPerAxis][kWindowsPerAxis];  // per axis i and window pair (k_p, k_q)
-  for (int i = 0; i < 3; ++i) {
-    const int p = (i + 1) % 3, q = (i + 2) % 3;
-    for (unsigned kp = 0; kp < job.windows[p]; ++kp)
-      for (unsigned kq = 0; kq < job.windows[q]; ++kq)
-        edges[i][kp][kq] = edge_masks(f, cen[p][kp], cen[q][kq], i);
-  }
-  for (unsigned kz = 0; kz < job.windows[2]; ++kz)
-    for (unsigned ky = 0; ky < job.windows[1]; ++ky)
-      for (unsigned kx = 0; kx < job.windows[0]; ++kx) {
-        const __m512 c[3] = {cen[0][kx], cen[1][ky], cen[2][kz]};
-        WindowMasks m = plane_masks(f, c);
-        const WindowMasks* e[3] = {&edges[0][ky][kz], &edges[1][kz][kx], &edges[2][kx][ky]};
-        for (const WindowMasks* x : e) m.maybe &= x->maybe, m.sure &= x->sure;
-        out[kx + kWindowsPerAxis * (ky + kWindowsPerAxis * kz)] = m;
-      }
+// The voxels (lanes) of the window whose first voxel has local centre coordinate `base`, with
+// s = g & 3 (voxelize_window.hpp: lane order).
+KILN_AVX512_INLINE __m512 window_centres(float base, unsigned s) {
+  return _mm512_add_ps(_mm512_set1_ps(base), _mm512_load_ps(kRotation16[s & 3]));
 }
+
+#define KILN_WINDOW_ENTRY KILN_AVX512
+#include "voxelize_window_driver.inl"
+#undef KILN_WINDOW_ENTRY
 
 }  // namespace
 
 WindowKernel window_kernel_avx512() {
-  return window_masks_avx512;
+  return window_masks<__m512>;
 }
 
 }  // namespace kiln::voxelize_detail
