@@ -261,6 +261,13 @@ std::vector<PrimRef> triangle_refs(const Scene& scene) {
   return refs;
 }
 
+// The box around `refs` (with them, a node's input to the split searches).
+format::Box3f refs_box(std::span<const PrimRef> refs) {
+  format::Box3f box;
+  for (const auto& ref : refs) box.grow(ref.box);
+  return box;
+}
+
 SortedRefs presorted(std::span<const PrimRef> refs) {
   SortedRefs s;
   for (int a = 0; a < 3; ++a) sort_by_centroid(refs, a, s.axis[a]);
@@ -402,8 +409,7 @@ TEST(SbvhPresorted, SpatialSplitIsTheBruteForceBinOptimum) {
        {std::size_t(5), std::size_t(40), std::size_t(600), std::size_t(4200)}) {
     const Scene scene = random_triangles(n, 9);
     const std::vector<PrimRef> refs = triangle_refs(scene);
-    format::Box3f box;
-    for (const auto& ref : refs) box.grow(ref.box);
+    const format::Box3f box = refs_box(refs);
     BvhBuildOptions o;
     o.builder = BvhBuilder::kSpatial;
     for (const std::uint32_t bins : {7u, 32u}) {
@@ -440,8 +446,7 @@ TEST(SbvhPresorted, SpatialSearchStopsEarlyOnlyWhereNoPlaneBeatsTheBound) {
   for (const std::size_t n : {std::size_t(40), std::size_t(600), std::size_t(40000)}) {
     const Scene scene = random_triangles(n, 21);
     const std::vector<PrimRef> refs = triangle_refs(scene);
-    format::Box3f box;
-    for (const auto& ref : refs) box.grow(ref.box);
+    const format::Box3f box = refs_box(refs);
     BvhBuildOptions o;
     o.builder = BvhBuilder::kSpatial;
     const SpatialSplit full = find_spatial_split(refs, box, scene, o, 0, 2);
