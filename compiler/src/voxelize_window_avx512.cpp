@@ -45,7 +45,8 @@ KILN_AVX512_INLINE void within(__m512 x, const float* b, __mmask16& maybe, __mma
 }
 
 KILN_AVX512_INLINE std::uint64_t join(const __mmask16* m) {
-  return _cvtmask64_u64(_kunpackd_mask64(_mm512_kunpackw(m[3], m[2]), _mm512_kunpackw(m[1], m[0])));
+  // _mm512_kunpackd, not _kunpackd_mask64: clang 14 (the fuzz build) lacks the latter.
+  return _cvtmask64_u64(_mm512_kunpackd(_mm512_kunpackw(m[3], m[2]), _mm512_kunpackw(m[1], m[0])));
 }
 
 // The float form of the tests: axes rounded to float, bounds from window_float_bounds' formula;
