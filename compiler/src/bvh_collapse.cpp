@@ -116,10 +116,7 @@ struct CollapseProgramme {
   const WideCollapseOptions& o;
 
   CollapseProgramme(std::size_t nodes, const WideCollapseOptions& opt)
-      : cost1(huge_uninitialized<double>(nodes)),
-        pick(huge_uninitialized<std::uint8_t>(nodes * W)),
-        split(huge_uninitialized<std::uint8_t>(nodes)),
-        o(opt) {}
+      : cost1(nodes), pick(nodes * W), split(nodes), o(opt) {}
 
   // Node i, once its children (if any) have been visited.
   void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs, Rows& rows) {
@@ -193,17 +190,13 @@ struct Collapser {
   UninitializedVector<double> prim_area;          // each scene triangle's (kOcclusion, no copies)
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
-      : bin(b),
-        scene(s),
-        out(o),
-        options(opt),
-        refs(huge_uninitialized<std::uint32_t>(b.nodes.size())) {
+      : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
     if (!options.greedy) programme.emplace(bin.nodes.size(), options);
     const bool occlusion = options.order == WideSlotOrder::kOcclusion;
     if (occlusion) {
-      triangle_area = huge_uninitialized<double>(bin.nodes.size());
+      triangle_area = UninitializedVector<double>(bin.nodes.size());
       if (bin.triangles.empty()) prim_area = scene_triangle_areas(*scene, options.threads);
     }
     sweep(options.threads);
@@ -283,7 +276,7 @@ struct Collapser {
   // Every scene triangle's area, in scene order (its corners read in sequence, not in the
   // leaves' scattered order).
   static UninitializedVector<double> scene_triangle_areas(const Scene& scene, unsigned threads) {
-    UninitializedVector<double> area = huge_uninitialized<double>(scene.triangles.size());
+    UninitializedVector<double> area(scene.triangles.size());
     parallel_for_batched(area.size(), 65536, threads, [&](std::size_t i) {
       const auto& t = scene.triangles[i];
       area[i] =

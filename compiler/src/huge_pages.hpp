@@ -27,12 +27,4 @@ std::vector<T> huge_vector(std::size_t n) {
   return v;
 }
 
-/// A vector of `n` uninitialised (default-initialised) elements on huge pages
-/// (UninitializedAllocator), for arrays whose every element is written before it is read: no
-/// serial zeroing pass, and the pages are first touched by whichever thread writes them.
-template <class T>
-UninitializedVector<T> huge_uninitialized(std::size_t n) {
-  return UninitializedVector<T>(n);
-}
-
 }  // namespace kiln

@@ -93,9 +93,8 @@ struct WindowMasks {
 /// The ten slab tests as the kernels evaluate them: the plane test, then the edge tests by axis i
 /// (entry 3 i + j: edge j's axis cross(unit_i, e_j), components xp, xq along i + 1, i + 2).
 struct WindowTests {
-  double n[3], plane[4];  // plane: maybe lo, maybe hi, sure lo, sure hi
-  double xp[9], xq[9], lo[9], hi[9], slo[9], shi[9];
-  // The slabs without margins ([lo - r, hi + r]; +-inf for skipped edges), r and the margins,
+  double n[3], xp[9], xq[9];
+  // The slabs without margins ([lo - r, hi + r]; +-1e30 for skipped edges), r and the margins,
   // for the float kernel's bounds (window_float_bounds).
   double plane_slab[2], plane_r, plane_m;
   double slab_lo[9], slab_hi[9], r[9], edge_m;
@@ -165,10 +164,6 @@ inline constexpr WindowExpand kWindowExpand = make_window_expand();
   return kWindowExpand.bits[i][mask16 & 255] | kWindowExpand.bits[i][mask16 >> 8] << (8 << q);
 }
 
-// Centre offsets (coord - s) & 3 of coord = 0..3, per s.
-inline constexpr double kWindowRotation[4][4] = {
-    {0, 1, 2, 3}, {3, 0, 1, 2}, {2, 3, 0, 1}, {1, 2, 3, 0}};
-
 // The edges e_j = p_(j+1) - p_j (e[j][axis]) and the plane test: the normal n (setup's
 // arithmetic), the slab [min_j p_j . n - r, max_j p_j . n + r], r and the margin 2048uM^3.
 struct WindowPlane {
@@ -200,12 +195,10 @@ struct WindowPlane {
   window_plane(job, plane);
   const std::array<double, 3>* p = job.p;
   const double(&e)[3][3] = plane.e;
-  const double m_plane = plane.m, m_edge = 256 * 0x1p-53 * job.extent * job.extent;
+  const double m_edge = 256 * 0x1p-53 * job.extent * job.extent;
   for (int k = 0; k < 3; ++k) w.n[k] = plane.n[k];
   w.plane_slab[0] = plane.slab[0], w.plane_slab[1] = plane.slab[1];
-  w.plane_r = plane.r, w.plane_m = m_plane, w.edge_m = m_edge;
-  w.plane[0] = plane.slab[0] - m_plane, w.plane[1] = plane.slab[1] + m_plane;
-  w.plane[2] = plane.slab[0] + m_plane, w.plane[3] = plane.slab[1] - m_plane;
+  w.plane_r = plane.r, w.plane_m = plane.m, w.edge_m = m_edge;
   for (int i = 0; i < 3; ++i) {
     const int a = (i + 1) % 3, b = (i + 2) % 3;
     for (int j = 0; j < 3; ++j) {
@@ -225,8 +218,6 @@ struct WindowPlane {
       }
       w.xp[t] = xp, w.xq[t] = xq;
       w.slab_lo[t] = lo, w.slab_hi[t] = hi, w.r[t] = r;
-      w.lo[t] = lo - m_edge, w.hi[t] = hi + m_edge;
-      w.slo[t] = lo + m_edge, w.shi[t] = hi - m_edge;
     }
   }
 }

@@ -27,7 +27,7 @@ alignas(64) constexpr int kPatternZ[2][16] = {{0, 0, 0, 0, 1, 1, 1, 1, 0, 0, 0, 
 alignas(64) constexpr int kPatternP[16] = {0, 1, 0, 1, 2, 3, 2, 3, 0, 1, 0, 1, 2, 3, 2, 3};
 alignas(64) constexpr int kPatternQ[16] = {0, 0, 1, 1, 0, 0, 1, 1, 2, 2, 3, 3, 2, 2, 3, 3};
 
-// kWindowRotation's rows as floats (lanes 0..3 used).
+// Per s: the centre offsets (coord - s) & 3 of coord = 0..3 (lanes 0..3 used).
 alignas(64) constexpr float kRotation16[4][16] = {
     {0, 1, 2, 3}, {3, 0, 1, 2}, {2, 3, 0, 1}, {1, 2, 3, 0}};
 

@@ -47,7 +47,7 @@ GridTriangle to_grid(const VoxelGrid& grid, const format::Float3& a, const forma
 bool triangle_touches_voxel(const GridTriangle& t, std::uint32_t x, std::uint32_t y,
                             std::uint32_t z);
 
-/// Which code decides the voxels of small triangles (candidate range at most 4 voxels on every
+/// Which code decides the voxels of small triangles (candidate range at most 12 voxels on every
 /// axis; larger ones always take the column walk): the column walk (portable), or the
 /// brute-force window kernel with AVX2 or AVX-512 (run-time CPU dispatch). Every kernel gives
 /// the same voxels. kAuto: KILN_VOXEL_KERNEL (columns, avx2 or avx512) when set, else the widest
