@@ -62,23 +62,27 @@ inline GridTriangle grid_triangle(const Scene& scene, const VoxelGrid& grid, std
 // the voxelizer's brick binning, candidate range or column walk.
 enum class Sweep { kWholeGrid, kBoxPlus2 };
 
-// Every (voxel code, triangle) pair with triangle_touches_voxel, sorted.
-inline std::vector<std::pair<std::uint64_t, std::uint32_t>> brute_force_hits(const Scene& scene,
-                                                                             const VoxelGrid& grid,
-                                                                             Sweep sweep) {
-  const std::int64_t n = grid.resolution;
+// Every (voxel code, triangle) pair with triangle_touches_voxel, sorted; only voxels of
+// `within` when given (a cube of a grid too large to sweep).
+inline std::vector<std::pair<std::uint64_t, std::uint32_t>> brute_force_hits(
+    const Scene& scene, const VoxelGrid& grid, Sweep sweep, const VoxelCube* within = nullptr) {
+  std::int64_t first[3], last[3];
+  for (int a = 0; a < 3; ++a) {
+    first[a] = within ? std::int64_t(within->origin[a]) : 0;
+    last[a] = within ? first[a] + within->side - 1 : std::int64_t(grid.resolution) - 1;
+  }
   std::vector<std::pair<std::uint64_t, std::uint32_t>> hits;
   for (std::uint32_t i = 0; i < scene.triangles.size(); ++i) {
     const GridTriangle t = grid_triangle(scene, grid, i);
-    std::int64_t lo[3] = {0, 0, 0}, hi[3] = {n - 1, n - 1, n - 1};
+    std::int64_t lo[3] = {first[0], first[1], first[2]}, hi[3] = {last[0], last[1], last[2]};
     if (sweep == Sweep::kBoxPlus2)
       for (int a = 0; a < 3; ++a) {
         const double mn =
             std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
         const double mx =
             std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-        lo[a] = std::max<std::int64_t>(0, std::int64_t(std::floor(mn)) - 2);
-        hi[a] = std::min<std::int64_t>(n - 1, std::int64_t(std::floor(mx)) + 2);
+        lo[a] = std::max<std::int64_t>(first[a], std::int64_t(std::floor(mn)) - 2);
+        hi[a] = std::min<std::int64_t>(last[a], std::int64_t(std::floor(mx)) + 2);
       }
     for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
       for (std::int64_t y = lo[1]; y <= hi[1]; ++y)

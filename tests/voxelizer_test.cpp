@@ -362,32 +362,12 @@ TEST(Voxelizer, FastPathsMatchReferenceOnSmallQuantizedTriangles) {
                                unit_grid(256), "small quantized");
 }
 
-// The voxels of `cube` each triangle touches, by the predicate over its bounding box (+-2).
+// The voxels of `cube` the triangles touch (codes, ascending, once each), by brute force.
 std::vector<std::uint64_t> cube_reference(const Scene& scene, const VoxelGrid& grid,
                                           const VoxelCube& cube) {
   std::vector<std::uint64_t> want;
-  for (const auto& tri : scene.triangles) {
-    const GridTriangle t = to_grid(grid, scene.positions[tri.v[0]], scene.positions[tri.v[1]],
-                                   scene.positions[tri.v[2]]);
-    std::int64_t lo[3], hi[3];
-    for (int a = 0; a < 3; ++a) {
-      const double mn =
-          std::min({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-      const double mx =
-          std::max({format::at(t.v[0], a), format::at(t.v[1], a), format::at(t.v[2], a)});
-      lo[a] = std::max<std::int64_t>(cube.origin[a], std::int64_t(std::floor(mn)) - 2);
-      hi[a] = std::min<std::int64_t>(std::int64_t(cube.origin[a]) + cube.side - 1,
-                                     std::int64_t(std::floor(mx)) + 2);
-    }
-    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
-      for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
-        for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
-          if (triangle_touches_voxel(t, std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)))
-            want.push_back(
-                format::morton_code(std::uint32_t(x), std::uint32_t(y), std::uint32_t(z)));
-  }
-  std::sort(want.begin(), want.end());
-  want.erase(std::unique(want.begin(), want.end()), want.end());
+  for (const auto& hit : test::brute_force_hits(scene, grid, test::Sweep::kBoxPlus2, &cube))
+    if (want.empty() || want.back() != hit.first) want.push_back(hit.first);
   return want;
 }
 
