@@ -884,7 +884,8 @@ void add_kiln_contestants(MeshCase& mesh, KilnArenas& arenas, std::vector<Contes
                                     kiln::BvhView(flat.nodes, flat.triangles, flat.prim_ids),
                                     flat.stats.bytes_per_triangle));
     for (const auto& [width, quantized] :
-         {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
+         {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true},
+          std::pair{16u, false}}) {
       const std::string key = b + " w" + std::to_string(width) + (quantized ? "q" : "");
       if (!wanted(key + " ")) continue;
       const kiln::FlatWideBvh w =
@@ -897,9 +898,13 @@ void add_kiln_contestants(MeshCase& mesh, KilnArenas& arenas, std::vector<Contes
       for (const auto kernel : {kiln::BvhKernel::kScalar, kiln::BvhKernel::kSse,
                                 kiln::BvhKernel::kAvx2, kiln::BvhKernel::kAvx512}) {
         if (!kiln::bvh_kernel_supported(kernel)) continue;
-        // Every kernel on the SBVH's 8-wide layout; the others with the default kernel.
-        const bool all_kernels = builder == kiln::BvhBuilder::kSpatial && width == 8 && !quantized;
-        if (!all_kernels && kernel != kiln::bvh_auto_kernel()) continue;
+        // Every kernel on the SBVH's 8-wide layout, AVX-512 and AVX2 on its 16-wide one; the
+        // others with the default kernel.
+        const bool sbvh = builder == kiln::BvhBuilder::kSpatial;
+        const bool all_kernels = sbvh && ((width == 8 && !quantized) ||
+                                          (width == 16 && (kernel == kiln::BvhKernel::kAvx512 ||
+                                                           kernel == kiln::BvhKernel::kAvx2)));
+        if (!all_kernels && kernel != kiln::bvh_auto_kernel(width)) continue;
         const std::string name = key + " " + kiln::bvh_kernel_name(kernel);
         if (!wanted(name)) continue;
         // Each kernel traces its own copy, so none finds the caches warmed by another's pass.
@@ -1035,9 +1040,13 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
       "%uT |\n",
       hardware_threads(), hardware_threads(), hardware_threads());
   std::printf("|---|---|---:|---:|---:|---:|---:|---:|\n");
-  std::vector<std::string> kiln_names = {"sbvh w8", "sbvh w8q", "bvh w8",
-                                         "bvh w8q", "sbvh w4",  "sbvh w2"};
-  for (const auto& variant : g_settings.collapses) kiln_names.push_back("sbvh w8 " + variant.first);
+  std::vector<std::string> kiln_names = {"sbvh w16 avx512", "sbvh w16 avx2"};
+  for (const char* layout : {"sbvh w8", "sbvh w8q", "bvh w8", "bvh w8q", "sbvh w4"})
+    kiln_names.push_back(std::string(layout) + " " + auto_kernel);
+  kiln_names.push_back(std::string("bvh w16 ") + kiln::bvh_kernel_name(kiln::bvh_auto_kernel(16)));
+  kiln_names.push_back("sbvh w2");
+  for (const auto& variant : g_settings.collapses)
+    kiln_names.push_back("sbvh w8 " + variant.first + " " + auto_kernel);
   // Against Embree, against Kiln's default layout (for the --collapse variants), and against the
   // avx512 slot (which a development build can fill with another AVX2 kernel: new ÷ old).
   const std::string kiln_default = "sbvh w8 " + auto_kernel;
@@ -1045,8 +1054,7 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
     for (const std::string& embree_name :
          {std::string("embree medium"), std::string("embree high"),
           std::string("embree high robust"), kiln_default, std::string("sbvh w8 avx512")}) {
-      std::string name = kiln_name;
-      if (name.back() != '2') name += " " + auto_kernel;
+      const std::string& name = kiln_name;
       const std::size_t a = find(name), b = find(embree_name);
       if (a == contestants.size() || b == contestants.size() || a == b) continue;
       std::printf("| %s | %s |", name.c_str(), embree_name.c_str());

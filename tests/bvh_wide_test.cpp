@@ -47,15 +47,16 @@ BvhWideView view_of(const FlatWideBvh& w, BvhKernel kernel) {
   return BvhWideView(w.width, w.quantized, w.arena, "test", kernel);
 }
 
-// Runs `check(view)` for each width, box encoding, builder and kernel this CPU has (saying
-// which it skips), on trees built as `kiln build` builds them, and (8-wide float boxes) on trees
-// built down to single references.
+// Runs `check(view)` for each width, box encoding (16-wide: float only), builder and kernel this
+// CPU has (saying which it skips), on trees built as `kiln build` builds them, and (8-wide float
+// boxes) on trees built down to single references.
 template <class Check>
 void for_each_layout(const Scene& scene, Check&& check) {
-  for (const std::uint32_t width : {4u, 8u})
+  for (const std::uint32_t width : {4u, 8u, 16u})
     for (const bool quantized : {false, true})
       for (const BvhBuilder builder : kBuilders)
         for (const std::uint32_t leaf_packet : {format::kBvhPacketSize, 0u}) {
+          if (width == 16 && quantized) continue;
           if (leaf_packet == 0 && (width != 8 || quantized)) continue;
           const FlatWideBvh wide = wide_of(scene, builder, width, quantized, leaf_packet);
           for (const BvhKernel kernel : kKernels) {
@@ -111,7 +112,9 @@ std::vector<std::uint32_t> lane_ids(const BvhWideView& view) {
         for (const format::BvhTrianglePacket& p : view.leaf(n.child[k], n.packets[k]))
           ids.insert(ids.end(), p.prim, p.prim + format::kBvhPacketSize);
   };
-  if (view.width() == 8)
+  if (view.width() == 16)
+    view.for_each_node<format::BvhNode16>(collect);
+  else if (view.width() == 8)
     view.for_each_node<format::BvhNode8>(collect);
   else
     view.for_each_node<format::BvhNode4>(collect);
@@ -143,7 +146,7 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
     BvhBuildOptions o;
     o.builder = builder;
     const FlatBvh binary = build_bvh(scene, o);
-    for (const std::uint32_t width : {4u, 8u})
+    for (const std::uint32_t width : {4u, 8u, 16u})
       for (const bool greedy : {false, true}) {
         WideCollapseOptions c;
         c.greedy = greedy;
@@ -162,6 +165,7 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
         EXPECT_LE(wide.stats.max_depth, binary.stats.max_depth);
         if (!greedy && width == 8) expect_largest_first<8>(wide);
         if (!greedy && width == 4) expect_largest_first<4>(wide);
+        if (!greedy && width == 16) expect_largest_first<16>(wide);
         // The arena holds the same tree: every node and packet.
         EXPECT_EQ(view.node_count(), wide.stats.node_count);
         EXPECT_EQ(view.packet_count(), wide.packets.size());
@@ -169,6 +173,8 @@ TEST(WideBvh, CollapseKeepsEveryReferenceInPackets) {
       }
   }
   EXPECT_THROW(collapse_bvh(build_bvh(scene, {}), 3, scene.triangles.size()),
+               std::invalid_argument);
+  EXPECT_THROW(collapse_bvh(build_bvh(scene, {}), 16, scene.triangles.size(), true),
                std::invalid_argument);
 }
 
@@ -183,7 +189,8 @@ TEST(WideBvh, CollapseIsTheSameOnAnyThreadCount) {
   const FlatBvh binary = build_bvh(scene, o);
   ASSERT_GE(binary.nodes.size(), 65536u);
   for (const auto& [width, quantized, greedy] :
-       {std::tuple{8u, false, false}, std::tuple{4u, true, false}, std::tuple{8u, false, true}}) {
+       {std::tuple{8u, false, false}, std::tuple{4u, true, false}, std::tuple{8u, false, true},
+        std::tuple{16u, false, false}}) {
     std::vector<FlatWideBvh> wide;
     for (const unsigned threads : {1u, 2u, 8u}) {
       WideCollapseOptions c;
@@ -286,7 +293,8 @@ TEST(WideBvh, ProximityQueriesEqualTheBinaryBvh) {
   const FlatBvh flat = build_bvh(scene, {});
   const BvhView binary(flat.nodes, flat.triangles, flat.prim_ids);
   for (const auto& [width, quantized] :
-       {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true}}) {
+       {std::pair{4u, false}, std::pair{8u, false}, std::pair{4u, true}, std::pair{8u, true},
+        std::pair{16u, false}}) {
     const FlatWideBvh wide = collapse_bvh(flat, width, scene.triangles.size(), quantized);
     const BvhWideView view = view_of(wide, BvhKernel::kScalar);
     for (const Ray& r : test::box_rays(scene, 200)) {
@@ -393,6 +401,33 @@ TEST(WideBvh, ForgedNodeInABlobIsRefusedWhenViewed) {
   EXPECT_THROW(BvhView::from_blob(original, "bvh"), BlobError) << "a binary view of a wide BVH";
 }
 
+// A 16-wide BVH through a blob: opened, deep-checked, and the same closest distances and
+// occlusion as the 8-wide one; a forged node and 8-bit boxes at width 16 are refused.
+TEST(WideBvh, SixteenWideBlobOpensVerifiesAndTracesAsTheEightWide) {
+  const Scene scene = test::icosphere(3);
+  const AlignedBuffer b16 = test::aligned_copy(test::blob_with(scene, "sbvh:width=16", 2));
+  const AlignedBuffer b8 = test::aligned_copy(test::blob_with(scene, "sbvh:width=8", 2));
+  const Blob blob16 = Blob::open_memory(b16.bytes()), blob8 = Blob::open_memory(b8.bytes());
+  const auto& d = desc_of<schema::BvhDesc>(blob16, blob16.structures()[0]);
+  ASSERT_EQ(d.width(), 16u);
+  EXPECT_NO_THROW(blob16.verify());
+  const std::string name = blob16.structures()[0].name;
+  const BvhWideView wide16 = BvhWideView::from_blob(blob16, name, BvhKernel::kScalar);
+  const BvhWideView wide8 = BvhWideView::from_blob(blob8, name, BvhKernel::kScalar);
+  for (const Ray& r : test::box_rays(scene, 300)) {
+    const Hit a = wide16.intersect(r), b = wide8.intersect(r);
+    EXPECT_EQ(a.hit(), b.hit());
+    EXPECT_EQ(a.t, b.t);  // the least t of all triangles hit (which of exact ties: visit order)
+    EXPECT_EQ(wide16.occluded(r), wide8.occluded(r));
+  }
+  EXPECT_THROW(BvhWideView(16, true, wide16.arena(), "test", BvhKernel::kScalar), BlobError);
+  const AlignedBuffer forged =
+      test::forged_copy(test::blob_with(scene, "sbvh:width=16", 2), d.wide_arena(),
+                        offsetof(format::BvhNode16, child), 0u);
+  EXPECT_THROW(BvhWideView::from_blob(Blob::open_memory(forged.bytes(), "forged.kiln"), name),
+               BlobError);
+}
+
 // A wide BVH of the layout before the arena (its description names BVWN/BVWT sections) is
 // refused at open with the way out, in one line. Forged here by pointing the manifest's
 // `wide_nodes` field at the stored arena index (the vtable entry), checksums recomputed.
@@ -424,6 +459,9 @@ TEST(WideBvh, KernelChoiceFollowsTheEnvironment) {
   EXPECT_THROW(bvh_auto_kernel(), std::invalid_argument);
   unsetenv("KILN_BVH_KERNEL");
   EXPECT_NE(bvh_auto_kernel(), BvhKernel::kAuto);
+  // 16-wide nodes: AVX-512 first where the CPU has it, AVX2 first for the narrower ones.
+  if (bvh_kernel_supported(BvhKernel::kAvx512)) EXPECT_EQ(bvh_auto_kernel(16), BvhKernel::kAvx512);
+  if (bvh_kernel_supported(BvhKernel::kAvx2)) EXPECT_EQ(bvh_auto_kernel(8), BvhKernel::kAvx2);
   for (const BvhKernel k : kKernels)
     if (!bvh_kernel_supported(k)) {
       setenv("KILN_BVH_KERNEL", bvh_kernel_name(k), 1);

@@ -183,7 +183,7 @@ TEST_P(CorpusTest, KdTreeTracesLikeTheBvh) {
   }
 }
 
-// Every mesh through the wide layouts: each kernel the CPU has, on 4- and 8-wide nodes, gives
+// Every mesh through the wide layouts: each kernel the CPU has, on 4-, 8- and 16-wide nodes, gives
 // bit-identical hits to the scalar kernel, and the same hits as the binary BVH (hit/miss equal,
 // t within 1e-6 relative, the primitive equal unless another one lies at exactly that t).
 TEST_P(CorpusTest, WideKernelsTraceLikeTheBinaryBvh) {
@@ -191,7 +191,8 @@ TEST_P(CorpusTest, WideKernelsTraceLikeTheBinaryBvh) {
   const Scene scene = import_scene({test::mesh_path(GetParam().path)}, 2);
   const AlignedBuffer aligned =
       compile_with(scene, {"bvh:width=2,name=b2", "bvh:width=4,name=b4", "sbvh:width=8,name=s8",
-                           "bvh:width=8,boxes=u8,name=q8", "sbvh:width=4,boxes=u8,name=q4"});
+                           "bvh:width=8,boxes=u8,name=q8", "sbvh:width=4,boxes=u8,name=q4",
+                           "bvh:width=16,name=b16"});
   const Blob blob = Blob::open_memory(aligned.bytes());
   ASSERT_NO_THROW(blob.verify());
   const BvhView binary = BvhView::from_blob(blob, "b2");
@@ -201,7 +202,7 @@ TEST_P(CorpusTest, WideKernelsTraceLikeTheBinaryBvh) {
         generate_rays({binary, blob.positions(), blob.triangles(), lo, hi}, kind, 1500, 5, 2);
     std::vector<Hit> expected(rays.size()), reference(rays.size());
     trace_rays(binary, rays, expected, false, 2);
-    for (const char* name : {"b4", "s8", "q8", "q4"}) {
+    for (const char* name : {"b4", "s8", "q8", "q4", "b16"}) {
       trace_rays(BvhWideView::from_blob(blob, name, BvhKernel::kScalar), rays, reference, false, 2);
       std::size_t disagreements = 0;
       for (std::size_t i = 0; i < rays.size(); ++i) {

@@ -631,8 +631,12 @@ FlatWideBvh collapse_bvh(const FlatBvh& binary, std::uint32_t width, std::size_t
   else if (width == 8)
     lanes_used = quantized ? collapse_into<8, format::BvhQNode8>(binary, scene, options, out)
                            : collapse_into<8, format::BvhNode8>(binary, scene, options, out);
+  else if (width == 16 && !quantized)
+    lanes_used = collapse_into<16, format::BvhNode16>(binary, scene, options, out);
+  else if (width == 16)
+    throw std::invalid_argument("16-wide BVH nodes have float boxes only");
   else
-    throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4 or 8");
+    throw std::invalid_argument("BVH width " + std::to_string(width) + " is not 4, 8 or 16");
   auto& s = out.stats;
   s.packet_fill =
       s.packet_count ? double(lanes_used) / double(s.packet_count * format::kBvhPacketSize) : 0;

@@ -34,8 +34,10 @@ std::vector<StructureOption> common_options() {
        parse_float_in(0, 1000)},
       {"intersection-cost", "--bvh-intersection-cost", "1", "SAH triangle cost", false,
        parse_float_in(0.001, 1000)},
-      {"width", "--bvh-width", "8", "Children per node: 8 (fastest here), 4, or 2 (binary)", false,
-       parse_one_of({"2", "4", "8"})},
+      {"width", "--bvh-width", "8",
+       "Children per node: 8 (fastest here with AVX2), 16 (float boxes; fastest with AVX-512), 4, "
+       "or 2 (binary)",
+       false, parse_one_of({"2", "4", "8", "16"})},
       {"boxes", "--bvh-boxes", "float",
        "Wide child boxes: float (fastest here), or u8 (8 bits per plane relative to the node: "
        "half the node bytes)",
@@ -92,6 +94,9 @@ BvhBuildOptions common_options_of(const StructureRequest& request, unsigned thre
   o.intersection_cost = request.float_option("intersection-cost");
   o.width = request.uint_option("width");
   o.quantized = request.text_option("boxes") == "u8";
+  if (o.quantized && o.width == 16)
+    throw std::invalid_argument(
+        "--bvh-boxes u8 needs --bvh-width 4 or 8 (16-wide nodes are float)");
   o.threads = threads;
   return o;
 }

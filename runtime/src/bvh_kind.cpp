@@ -1,5 +1,5 @@
 // The BVH kinds of the runtime registry: "bvh" (binned or sweep SAH builder) and "sbvh" (spatial
-// splits), one BvhDesc and two layouts: binary (width 2, BvhView) and wide (width 4 or 8,
+// splits), one BvhDesc and two layouts: binary (width 2, BvhView) and wide (width 4, 8 or 16,
 // BvhWideView). Their manifest checks, view, deep check and description.
 #include <cmath>
 #include <cstring>
@@ -40,9 +40,10 @@ void check_wide(const Blob& blob, const schema::BvhDesc& d, const std::string& w
 void check(const Blob& blob, const StructureInfo& info) {
   const auto& d = desc_of<schema::BvhDesc>(blob, info);
   const auto where = "structure '" + info.name + "' ";
-  if (d.width() == 4 || d.width() == 8) return check_wide(blob, d, where);
+  if (d.width() == 4 || d.width() == 8 || d.width() == 16) return check_wide(blob, d, where);
   if (d.width() != 2)
-    blob.fail(where + "has width " + std::to_string(d.width()) + " (this reader knows 2, 4, 8)");
+    blob.fail(where + "has width " + std::to_string(d.width()) +
+              " (this reader knows 2, 4, 8, 16)");
   blob.check_section(where + "nodes", d.nodes(), format::kSectionBvhNodes, sizeof(format::BvhNode),
                      d.node_count(), false);
   blob.check_section(where + "triangles", d.triangles(), format::kSectionBvhTriangles,
@@ -134,7 +135,9 @@ void verify_wide_nodes(const Blob& blob, const schema::BvhDesc& d, const std::st
 void verify_wide(const Blob& blob, const StructureInfo& info) {
   const auto& d = desc_of<schema::BvhDesc>(blob, info);
   const BvhWideView bvh = BvhWideView::from_blob(blob, info.name, BvhKernel::kScalar);
-  if (bvh.quantized())
+  if (bvh.width() == 16)
+    verify_wide_nodes<format::BvhNode16>(blob, d, info.name, bvh);
+  else if (bvh.quantized())
     bvh.width() == 4 ? verify_wide_nodes<format::BvhQNode4>(blob, d, info.name, bvh)
                      : verify_wide_nodes<format::BvhQNode8>(blob, d, info.name, bvh);
   else

@@ -44,6 +44,7 @@ KILN_WIDE_KERNEL_TABLE(avx2)
 }  // namespace
 
 const BvhWideKernel* avx2_kernel(std::uint32_t width, bool quantized) {
+  if (width == 16) return quantized ? nullptr : &kavx216;
   return width == 4 || width == 8 ? &kavx2[quantized][width / 8] : nullptr;
 }
 

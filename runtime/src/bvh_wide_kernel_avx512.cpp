@@ -59,7 +59,26 @@ struct Avx512F8 {
   KILN_SIMD static unsigned le(T a, T b) { return _mm256_cmp_ps_mask(a, b, _CMP_LE_OQ); }
 };
 
+struct Avx512F16 {
+  using T = __m512;
+  KILN_SIMD static T load(const float* p) { return _mm512_loadu_ps(p); }
+  KILN_SIMD static T load_u8(const std::uint8_t* p) {
+    return _mm512_cvtepi32_ps(
+        _mm512_cvtepu8_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))));
+  }
+  KILN_SIMD static T add(T a, T b) { return _mm512_add_ps(a, b); }
+  KILN_SIMD static void store(float* p, T a) { _mm512_storeu_ps(p, a); }
+  KILN_SIMD static T set1(float x) { return _mm512_set1_ps(x); }
+  KILN_SIMD static T sub(T a, T b) { return _mm512_sub_ps(a, b); }
+  KILN_SIMD static T mul(T a, T b) { return _mm512_mul_ps(a, b); }
+  KILN_SIMD static T max(T a, T b) { return _mm512_max_ps(a, b); }
+  KILN_SIMD static T min(T a, T b) { return _mm512_min_ps(a, b); }
+  KILN_SIMD static unsigned le(T a, T b) { return _mm512_cmp_ps_mask(a, b, _CMP_LE_OQ); }
+};
+
 using F4 = Avx512F4;
+using F16V = Avx512F16;
+#define KILN_WIDE_F16 F16V
 using F8 = Avx512F8;
 
 #include "bvh_wide_traverse.inl"
@@ -69,6 +88,7 @@ KILN_WIDE_KERNEL_TABLE(avx512)
 }  // namespace
 
 const BvhWideKernel* avx512_kernel(std::uint32_t width, bool quantized) {
+  if (width == 16) return quantized ? nullptr : &kavx51216;
   return width == 4 || width == 8 ? &kavx512[quantized][width / 8] : nullptr;
 }
 

@@ -91,6 +91,7 @@ KILN_WIDE_KERNEL_TABLE(scalar)
 }  // namespace
 
 const BvhWideKernel* scalar_kernel(std::uint32_t width, bool quantized) {
+  if (width == 16) return quantized ? nullptr : &kscalar16;
   return width == 4 || width == 8 ? &kscalar[quantized][width / 8] : nullptr;
 }
 

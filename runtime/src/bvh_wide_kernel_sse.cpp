@@ -49,6 +49,7 @@ KILN_WIDE_KERNEL_TABLE(sse)
 }  // namespace
 
 const BvhWideKernel* sse_kernel(std::uint32_t width, bool quantized) {
+  if (width == 16) return quantized ? nullptr : &ksse16;
   return width == 4 || width == 8 ? &ksse[quantized][width / 8] : nullptr;
 }
 

@@ -109,7 +109,9 @@ void collect_wide(const BvhWideView& bvh, Enter enter, Keep keep, std::vector<st
 
 template <class Enter, class Keep>
 void collect(const BvhWideView& bvh, Enter enter, Keep keep, std::vector<std::uint32_t>& out) {
-  if (bvh.quantized())
+  if (bvh.width() == 16)
+    collect_wide<16, format::BvhNode16>(bvh, enter, keep, out);
+  else if (bvh.quantized())
     bvh.width() == 4 ? collect_wide<4, format::BvhQNode4>(bvh, enter, keep, out)
                      : collect_wide<8, format::BvhQNode8>(bvh, enter, keep, out);
   else
@@ -120,6 +122,7 @@ void collect(const BvhWideView& bvh, Enter enter, Keep keep, std::vector<std::ui
 }  // namespace
 
 ClosestPoint closest_point(const BvhWideView& bvh, const format::Float3& p, float max_distance) {
+  if (bvh.width() == 16) return closest_wide<16, format::BvhNode16>(bvh, p, max_distance);
   if (bvh.quantized())
     return bvh.width() == 4 ? closest_wide<4, format::BvhQNode4>(bvh, p, max_distance)
                             : closest_wide<8, format::BvhQNode8>(bvh, p, max_distance);

@@ -25,6 +25,30 @@ struct NodeVec<8> {
   using V = F8;
 };
 
+/// 2N lanes as two N-lane vectors H (16-wide nodes on kernels without 16-lane registers).
+template <class H, int N>
+struct PairVec {
+  struct T {
+    typename H::T lo, hi;
+  };
+  KILN_SIMD static T load(const float* p) { return {H::load(p), H::load(p + N)}; }
+  KILN_SIMD static void store(float* p, T a) { H::store(p, a.lo), H::store(p + N, a.hi); }
+  KILN_SIMD static T set1(float x) { return {H::set1(x), H::set1(x)}; }
+  KILN_SIMD static T add(T a, T b) { return {H::add(a.lo, b.lo), H::add(a.hi, b.hi)}; }
+  KILN_SIMD static T sub(T a, T b) { return {H::sub(a.lo, b.lo), H::sub(a.hi, b.hi)}; }
+  KILN_SIMD static T mul(T a, T b) { return {H::mul(a.lo, b.lo), H::mul(a.hi, b.hi)}; }
+  KILN_SIMD static T max(T a, T b) { return {H::max(a.lo, b.lo), H::max(a.hi, b.hi)}; }
+  KILN_SIMD static T min(T a, T b) { return {H::min(a.lo, b.lo), H::min(a.hi, b.hi)}; }
+  KILN_SIMD static unsigned le(T a, T b) { return H::le(a.lo, b.lo) | H::le(a.hi, b.hi) << N; }
+};
+#ifndef KILN_WIDE_F16
+#define KILN_WIDE_F16 PairVec<F8, 8>
+#endif
+template <>
+struct NodeVec<16> {
+  using V = KILN_WIDE_F16;
+};
+
 /// Per-ray constants of the box test, splatted.
 template <class V>
 struct BoxLanes {
@@ -318,4 +342,5 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
   }                                                                                  \
   const BvhWideKernel k##NAME[2][2] = {                                              \
       {table_of<format::BvhNode4, 4>(), table_of<format::BvhNode8, 8>()},            \
-      {table_of<format::BvhQNode4, 4>(), table_of<format::BvhQNode8, 8>()}};
+      {table_of<format::BvhQNode4, 4>(), table_of<format::BvhQNode8, 8>()}};         \
+  const BvhWideKernel k##NAME##16 = table_of<format::BvhNode16, 16>();

@@ -50,7 +50,7 @@ bool bvh_kernel_supported(BvhKernel kernel) {
 #endif
 }
 
-BvhKernel bvh_auto_kernel() {
+BvhKernel bvh_auto_kernel(std::uint32_t width) {
   if (const char* forced = std::getenv("KILN_BVH_KERNEL"); forced != nullptr && *forced) {
     for (const BvhKernel k :
          {BvhKernel::kScalar, BvhKernel::kSse, BvhKernel::kAvx2, BvhKernel::kAvx512})
@@ -63,8 +63,11 @@ BvhKernel bvh_auto_kernel() {
     throw std::invalid_argument(std::string("KILN_BVH_KERNEL=") + forced +
                                 ": not scalar, sse, avx2 or avx512");
   }
-  // AVX-512 measured no faster than AVX2 on 8-wide nodes (docs/BENCHMARKS.md): AVX2 first.
-  for (const BvhKernel k : {BvhKernel::kAvx2, BvhKernel::kAvx512, BvhKernel::kSse})
+  // AVX-512 measured no faster than AVX2 on 8-wide nodes (docs/BENCHMARKS.md): AVX2 first; a
+  // 16-wide node fills one 512-bit register per plane, two 256-bit ones: AVX-512 first.
+  const BvhKernel wide = width == 16 ? BvhKernel::kAvx512 : BvhKernel::kAvx2;
+  const BvhKernel other = width == 16 ? BvhKernel::kAvx2 : BvhKernel::kAvx512;
+  for (const BvhKernel k : {wide, other, BvhKernel::kSse})
     if (bvh_kernel_supported(k)) return k;
   return BvhKernel::kScalar;
 }
@@ -140,15 +143,19 @@ BvhWideView::BvhWideView(std::uint32_t width, bool quantized, std::span<const st
                          const std::string& name, BvhKernel kernel)
     : width_(width), quantized_(quantized), arena_(arena) {
   auto fail = [&](const std::string& what) { throw BlobError(name + ": " + what); };
-  if (width != 4 && width != 8) fail("width " + std::to_string(width) + " is not 4 or 8");
+  if (width != 4 && width != 8 && width != 16)
+    fail("width " + std::to_string(width) + " is not 4, 8 or 16");
+  if (width == 16 && quantized) fail("16-wide nodes have float boxes only");
   if (arena.empty()) fail("no nodes");
-  if (quantized)
+  if (width == 16)
+    check_arena<format::BvhNode16>(arena, node_count_, packet_count_, name);
+  else if (quantized)
     width == 4 ? check_arena<format::BvhQNode4>(arena, node_count_, packet_count_, name)
                : check_arena<format::BvhQNode8>(arena, node_count_, packet_count_, name);
   else
     width == 4 ? check_arena<format::BvhNode4>(arena, node_count_, packet_count_, name)
                : check_arena<format::BvhNode8>(arena, node_count_, packet_count_, name);
-  kernel_id_ = kernel == BvhKernel::kAuto ? bvh_auto_kernel() : kernel;
+  kernel_id_ = kernel == BvhKernel::kAuto ? bvh_auto_kernel(width) : kernel;
   if (!bvh_kernel_supported(kernel_id_))
     throw std::invalid_argument(std::string("BVH kernel ") + bvh_kernel_name(kernel_id_) +
                                 " is not supported on this CPU");
@@ -160,7 +167,7 @@ BvhWideView BvhWideView::from_blob(const Blob& blob, const std::string& name, Bv
   if (info == nullptr) blob.fail("has no structure '" + name + "'");
   const auto* d = structure_table(blob, *info).desc_as<schema::BvhDesc>();
   if (d == nullptr) blob.fail("structure '" + name + "' is a " + info->kind + ", not a BVH");
-  if (d->width() != 4 && d->width() != 8)
+  if (d->width() != 4 && d->width() != 8 && d->width() != 16)
     blob.fail("structure '" + name + "' is a " + std::to_string(d->width()) + "-wide BVH");
   // Blob::open checked the arena section's kind and size (and refused the layout before it).
   const BvhWideView view(d->width(), d->quantized(), blob.section_bytes(d->wide_arena()),

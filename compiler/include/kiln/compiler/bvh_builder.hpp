@@ -40,16 +40,16 @@ struct BvhBuildOptions {
   float intersection_cost = 1.0f;   // SAH cost of one triangle test
   std::uint32_t max_leaf_size = 8;  // larger leaves are split even when the SAH disagrees
   // Leaves priced per packet of this many references (at most 8; the wide layouts' 4-triangle
-  // packets: `kiln build` sets 4 for widths 4 and 8): a node of at most max_leaf_size references
-  // is a leaf unless splitting it saves packet-weighted area (each side's area x its packets
-  // below the node's area x its packets), so the binary tree stops where the collapse would
+  // packets: `kiln build` sets 4 for widths 4, 8 and 16): a node of at most max_leaf_size
+  // references is a leaf unless splitting it saves packet-weighted area (each side's area x its
+  // packets below the node's area x its packets), so the binary tree stops where the collapse would
   // pack leaves anyway. Nodes of one packet or less try every cut instead of binning (binned
   // builder). 0: every reference costs its own test (the binary layout).
   std::uint32_t leaf_packet = 0;
   float sbvh_alpha = 1e-5f;           // try spatial splits when child overlap > alpha * root area
   float sbvh_max_duplication = 1.0f;  // at most (1 + this) x triangles references
   unsigned threads = 0;               // never changes the result
-  std::uint32_t width = 2;            // stored layout: 2 (binary), 4 or 8 (bvh_collapse.hpp);
+  std::uint32_t width = 2;            // stored layout: 2 (binary), 4, 8 or 16 (bvh_collapse.hpp);
                                       // build_bvh ignores it and always returns the binary tree
   bool quantized = false;             // wide layouts: 8-bit child boxes (ignored by build_bvh)
   // Fill FlatBvh::triangles (the binary layout's leaf triangles). The wide layout reads corners

@@ -71,16 +71,16 @@ struct WideCollapseOptions {
   bool index_tree = true;
 };
 
-/// Collapses `binary` into `width` (4 or 8) children per node. Default: the dynamic programme of
-/// Ylitie, Karras and Laine (2017) over the binary tree, which picks for every subtree the
-/// cheapest way to spread it over at most `width` child slots, each slot a wide node (area x
-/// node_cost plus its own children) or a leaf priced by its packets (area x (leaf_cost +
-/// packet_cost x ceil(refs / 4))), so leaves fill their packets where the SAH allows.
-/// `options.greedy`: each wide node opens the child of largest surface area until it has `width`
-/// children, and a binary subtree of at most four references becomes one leaf packet. Either way a
-/// triangle in two binary leaves of one wide leaf is stored once (SBVH, presplit). Deterministic:
-/// the same bytes on any `options.threads`. `binary.nodes` must be in depth-first pre-order with
-/// the first child adjacent, as the builders emit them (the programme throws
+/// Collapses `binary` into `width` (4, 8 or 16; 16 with float boxes only) children per node.
+/// Default: the dynamic programme of Ylitie, Karras and Laine (2017) over the binary tree, which
+/// picks for every subtree the cheapest way to spread it over at most `width` child slots, each
+/// slot a wide node (area x node_cost plus its own children) or a leaf priced by its packets (area
+/// x (leaf_cost + packet_cost x ceil(refs / 4))), so leaves fill their packets where the SAH
+/// allows. `options.greedy`: each wide node opens the child of largest surface area until it has
+/// `width` children, and a binary subtree of at most four references becomes one leaf packet.
+/// Either way a triangle in two binary leaves of one wide leaf is stored once (SBVH, presplit).
+/// Deterministic: the same bytes on any `options.threads`. `binary.nodes` must be in depth-first
+/// pre-order with the first child adjacent, as the builders emit them (the programme throws
 /// std::invalid_argument where it finds them out of that order). `triangle_count` is the scene's
 /// (for bytes per triangle). `quantized`: child boxes as bytes relative to the node
 /// (BvhQuantizedNode), each containing the float box. Corners come from `binary.triangles`, or,

@@ -1,6 +1,6 @@
-// On-disk layout of the wide BVH (kinds bvh and sbvh with width 4 or 8): one arena of wide nodes
-// whose child boxes are stored structure-of-arrays (one SIMD slab test covers every child), each
-// followed by the triangle packets of its leaf children (four triangles per packet,
+// On-disk layout of the wide BVH (kinds bvh and sbvh with width 4, 8 or 16): one arena of wide
+// nodes whose child boxes are stored structure-of-arrays (one SIMD slab test covers every child),
+// each followed by the triangle packets of its leaf children (four triangles per packet,
 // structure-of-arrays, with their primitive ids), so that a node and its leaves share cache lines
 // and memory pages. The bytes do not depend on the CPU that built or reads them; the runtime
 // picks a kernel (scalar, SSE, AVX2, AVX-512).
@@ -32,7 +32,7 @@ inline constexpr std::uint32_t kBvhPacketSize = 4;
 /// Set in a child word when the child is a leaf; the other bits are its first packet.
 inline constexpr std::uint32_t kBvhLeafFlag = 0x80000000u;
 
-/// A wide node of W children (W = 4 or 8), stored in the arena at a 64-byte boundary. The arena
+/// A wide node of W children (W = 4, 8 or 16), stored in the arena at a 64-byte boundary. The arena
 /// is the tree in depth-first pre-order: each node, then the packets of its leaf children (slot
 /// order, consecutive), zero bytes up to the next 64-byte boundary, then the subtrees of its
 /// interior children (slot order). The root is at offset 0. Child slot i:
@@ -48,14 +48,17 @@ struct BvhWideNode {
   float bounds[3][2][W];
   std::uint32_t child[W];
   std::uint8_t packets[W];
-  std::uint8_t reserved[W == 4 ? 12 : 24];  // zero; pads the node to whole cache lines
+  std::uint8_t reserved[W == 4 ? 12 : W == 8 ? 24 : 48];  // zero; pads to whole cache lines
 };
 using BvhNode4 = BvhWideNode<4>;
 using BvhNode8 = BvhWideNode<8>;
+using BvhNode16 = BvhWideNode<16>;  // float boxes only (no BvhQuantizedNode<16>)
 static_assert(sizeof(BvhNode4) == 128);
 static_assert(sizeof(BvhNode8) == 256);
+static_assert(sizeof(BvhNode16) == 512);
 static_assert(offsetof(BvhNode4, child) == 96 && offsetof(BvhNode4, packets) == 112);
 static_assert(offsetof(BvhNode8, child) == 192 && offsetof(BvhNode8, packets) == 224);
+static_assert(offsetof(BvhNode16, child) == 384 && offsetof(BvhNode16, packets) == 448);
 
 /// A wide node with quantised child boxes (Ylitie et al. 2017, here per axis): the same children
 /// as BvhWideNode, each box plane one byte relative to the node. Child i's box on axis a is

@@ -28,9 +28,10 @@ enum class BvhKernel { kAuto, kScalar, kSse, kAvx2, kAvx512 };
 const char* bvh_kernel_name(BvhKernel kernel);
 /// Whether this CPU (and this build) can run `kernel`; kAuto and kScalar always can.
 bool bvh_kernel_supported(BvhKernel kernel);
-/// What kAuto resolves to: KILN_BVH_KERNEL (scalar|sse|avx2|avx512) when set, else the best
-/// kernel this CPU supports. Throws std::invalid_argument for an unknown or unsupported value.
-BvhKernel bvh_auto_kernel();
+/// What kAuto resolves to for nodes of `width` children: KILN_BVH_KERNEL (scalar|sse|avx2|avx512)
+/// when set, else the best kernel this CPU supports (AVX2 before AVX-512 for width 4 and 8,
+/// AVX-512 first for 16). Throws std::invalid_argument for an unknown or unsupported value.
+BvhKernel bvh_auto_kernel(std::uint32_t width = 8);
 
 /// One kernel's entry points for one width (runtime/src/bvh_wide_kernels.hpp).
 struct BvhWideKernel {
@@ -49,8 +50,8 @@ class BvhWideView {
  public:
   using HitType = Hit;
 
-  /// `arena` holds BvhNode4 or BvhNode8 nodes (width 4 or 8), or BvhQNode4/8 when `quantized`,
-  /// and their leaves' BvhTrianglePackets.
+  /// `arena` holds BvhNode4, BvhNode8 or BvhNode16 nodes (width 4, 8 or 16), or BvhQNode4/8
+  /// when `quantized` (width 4 or 8), and their leaves' BvhTrianglePackets.
   BvhWideView(std::uint32_t width, bool quantized, std::span<const std::byte> arena,
               const std::string& name = "bvh", BvhKernel kernel = BvhKernel::kAuto);
   /// The structure named `name` of a blob; throws BlobError when it is not a wide BVH, or one
@@ -76,7 +77,7 @@ class BvhWideView {
   std::size_t packet_count() const { return packet_count_; }
   std::span<const std::byte> arena() const { return arena_; }
 
-  /// The node a child word names (the root: 0), as `Node` (BvhNode4/8 or BvhQNode4/8, by
+  /// The node a child word names (the root: 0), as `Node` (BvhNode4/8/16 or BvhQNode4/8, by
   /// width() and quantized()).
   template <class Node>
   const Node& node(std::uint32_t word) const {
