@@ -21,6 +21,7 @@
 //   --collapse=LABEL:NODE:PACKET:MAXREFS[:LEAF[:ORDER]] or LABEL:greedy
 //           (--rounds, repeatable) one more contestant "sbvh w8 LABEL" (default kernel): the
 //           SBVH collapsed with these costs and slot order (0 tree, 1 largest area, 2 occlusion)
+//   --collapse-width=W  the --collapse variants' width (8 unless given; 4 or 16)
 //   --sbvh-build=LABEL:TRAV:ISECT:MAXLEAF[:ALPHA]  the --collapse variant LABEL collapses an SBVH
 //           built with these SAH costs, leaf size and spatial-split threshold (default 1:1:8:1e-5)
 //
@@ -294,6 +295,7 @@ struct Settings {
   std::vector<std::string> only;  // --rounds: contestants kept (empty: all)
   bool one_thread = false;        // --rounds: no all-threads passes
   std::vector<std::pair<std::string, kiln::WideCollapseOptions>> collapses;
+  std::uint32_t collapse_width = 8;  // --collapse-width: the width of the --collapse variants
   std::map<std::string, kiln::BvhBuildOptions> sbvh_builds;  // --sbvh-build, by collapse label
 };
 
@@ -855,20 +857,29 @@ bool wanted(const std::string& prefix) {
                      [&](const std::string& n) { return n.starts_with(prefix); });
 }
 
-// The --collapse variants of the SBVH's 8-wide layout, default kernel.
+// The name of a --collapse variant's contestant.
+std::string collapse_name(const std::string& label) {
+  const std::uint32_t width = g_settings.collapse_width;
+  return "sbvh w" + std::to_string(width) + " " + label + " " +
+         kiln::bvh_kernel_name(kiln::bvh_auto_kernel(width));
+}
+
+// The --collapse variants of the SBVH's wide layout (8-wide unless --collapse-width), default
+// kernel.
 void add_collapse_variants(MeshCase& mesh, KilnArenas& arenas, std::vector<Contestant>& out) {
   const std::size_t triangles = mesh.scene.triangles.size();
+  const std::uint32_t width = g_settings.collapse_width;
   for (const auto& [label, options] : g_settings.collapses) {
-    const std::string key = "sbvh w8 " + label;
-    const std::string name = key + " " + kiln::bvh_kernel_name(kiln::bvh_auto_kernel());
+    const std::string key = "sbvh w" + std::to_string(width) + " " + label;
+    const std::string name = collapse_name(label);
     if (!wanted(name)) continue;
     const kiln::FlatBvh& flat = sbvh_for_variant(mesh, label);
-    const kiln::FlatWideBvh w = kiln::collapse_bvh(flat, 8, triangles, false, nullptr, options);
+    const kiln::FlatWideBvh w = kiln::collapse_bvh(flat, width, triangles, false, nullptr, options);
     std::printf("- %s: %llu nodes, %llu packets, fill %.3f, %.1f B/tri\n", key.c_str(),
                 (unsigned long long)w.stats.node_count, (unsigned long long)w.stats.packet_count,
                 w.stats.packet_fill, w.stats.bytes_per_triangle);
     out.push_back(kiln_contestant(
-        name, kiln::BvhWideView(8, false, arena_copy(arenas, name, w.arena).bytes(), key),
+        name, kiln::BvhWideView(width, false, arena_copy(arenas, name, w.arena).bytes(), key),
         w.stats.bytes_per_triangle));
   }
 }
@@ -1046,14 +1057,15 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
   kiln_names.push_back(std::string("bvh w16 ") + kiln::bvh_kernel_name(kiln::bvh_auto_kernel(16)));
   kiln_names.push_back("sbvh w2");
   for (const auto& variant : g_settings.collapses)
-    kiln_names.push_back("sbvh w8 " + variant.first + " " + auto_kernel);
+    kiln_names.push_back(collapse_name(variant.first));
   // Against Embree, against Kiln's default layout (for the --collapse variants), and against the
   // avx512 slot (which a development build can fill with another AVX2 kernel: new ÷ old).
   const std::string kiln_default = "sbvh w8 " + auto_kernel;
   for (const std::string& kiln_name : kiln_names)
     for (const std::string& embree_name :
          {std::string("embree medium"), std::string("embree high"),
-          std::string("embree high robust"), kiln_default, std::string("sbvh w8 avx512")}) {
+          std::string("embree high robust"), kiln_default, std::string("sbvh w8 avx512"),
+          std::string("sbvh w16 avx512")}) {
       const std::string& name = kiln_name;
       const std::size_t a = find(name), b = find(embree_name);
       if (a == contestants.size() || b == contestants.size() || a == b) continue;
@@ -1123,7 +1135,8 @@ int main(int argc, char** argv) {
       if (parse_number_option(arg, "rays", g_settings.rays) ||
           parse_number_option(arg, "seed", g_settings.seed) ||
           parse_number_option(arg, "iterations", g_settings.iterations) ||
-          parse_number_option(arg, "rounds", g_settings.rounds))
+          parse_number_option(arg, "rounds", g_settings.rounds) ||
+          parse_number_option(arg, "collapse-width", g_settings.collapse_width))
         continue;
     } catch (const std::exception&) {
       std::fprintf(stderr, "bad number in '%s'\n", arg.c_str());

@@ -49,6 +49,8 @@ const char* const kRayStructures[] = {
     "sbvh@sse",
     "sbvh@avx2",
     "sbvh@avx512",
+    "bvh:width=8",
+    "sbvh:width=8@avx2",
     "bvh:boxes=u8",
     "sbvh:width=4,boxes=u8",
     "bvh:boxes=u8@scalar",

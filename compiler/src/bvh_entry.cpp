@@ -34,10 +34,10 @@ std::vector<StructureOption> common_options() {
        parse_float_in(0, 1000)},
       {"intersection-cost", "--bvh-intersection-cost", "1", "SAH triangle cost", false,
        parse_float_in(0.001, 1000)},
-      {"width", "--bvh-width", "8",
-       "Children per node: 8 (fastest here with AVX2), 16 (float boxes; fastest with AVX-512), 4, "
-       "or 2 (binary)",
-       false, parse_one_of({"2", "4", "8", "16"})},
+      {"width", "--bvh-width", "auto",
+       "Children per node: auto (16 with float boxes, the fastest here; 8 with u8 boxes), 16, 8, "
+       "4, or 2 (binary)",
+       false, parse_one_of({"auto", "2", "4", "8", "16"})},
       {"boxes", "--bvh-boxes", "float",
        "Wide child boxes: float (fastest here), or u8 (8 bits per plane relative to the node: "
        "half the node bytes)",
@@ -92,8 +92,9 @@ BvhBuildOptions common_options_of(const StructureRequest& request, unsigned thre
   o.max_leaf_size = request.uint_option("max-leaf");
   o.traversal_cost = request.float_option("traversal-cost");
   o.intersection_cost = request.float_option("intersection-cost");
-  o.width = request.uint_option("width");
   o.quantized = request.text_option("boxes") == "u8";
+  const std::string& width = request.text_option("width");
+  o.width = width == "auto" ? (o.quantized ? 8u : 16u) : request.uint_option("width");
   if (o.quantized && o.width == 16)
     throw std::invalid_argument(
         "--bvh-boxes u8 needs --bvh-width 4 or 8 (16-wide nodes are float)");
