@@ -5,6 +5,12 @@
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 
+#if defined(__GNUC__) && !defined(__clang__)
+// GCC 12's _mm512_max_ps/_mm512_min_ps pass _mm512_undefined_ps() to a masked builtin, which
+// -Wmaybe-uninitialized reports once inlined here (a false positive: the mask is all ones).
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
 namespace kiln::bvh_wide {
 
 namespace {
@@ -59,13 +65,10 @@ struct Avx512F8 {
   KILN_SIMD static unsigned le(T a, T b) { return _mm256_cmp_ps_mask(a, b, _CMP_LE_OQ); }
 };
 
+// 16-wide nodes (float boxes only): one 512-bit register per plane.
 struct Avx512F16 {
   using T = __m512;
   KILN_SIMD static T load(const float* p) { return _mm512_loadu_ps(p); }
-  KILN_SIMD static T load_u8(const std::uint8_t* p) {
-    return _mm512_cvtepi32_ps(
-        _mm512_cvtepu8_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))));
-  }
   KILN_SIMD static T add(T a, T b) { return _mm512_add_ps(a, b); }
   KILN_SIMD static void store(float* p, T a) { _mm512_storeu_ps(p, a); }
   KILN_SIMD static T set1(float x) { return _mm512_set1_ps(x); }
@@ -77,9 +80,8 @@ struct Avx512F16 {
 };
 
 using F4 = Avx512F4;
-using F16V = Avx512F16;
-#define KILN_WIDE_F16 F16V
 using F8 = Avx512F8;
+#define KILN_WIDE_F16 Avx512F16
 
 #include "bvh_wide_traverse.inl"
 

@@ -6,7 +6,9 @@
 //              (max(a, b) = a > b ? a : b and min(a, b) = a < b ? a : b, as x86 computes them, so
 //              NaN handling equals the scalar slab test's), and lt, gt, le, eq returning lane bits;
 //              F4 also has a lane-mask type M: lt_m, gt_m, eq_m, or_m, and_m, andnot_m (~a & b)
-//              and bits(M).
+//              and bits(M);
+//   KILN_WIDE_F16  (optional) the 16-lane float vector of 16-wide nodes (load, store, set1, add,
+//              sub, mul, max, min, le); by default two F8 halves (PairVec).
 // Everything here has internal linkage, so each instruction set's copy stays its own.
 //
 // The arithmetic per triangle is that of watertight.hpp operation for operation, per box that of
