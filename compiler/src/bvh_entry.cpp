@@ -227,7 +227,7 @@ const StructureBuilder kBvhBuilder{
     "bvh", "Bounding volume hierarchy (binned or sweep SAH)", InputKind::kTriangles, bvh_options(),
     build_binned_or_sweep,
     // kiln advise: the other layouts of the same tree
-    /*advise_variants=*/{"bvh:width=4", "bvh:width=2", "bvh:boxes=u8"}};
+    /*advise_variants=*/{"bvh:width=8", "bvh:width=4", "bvh:width=2", "bvh:boxes=u8"}};
 const StructureBuilder kSbvhBuilder{"sbvh", "BVH with spatial splits (Stich et al. 2009)",
                                     InputKind::kTriangles, sbvh_options(), build_spatial};
 
