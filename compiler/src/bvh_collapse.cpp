@@ -77,6 +77,11 @@ struct WriteTally {
   std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0, lanes_used = 0;
   std::uint32_t max_depth = 0;
   std::vector<std::uint32_t> scratch;
+  // A wide node's leaf slots: their distinct references one after another, each slot's first
+  // in `begin` (W + 1 entries), and the references' triangles and corners, loaded apart.
+  std::vector<std::uint32_t> leaf_refs, begin;
+  std::vector<format::Triangle> triangles;
+  std::vector<format::RayTriangle> corners;
   void add(const WriteTally& o) {
     node_count += o.node_count, leaf_count += o.leaf_count, packet_count += o.packet_count;
     lanes_used += o.lanes_used, max_depth = std::max(max_depth, o.max_depth);
@@ -319,41 +324,81 @@ struct Collapser {
     return bin.nodes[i].offset;
   }
 
-  format::RayTriangle corners_of(std::uint32_t r) const {
-    if (!bin.triangles.empty()) return bin.triangles[r];
-    const auto& t = scene->triangles[bin.prim_ids[r]];
-    return {scene->positions[t.v[0]], scene->positions[t.v[1]], scene->positions[t.v[2]]};
-  }
-
   // Subtree `i`'s references, one per triangle, into `list`: binary leaves are deduplicated,
   // but a presplit (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
   void distinct_refs(std::uint32_t i, std::vector<std::uint32_t>& list) const {
     list.clear();
+    append_distinct_refs(i, list);
+  }
+
+  // distinct_refs appended to `list` (the duplicates looked for among this subtree's alone).
+  void append_distinct_refs(std::uint32_t i, std::vector<std::uint32_t>& list) const {
+    const std::size_t base = list.size();
     for (std::uint32_t r = first_ref(i), end = r + refs[i]; r < end; ++r) {
-      const bool seen = std::any_of(list.begin(), list.end(), [&](std::uint32_t k) {
-        return bin.prim_ids[k] == bin.prim_ids[r];
-      });
+      const bool seen =
+          std::any_of(list.begin() + std::ptrdiff_t(base), list.end(),
+                      [&](std::uint32_t k) { return bin.prim_ids[k] == bin.prim_ids[r]; });
       if (!seen) list.push_back(r);
     }
   }
 
-  // Packs subtree `i`'s references into packets at byte `at` of the arena; returns their count.
-  std::uint8_t write_leaf(std::uint32_t i, std::size_t at, WriteTally& tally) const {
-    const std::uint32_t packets = leaf_packets(i, tally.scratch);
-    const std::vector<std::uint32_t>& list = tally.scratch;
-    const auto count = std::uint32_t(list.size());
+  // The distinct references of node `kids`' leaf slots into `tally.leaf_refs` (slot k's from
+  // tally.begin[k]; interior slots hold none), checked against the format's limit, and their
+  // corners into `tally.corners`: every reference's triangle first, then every triangle's
+  // positions, so that the loads of each pass do not wait on one another.
+  void load_leaves(const Slots<W>& kids, WriteTally& tally) const {
+    tally.leaf_refs.clear();
+    tally.begin.resize(W + 1);
+    for (int k = 0; k < kids.size; ++k) {
+      tally.begin[std::size_t(k)] = std::uint32_t(tally.leaf_refs.size());
+      if (!is_leaf(kids.node[k])) continue;
+      append_distinct_refs(kids.node[k], tally.leaf_refs);
+      check_leaf(std::uint32_t(tally.leaf_refs.size() - tally.begin[std::size_t(k)]));
+    }
+    tally.begin[std::size_t(kids.size)] = std::uint32_t(tally.leaf_refs.size());
+    const std::size_t n = tally.leaf_refs.size();
+    tally.corners.resize(n);
+    if (!bin.triangles.empty()) {
+      for (std::size_t j = 0; j < n; ++j) tally.corners[j] = bin.triangles[tally.leaf_refs[j]];
+      return;
+    }
+    tally.triangles.resize(n);
+    for (std::size_t j = 0; j < n; ++j)
+      tally.triangles[j] = scene->triangles[bin.prim_ids[tally.leaf_refs[j]]];
+    for (std::size_t j = 0; j < n; ++j) {
+      const format::Triangle& t = tally.triangles[j];
+      tally.corners[j] = {scene->positions[t.v[0]], scene->positions[t.v[1]],
+                          scene->positions[t.v[2]]};
+    }
+  }
+
+  static std::uint32_t check_leaf(std::uint32_t count) {
+    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+    if (packets > format::kBvhMaxLeafPackets)
+      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
+                                  " references does not fit a wide leaf");
+    return packets;
+  }
+
+  // Packs leaf slot k of the node whose leaves load_leaves loaded into packets at byte `at` of
+  // the arena; returns their count.
+  std::uint8_t write_leaf(int k, std::size_t at, WriteTally& tally) const {
+    const std::uint32_t* list = tally.leaf_refs.data() + tally.begin[std::size_t(k)];
+    const format::RayTriangle* corners = tally.corners.data() + tally.begin[std::size_t(k)];
+    const std::uint32_t count = tally.begin[std::size_t(k) + 1] - tally.begin[std::size_t(k)];
+    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
     tally.lanes_used += count;
     std::byte* dst = room(at + packets * sizeof(format::BvhTrianglePacket)) + at;
     for (std::uint32_t p = 0; p < packets; ++p, dst += sizeof(format::BvhTrianglePacket)) {
       format::BvhTrianglePacket packet;
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
         // Unused lanes repeat the leaf's last triangle: every lane is a real triangle.
-        const std::uint32_t r = list[std::min(p * format::kBvhPacketSize + lane, count - 1)];
-        const format::RayTriangle t = corners_of(r);
-        const format::Float3 corners[3] = {t.v0, t.v1, t.v2};
-        for (int c = 0; c < 3; ++c)
-          for (int a = 0; a < 3; ++a) packet.v[c][a][lane] = format::at(corners[c], a);
-        packet.prim[lane] = bin.prim_ids[r];
+        const std::uint32_t j = std::min(p * format::kBvhPacketSize + lane, count - 1);
+        const format::RayTriangle& t = corners[j];
+        const format::Float3 c[3] = {t.v0, t.v1, t.v2};
+        for (int v = 0; v < 3; ++v)
+          for (int a = 0; a < 3; ++a) packet.v[v][a][lane] = format::at(c[v], a);
+        packet.prim[lane] = bin.prim_ids[list[j]];
       }
       std::memcpy(dst, &packet, sizeof packet);
     }
@@ -366,12 +411,7 @@ struct Collapser {
   // `scratch`.
   std::uint32_t leaf_packets(std::uint32_t i, std::vector<std::uint32_t>& scratch) const {
     distinct_refs(i, scratch);
-    const auto count = std::uint32_t(scratch.size());
-    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
-    if (packets > format::kBvhMaxLeafPackets)
-      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
-                                  " references does not fit a wide leaf");
-    return packets;
+    return check_leaf(std::uint32_t(scratch.size()));
   }
 
   // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
@@ -455,13 +495,14 @@ struct Collapser {
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
     Slots<W> kids = gather(i);
     order_slots(kids);
+    load_leaves(kids, tally);
     std::size_t end = at + sizeof(Node);
     for (int k = 0; k < kids.size; ++k) {
       const auto& b = bin.nodes[kids.node[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
       if (!is_leaf(kids.node[k])) continue;
       node.child[k] = format::kBvhLeafFlag | unit(end);
-      node.packets[k] = write_leaf(kids.node[k], end, tally);
+      node.packets[k] = write_leaf(k, end, tally);
       end += node.packets[k] * sizeof(format::BvhTrianglePacket);
     }
     leaf_lines = to_line(end - at - sizeof(Node)) / format::kBvhArenaLine;
