@@ -82,6 +82,8 @@ struct WriteTally {
   std::vector<std::uint32_t> leaf_refs, begin;
   std::vector<format::Triangle> triangles;
   std::vector<format::RayTriangle> corners;
+  // The references whose triangles, and those whose positions, were last prefetched.
+  std::uint32_t triangles_from = 0, triangles_to = 0, positions_from = 0, positions_to = 0;
   void add(const WriteTally& o) {
     node_count += o.node_count, leaf_count += o.leaf_count, packet_count += o.packet_count;
     lanes_used += o.lanes_used, max_depth = std::max(max_depth, o.max_depth);
@@ -182,6 +184,9 @@ struct CollapseProgramme {
     collect(bin, bin.nodes[i].offset, k - left, out);
   }
 };
+
+// Subtrees of at most this many references prefetch their triangles, and their positions.
+constexpr std::uint32_t kPrefetchTriangles = 256, kPrefetchPositions = 64;
 
 template <int W>
 struct Collapser {
@@ -372,6 +377,26 @@ struct Collapser {
     }
   }
 
+  // Before subtree `i` is written: the triangles of its references, once it is small enough, and
+  // their positions once it is smaller, fetched ahead (each subtree once, not again for the
+  // subtrees inside it), so the loads of the packets below find them in cache.
+  void prefetch(std::uint32_t i, WriteTally& tally) const {
+    if (!bin.triangles.empty() || refs[i] > kPrefetchTriangles) return;
+    const std::uint32_t from = first_ref(i), to = from + refs[i];
+    if (from < tally.triangles_from || to > tally.triangles_to) {
+      for (std::uint32_t r = from; r < to; ++r)
+        __builtin_prefetch(&scene->triangles[bin.prim_ids[r]]);
+      tally.triangles_from = from, tally.triangles_to = to;
+    }
+    if (refs[i] > kPrefetchPositions || (from >= tally.positions_from && to <= tally.positions_to))
+      return;
+    for (std::uint32_t r = from; r < to; ++r) {
+      const format::Triangle& t = scene->triangles[bin.prim_ids[r]];
+      for (const std::uint32_t v : t.v) __builtin_prefetch(&scene->positions[v]);
+    }
+    tally.positions_from = from, tally.positions_to = to;
+  }
+
   static std::uint32_t check_leaf(std::uint32_t count) {
     const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
     if (packets > format::kBvhMaxLeafPackets)
@@ -493,6 +518,7 @@ struct Collapser {
         node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
+    prefetch(i, tally);
     Slots<W> kids = gather(i);
     order_slots(kids);
     load_leaves(kids, tally);
