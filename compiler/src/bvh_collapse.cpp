@@ -111,32 +111,40 @@ struct TopLevels {
   }
 };
 
+// What the collapse keeps per binary node, in one record (32 bytes): the writer reads them for the
+// same nodes, one cache line instead of five arrays' lines. Every field is written by the sweep
+// (the programme's: split for interior nodes only; triangle_area for kOcclusion) before any read.
+template <int W>
+struct CollapseNode {
+  double cost1;          // the programme's cost(node, 1)
+  double triangle_area;  // the triangles' area under the node (kOcclusion)
+  std::uint32_t refs;    // references under the node
+  std::uint8_t split;    // a wide node's slots to the left child (of W)
+  std::uint8_t pick[W];  // [k - 1] k = 1: 1 = leaf; k > 1: 0 = as k - 1, else slots to the left
+};
+static_assert(sizeof(CollapseNode<8>) == 32 && sizeof(CollapseNode<4>) == 32);
+
 template <int W>
 struct CollapseProgramme {
   using Row = std::array<double, W>;
-  // Every element of these is written by `visit` (split: interior nodes only) before any read.
-  UninitializedVector<double> cost1;        // [node]: cost(node, 1)
-  UninitializedVector<std::uint8_t> pick;   // [node * W + k - 1] k = 1: 1 = leaf; k > 1: 0 = as
-                                            // k - 1, else slots to the left
-  UninitializedVector<std::uint8_t> split;  // a wide node's slots to the left child (of W)
   using Rows = std::vector<std::pair<std::uint32_t, Row>>;  // pending rows: node, costs
+  CollapseNode<W>* info;                                    // the collapser's, per node
   const WideCollapseOptions& o;
 
-  CollapseProgramme(std::size_t nodes, const WideCollapseOptions& opt)
-      : cost1(nodes), pick(nodes * W), split(nodes), o(opt) {}
+  CollapseProgramme(CollapseNode<W>* nodes, const WideCollapseOptions& opt) : info(nodes), o(opt) {}
 
   // Node i, once its children (if any) have been visited.
   void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs, Rows& rows) {
     const double area = half_area(n);
     const double packets = double((refs + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
     const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
-    std::uint8_t* p = &pick[std::size_t(i) * W];
+    std::uint8_t* p = info[i].pick;
     Row c;
     if (n.count > 0) {
       c.fill(leaf);
       p[0] = 1;
       std::memset(p + 1, 0, W - 1);
-      cost1[i] = leaf;
+      info[i].cost1 = leaf;
       rows.push_back({i, c});
       return;
     }
@@ -156,7 +164,7 @@ struct CollapseProgramme {
       }
       spread[k] = best, p[k - 1] = best_left;
     }
-    split[i] = p[W - 1];
+    info[i].split = p[W - 1];
     const double inner = area * o.node_cost + spread[W];
     const bool as_leaf = refs <= o.max_leaf_refs && leaf <= inner;
     c[0] = as_leaf ? leaf : inner;
@@ -166,20 +174,20 @@ struct CollapseProgramme {
       c[k - 1] = fewer ? c[k - 2] : spread[k];
       p[k - 1] = fewer ? std::uint8_t(0) : p[k - 1];
     }
-    cost1[i] = c[0];
+    info[i].cost1 = c[0];
     rows.push_back({i, c});
   }
 
-  bool is_leaf(std::uint32_t i) const { return pick[std::size_t(i) * W] == 1; }
+  bool is_leaf(std::uint32_t i) const { return info[i].pick[0] == 1; }
 
   // The slots subtree i takes when given at most k.
   void collect(const FlatBvh& bin, std::uint32_t i, int k, Slots<W>& out) const {
-    while (k > 1 && pick[std::size_t(i) * W + k - 1] == 0) --k;
+    while (k > 1 && info[i].pick[k - 1] == 0) --k;
     if (k == 1 || bin.nodes[i].count > 0) {
       out.push(i);
       return;
     }
-    const int left = pick[std::size_t(i) * W + k - 1];
+    const int left = info[i].pick[k - 1];
     collect(bin, i + 1, left, out);
     collect(bin, bin.nodes[i].offset, k - left, out);
   }
@@ -194,30 +202,34 @@ struct Collapser {
   const Scene* scene;  // corners from here when bin.triangles is empty
   FlatWideBvh& out;
   const WideCollapseOptions& options;
-  UninitializedVector<std::uint32_t> refs;        // references under each binary node
+  UninitializedVector<CollapseNode<W>> info;      // per binary node
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
-  UninitializedVector<double> triangle_area;      // under each binary node (kOcclusion)
+  const bool occlusion;                           // kOcclusion: triangle areas wanted
   UninitializedVector<double> prim_area;          // each scene triangle's (kOcclusion, no copies)
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
-      : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
+      : bin(b),
+        scene(s),
+        out(o),
+        options(opt),
+        info(b.nodes.size()),
+        occlusion(opt.order == WideSlotOrder::kOcclusion) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
-    if (!options.greedy) programme.emplace(bin.nodes.size(), options);
-    const bool occlusion = options.order == WideSlotOrder::kOcclusion;
-    if (occlusion) {
-      triangle_area = UninitializedVector<double>(bin.nodes.size());
-      if (bin.triangles.empty()) prim_area = scene_triangle_areas(*scene, options.threads);
-    }
+    if (!options.greedy) programme.emplace(info.data(), options);
+    if (occlusion && bin.triangles.empty())
+      prim_area = scene_triangle_areas(*scene, options.threads);
     sweep(options.threads);
   }
+
+  std::uint32_t refs(std::uint32_t i) const { return info[i].refs; }
 
   // Node i's reference count, triangle area and programme row, its children's known.
   void visit(std::uint32_t i, typename CollapseProgramme<W>::Rows& rows) {
     const auto& n = bin.nodes[i];
-    refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
-    if (!triangle_area.empty()) triangle_area[i] = subtree_triangle_area(n, i);
-    if (programme) programme->visit(i, n, refs[i], rows);
+    info[i].refs = n.count > 0 ? n.count : info[i + 1].refs + info[n.offset].refs;
+    if (occlusion) info[i].triangle_area = subtree_triangle_area(n);
+    if (programme) programme->visit(i, n, info[i].refs, rows);
   }
 
   // One past the last node of subtree i (pre-order: the end of its rightmost path).
@@ -275,8 +287,9 @@ struct Collapser {
   }
 
   // The triangles' area under node i, its children's already known.
-  double subtree_triangle_area(const format::BvhNode& n, std::size_t i) const {
-    if (n.count == 0) return triangle_area[i + 1] + triangle_area[n.offset];
+  double subtree_triangle_area(const format::BvhNode& n) const {
+    if (n.count == 0)
+      return info[&n - bin.nodes.data() + 1].triangle_area + info[n.offset].triangle_area;
     double sum = 0;
     for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r)
       sum += prim_area.empty() ? area_of(bin.triangles[r]) : prim_area[bin.prim_ids[r]];
@@ -310,8 +323,9 @@ struct Collapser {
       case WideSlotOrder::kOcclusion: {
         // P / C with P = min(1, triangle area / area) and C = cost / area: min(area, tri) / cost.
         // The greedy collapse has no programme: a rough cost instead.
-        const double cost = programme ? programme->cost1[i] : area * (1.0 + double(refs[i]) * 0.25);
-        return cost > 0 ? std::min(area, triangle_area[i]) / cost : 0.0;
+        const CollapseNode<W>& c = info[i];
+        const double cost = programme ? c.cost1 : area * (1.0 + double(c.refs) * 0.25);
+        return cost > 0 ? std::min(area, c.triangle_area) / cost : 0.0;
       }
       default:
         return 0.0;
@@ -320,7 +334,7 @@ struct Collapser {
 
   bool is_leaf(std::uint32_t i) const {
     if (programme) return programme->is_leaf(i);
-    return bin.nodes[i].count > 0 || refs[i] <= format::kBvhPacketSize;
+    return bin.nodes[i].count > 0 || refs(i) <= format::kBvhPacketSize;
   }
 
   // The references of binary subtree `i`, in leaf order (contiguous by pre-order).
@@ -339,7 +353,7 @@ struct Collapser {
   // distinct_refs appended to `list` (the duplicates looked for among this subtree's alone).
   void append_distinct_refs(std::uint32_t i, std::vector<std::uint32_t>& list) const {
     const std::size_t base = list.size();
-    for (std::uint32_t r = first_ref(i), end = r + refs[i]; r < end; ++r) {
+    for (std::uint32_t r = first_ref(i), end = r + refs(i); r < end; ++r) {
       const bool seen =
           std::any_of(list.begin() + std::ptrdiff_t(base), list.end(),
                       [&](std::uint32_t k) { return bin.prim_ids[k] == bin.prim_ids[r]; });
@@ -381,14 +395,14 @@ struct Collapser {
   // their positions once it is smaller, fetched ahead (each subtree once, not again for the
   // subtrees inside it), so the loads of the packets below find them in cache.
   void prefetch(std::uint32_t i, WriteTally& tally) const {
-    if (!bin.triangles.empty() || refs[i] > kPrefetchTriangles) return;
-    const std::uint32_t from = first_ref(i), to = from + refs[i];
+    if (!bin.triangles.empty() || refs(i) > kPrefetchTriangles) return;
+    const std::uint32_t from = first_ref(i), to = from + refs(i);
     if (from < tally.triangles_from || to > tally.triangles_to) {
       for (std::uint32_t r = from; r < to; ++r)
         __builtin_prefetch(&scene->triangles[bin.prim_ids[r]]);
       tally.triangles_from = from, tally.triangles_to = to;
     }
-    if (refs[i] > kPrefetchPositions || (from >= tally.positions_from && to <= tally.positions_to))
+    if (refs(i) > kPrefetchPositions || (from >= tally.positions_from && to <= tally.positions_to))
       return;
     for (std::uint32_t r = from; r < to; ++r) {
       const format::Triangle& t = scene->triangles[bin.prim_ids[r]];
@@ -448,7 +462,7 @@ struct Collapser {
       return kids;
     }
     if (programme) {
-      const int left = programme->split[i];
+      const int left = info[i].split;
       programme->collect(bin, i + 1, left, kids);
       programme->collect(bin, bin.nodes[i].offset, W - left, kids);
       return kids;
@@ -596,7 +610,7 @@ struct Collapser {
     for (int k = 0; k < ordered.size; ++k) {
       const std::uint32_t kid = ordered.node[k];
       if (is_leaf(kid)) continue;
-      if (refs[kid] <= limit)
+      if (refs(kid) <= limit)
         top.subtrees.push_back({kid});
       else
         find_top_subtrees(kid, limit, top);
@@ -651,12 +665,13 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   if (threads == 1 || collapser.is_leaf(0)) {
     // One writer appends (pre-order), so no sizing pass: the arena grows from an estimate
     // (reserved, so untouched pages cost nothing) and is cut to the bytes written.
-    reserve_huge(out.arena,
-                 std::size_t(collapser.refs.empty() ? 0 : collapser.refs[0]) * 80 + sizeof(Node));
+    reserve_huge(out.arena, std::size_t(collapser.info.empty() ? 0 : collapser.info[0].refs) * 80 +
+                                sizeof(Node));
     out.arena.resize(collapser.template write<Node>(0, 1, 0, root_lines, tally));
   } else {
     TopLevels top;
-    const std::uint32_t limit = std::max<std::uint32_t>(collapser.refs[0] / (16 * threads), 64);
+    const std::uint32_t limit =
+        std::max<std::uint32_t>(collapser.info[0].refs / (16 * threads), 64);
     collapser.find_top_subtrees(0, limit, top);
     std::vector<WriteTally> tallies(top.subtrees.size());
     parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
@@ -679,7 +694,7 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   out.stats.node_count = tally.node_count, out.stats.leaf_count = tally.leaf_count;
   out.stats.packet_count = tally.packet_count, out.stats.max_depth = tally.max_depth;
   if (collapser.programme && !binary.nodes.empty())
-    out.stats.sah_cost = collapser.programme->cost1[0] / half_area(binary.nodes[0]);
+    out.stats.sah_cost = collapser.info[0].cost1 / half_area(binary.nodes[0]);
   if (options.index_tree) IndexTreeReader<Node, W>{out}.read(0);
   return tally.lanes_used;
 }
