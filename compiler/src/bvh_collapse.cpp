@@ -127,8 +127,13 @@ static_assert(sizeof(CollapseNode<8>) == 32 && sizeof(CollapseNode<4>) == 32);
 template <int W>
 struct CollapseProgramme {
   using Row = std::array<double, W>;
-  using Rows = std::vector<std::pair<std::uint32_t, Row>>;  // pending rows: node, costs
-  CollapseNode<W>* info;                                    // the collapser's, per node
+  // A node's costs over 1..W slots, constant from `slots` on (at most its leaves, at most W).
+  struct PendingRow {
+    std::uint32_t node, slots;
+    Row cost;
+  };
+  using Rows = std::vector<PendingRow>;  // pending rows, children before their parent
+  CollapseNode<W>* info;                 // the collapser's, per node
   const WideCollapseOptions& o;
 
   CollapseProgramme(CollapseNode<W>* nodes, const WideCollapseOptions& opt) : info(nodes), o(opt) {}
@@ -145,25 +150,23 @@ struct CollapseProgramme {
       p[0] = 1;
       std::memset(p + 1, 0, W - 1);
       info[i].cost1 = leaf;
-      rows.push_back({i, c});
+      rows.push_back({i, 1, c});
       return;
     }
-    if (rows.size() < 2 || rows.back().first != i + 1 || rows[rows.size() - 2].first != n.offset)
+    if (rows.size() < 2 || rows.back().node != i + 1 || rows[rows.size() - 2].node != n.offset)
       throw std::invalid_argument("collapse_bvh: binary nodes not in depth-first pre-order");
-    const Row l = rows.back().second, r = rows[rows.size() - 2].second;
+    const PendingRow& lr = rows.back();
+    const PendingRow& rr = rows[rows.size() - 2];
+    const Row l = lr.cost, r = rr.cost;
+    const int slots = int(std::min<std::uint32_t>(W, lr.slots + rr.slots));
     rows.resize(rows.size() - 2);
-    double spread[W + 1];           // spread[k]: both children over k slots, k >= 2
-    for (int k = 2; k <= W; ++k) {  // selects, not branches: the winners are data-dependent
-      double best = std::numeric_limits<double>::infinity();
-      std::uint8_t best_left = 0;
-      for (int left = 1; left < k; ++left) {
-        const double s = l[left - 1] + r[k - left - 1];
-        const bool better = s < best;
-        best = better ? s : best;
-        best_left = better ? std::uint8_t(left) : best_left;
-      }
-      spread[k] = best, p[k - 1] = best_left;
-    }
+    double spread[W + 1] = {};  // spread[k]: both children over k slots, k >= 2
+    for (int k = 2; k <= slots; ++k) spread[k] = spread_over(l, r, k, p[k - 1]);
+    // Beyond `slots`, every spread costs the least sum (both rows' last costs), which `slots`
+    // already reaches: fewer slots are as good (the loop below keeps c[k - 2] and picks 0), so
+    // only W's split (the wide node's) is wanted.
+    for (int k = slots + 1; k < W; ++k) spread[k] = spread[slots];
+    if (slots < W) spread[W] = spread_over(l, r, W, p[W - 1]);
     info[i].split = p[W - 1];
     const double inner = area * o.node_cost + spread[W];
     const bool as_leaf = refs <= o.max_leaf_refs && leaf <= inner;
@@ -175,7 +178,21 @@ struct CollapseProgramme {
       p[k - 1] = fewer ? std::uint8_t(0) : p[k - 1];
     }
     info[i].cost1 = c[0];
-    rows.push_back({i, c});
+    rows.push_back({i, std::uint32_t(slots), c});
+  }
+
+  // The least cost of children rows `l` and `r` over k slots (the first on ties) and, in
+  // `best_left`, the left child's share. Selects, not branches: the winners are data-dependent.
+  static double spread_over(const Row& l, const Row& r, int k, std::uint8_t& best_left) {
+    double best = std::numeric_limits<double>::infinity();
+    best_left = 0;
+    for (int left = 1; left < k; ++left) {
+      const double s = l[left - 1] + r[k - left - 1];
+      const bool better = s < best;
+      best = better ? s : best;
+      best_left = better ? std::uint8_t(left) : best_left;
+    }
+    return best;
   }
 
   bool is_leaf(std::uint32_t i) const { return info[i].pick[0] == 1; }
@@ -272,7 +289,7 @@ struct Collapser {
     for (Rows& d : done) rows.insert(rows.end(), d.begin(), d.end());
     const auto take = [&](std::uint32_t node) {
       const auto it =
-          std::find_if(rows.begin(), rows.end(), [&](auto& r) { return r.first == node; });
+          std::find_if(rows.begin(), rows.end(), [&](auto& r) { return r.node == node; });
       auto row = *it;
       rows.erase(it);
       return row;
