@@ -464,7 +464,7 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
   if (area > 0.0f) {
     const unsigned extra = n >= kParallelBinning ? ctx.slots.take_all() : 0u;
     Bins& bins = bin_all(refs, map, 1 + extra);
-    ctx.slots.give(extra);
+    if (extra > 0) ctx.slots.give(extra);  // no atomic per node when nothing was taken
     s = best_split(bins, map, n, area, o);
     bins.clear();
   }
