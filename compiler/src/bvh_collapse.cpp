@@ -418,6 +418,10 @@ struct Collapser {
       for (std::uint32_t r = from; r < to; ++r)
         __builtin_prefetch(&scene->triangles[bin.prim_ids[r]]);
       tally.triangles_from = from, tally.triangles_to = to;
+      // The subtree's binary nodes and records too: the writer reads them in slot order.
+      const std::uint32_t end = subtree_end(i);
+      for (std::uint32_t j = i; j < end; j += 2)
+        __builtin_prefetch(&bin.nodes[j]), __builtin_prefetch(&info[j]);
     }
     if (refs(i) > kPrefetchPositions || (from >= tally.positions_from && to <= tally.positions_to))
       return;
