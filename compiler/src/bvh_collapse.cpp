@@ -64,12 +64,13 @@ format::BvhQuantizedNode<W> quantize(const format::BvhWideNode<W>& in) {
   return out;
 }
 
-// A wide node's children (binary node indices), at most W.
+// A wide node's children (binary node indices), at most W, and the first reference (in leaf
+// order) of each one's subtree, found on the way down instead of by a walk to its first leaf.
 template <int W>
 struct Slots {
-  std::uint32_t node[W];
+  std::uint32_t node[W], first[W];
   int size = 0;
-  void push(std::uint32_t i) { node[size++] = i; }
+  void push(std::uint32_t i, std::uint32_t f) { node[size] = i, first[size] = f, ++size; }
 };
 
 // What one writer of the arena counts, and its scratch list.
@@ -94,7 +95,7 @@ struct WriteTally {
 // counted first, reserves its place while the top levels are written; its writer fills it.
 struct TopLevels {
   struct Subtree {
-    std::uint32_t node;
+    std::uint32_t node, first;  // the binary node, its first reference
     std::size_t bytes = 0, leaf_lines = 0, at = 0;
     std::uint32_t depth = 0;
   };
@@ -197,16 +198,17 @@ struct CollapseProgramme {
 
   bool is_leaf(std::uint32_t i) const { return info[i].pick[0] == 1; }
 
-  // The slots subtree i takes when given at most k.
-  void collect(const FlatBvh& bin, std::uint32_t i, int k, Slots<W>& out) const {
+  // The slots subtree i (whose first reference is `first`) takes when given at most k.
+  void collect(const FlatBvh& bin, std::uint32_t i, std::uint32_t first, int k,
+               Slots<W>& out) const {
     while (k > 1 && info[i].pick[k - 1] == 0) --k;
     if (k == 1 || bin.nodes[i].count > 0) {
-      out.push(i);
+      out.push(i, first);
       return;
     }
     const int left = info[i].pick[k - 1];
-    collect(bin, i + 1, left, out);
-    collect(bin, bin.nodes[i].offset, k - left, out);
+    collect(bin, i + 1, first, left, out);
+    collect(bin, bin.nodes[i].offset, first + info[i + 1].refs, k - left, out);
   }
 };
 
@@ -375,15 +377,16 @@ struct Collapser {
 
   // Subtree `i`'s references, one per triangle, into `list`: binary leaves are deduplicated,
   // but a presplit (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
-  void distinct_refs(std::uint32_t i, std::vector<std::uint32_t>& list) const {
+  void distinct_refs(std::uint32_t i, std::uint32_t first, std::vector<std::uint32_t>& list) const {
     list.clear();
-    append_distinct_refs(i, list);
+    append_distinct_refs(i, first, list);
   }
 
   // distinct_refs appended to `list` (the duplicates looked for among this subtree's alone).
-  void append_distinct_refs(std::uint32_t i, std::vector<std::uint32_t>& list) const {
+  void append_distinct_refs(std::uint32_t i, std::uint32_t first,
+                            std::vector<std::uint32_t>& list) const {
     const std::size_t base = list.size();
-    for (std::uint32_t r = first_ref(i), end = r + refs(i); r < end; ++r) {
+    for (std::uint32_t r = first, end = r + refs(i); r < end; ++r) {
       const bool seen =
           std::any_of(list.begin() + std::ptrdiff_t(base), list.end(),
                       [&](std::uint32_t k) { return bin.prim_ids[k] == bin.prim_ids[r]; });
@@ -401,7 +404,7 @@ struct Collapser {
     for (int k = 0; k < kids.size; ++k) {
       tally.begin[std::size_t(k)] = std::uint32_t(tally.leaf_refs.size());
       if (!is_leaf(kids.node[k])) continue;
-      append_distinct_refs(kids.node[k], tally.leaf_refs);
+      append_distinct_refs(kids.node[k], kids.first[k], tally.leaf_refs);
       check_leaf(std::uint32_t(tally.leaf_refs.size() - tally.begin[std::size_t(k)]));
     }
     tally.begin[std::size_t(kids.size)] = std::uint32_t(tally.leaf_refs.size());
@@ -424,9 +427,9 @@ struct Collapser {
   // Before subtree `i` is written: the triangles of its references, once it is small enough, and
   // their positions once it is smaller, fetched ahead (each subtree once, not again for the
   // subtrees inside it), so the loads of the packets below find them in cache.
-  void prefetch(std::uint32_t i, WriteTally& tally) const {
+  void prefetch(std::uint32_t i, std::uint32_t from, WriteTally& tally) const {
     if (!bin.triangles.empty() || refs(i) > kPrefetchTriangles) return;
-    const std::uint32_t from = first_ref(i), to = from + refs(i);
+    const std::uint32_t to = from + refs(i);
     if (from < tally.triangles_from || to > tally.triangles_to) {
       for (std::uint32_t r = from; r < to; ++r)
         __builtin_prefetch(&scene->triangles[bin.prim_ids[r]]);
@@ -482,26 +485,27 @@ struct Collapser {
 
   // The packets of a leaf slot, checked against the format's limit; its distinct references in
   // `scratch`.
-  std::uint32_t leaf_packets(std::uint32_t i, std::vector<std::uint32_t>& scratch) const {
-    distinct_refs(i, scratch);
+  std::uint32_t leaf_packets(std::uint32_t i, std::uint32_t first,
+                             std::vector<std::uint32_t>& scratch) const {
+    distinct_refs(i, first, scratch);
     return check_leaf(std::uint32_t(scratch.size()));
   }
 
   // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
   // the largest child until W.
-  Slots<W> gather(std::uint32_t i) const {
+  Slots<W> gather(std::uint32_t i, std::uint32_t first) const {
     Slots<W> kids;
     if (bin.nodes[i].count > 0 || (!programme && is_leaf(i))) {
-      kids.push(i);
+      kids.push(i, first);
       return kids;
     }
     if (programme) {
       const int left = info[i].split;
-      programme->collect(bin, i + 1, left, kids);
-      programme->collect(bin, bin.nodes[i].offset, W - left, kids);
+      programme->collect(bin, i + 1, first, left, kids);
+      programme->collect(bin, bin.nodes[i].offset, first + refs(i + 1), W - left, kids);
       return kids;
     }
-    kids.push(i + 1), kids.push(bin.nodes[i].offset);
+    kids.push(i + 1, first), kids.push(bin.nodes[i].offset, first + refs(i + 1));
     while (kids.size < W) {
       int best = -1;
       float best_area = -1;
@@ -509,9 +513,11 @@ struct Collapser {
         if (!is_leaf(kids.node[k]) && half_area(bin.nodes[kids.node[k]]) > best_area)
           best = k, best_area = half_area(bin.nodes[kids.node[k]]);
       if (best < 0) break;
-      const std::uint32_t open = kids.node[best];
+      const std::uint32_t open = kids.node[best], open_first = kids.first[best];
       std::copy_backward(kids.node + best + 1, kids.node + kids.size, kids.node + kids.size + 1);
+      std::copy_backward(kids.first + best + 1, kids.first + kids.size, kids.first + kids.size + 1);
       kids.node[best] = open + 1, kids.node[best + 1] = bin.nodes[open].offset;
+      kids.first[best] = open_first, kids.first[best + 1] = open_first + refs(open + 1);
       kids.size += 1;
     }
     return kids;
@@ -524,12 +530,12 @@ struct Collapser {
     double score[W];
     for (int k = 0; k < kids.size; ++k) score[k] = slot_score(kids.node[k]);
     for (int k = 1; k < kids.size; ++k) {
-      const std::uint32_t node = kids.node[k];
+      const std::uint32_t node = kids.node[k], first = kids.first[k];
       const double key = score[k];
       int j = k;
       for (; j > 0 && key > score[j - 1]; --j)
-        kids.node[j] = kids.node[j - 1], score[j] = score[j - 1];
-      kids.node[j] = node, score[j] = key;
+        kids.node[j] = kids.node[j - 1], kids.first[j] = kids.first[j - 1], score[j] = score[j - 1];
+      kids.node[j] = node, kids.first[j] = first, score[j] = key;
     }
   }
 
@@ -555,8 +561,8 @@ struct Collapser {
   // `leaf_lines` to the lines its own leaf packets span. Interior children listed in `top` are
   // not written: their places (sized by `top`) are recorded there for writers of their own.
   template <class Node>
-  std::size_t write(std::uint32_t i, std::uint32_t depth, std::size_t at, std::size_t& leaf_lines,
-                    WriteTally& tally, TopLevels* top = nullptr) const {
+  std::size_t write(std::uint32_t i, std::uint32_t first, std::uint32_t depth, std::size_t at,
+                    std::size_t& leaf_lines, WriteTally& tally, TopLevels* top = nullptr) const {
     tally.node_count += 1;
     tally.max_depth = std::max(tally.max_depth, depth);
     format::BvhWideNode<W> node{};
@@ -566,8 +572,8 @@ struct Collapser {
         node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
-    prefetch(i, tally);
-    Slots<W> kids = gather(i);
+    prefetch(i, first, tally);
+    Slots<W> kids = gather(i, first);
     order_slots(kids);
     load_leaves(kids, tally);
     std::size_t end = at + sizeof(Node);
@@ -590,7 +596,7 @@ struct Collapser {
         const TopLevels::Subtree& sub = top->place(kids.node[k], end, depth + 1);
         child_lines = sub.leaf_lines, end += sub.bytes;
       } else {
-        end = write<Node>(kids.node[k], depth + 1, end, child_lines, tally, top);
+        end = write<Node>(kids.node[k], kids.first[k], depth + 1, end, child_lines, tally, top);
       }
       node.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
     }
@@ -604,50 +610,53 @@ struct Collapser {
   }
 
   // What `write` will write for binary node `i`: bytes and the node's own leaf lines.
-  std::pair<std::size_t, std::size_t> subtree_size(std::uint32_t i, std::size_t node_size,
+  std::pair<std::size_t, std::size_t> subtree_size(std::uint32_t i, std::uint32_t first,
+                                                   std::size_t node_size,
                                                    std::vector<std::uint32_t>& scratch) const {
-    const Slots<W> kids = gather(i);
+    const Slots<W> kids = gather(i, first);
     std::size_t block = node_size, below = 0;
     for (int k = 0; k < kids.size; ++k) {
       if (is_leaf(kids.node[k]))
-        block += leaf_packets(kids.node[k], scratch) * sizeof(format::BvhTrianglePacket);
+        block +=
+            leaf_packets(kids.node[k], kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
       else
-        below += subtree_size(kids.node[k], node_size, scratch).first;
+        below += subtree_size(kids.node[k], kids.first[k], node_size, scratch).first;
     }
     return {to_line(block) + below, (to_line(block) - node_size) / format::kBvhArenaLine};
   }
 
   // subtree_size for the top levels, taking the sizes of the subtrees in `top` as counted.
-  std::size_t top_size(std::uint32_t i, std::size_t node_size, const TopLevels& top,
-                       std::size_t& next, std::vector<std::uint32_t>& scratch) const {
-    Slots<W> kids = gather(i);
+  std::size_t top_size(std::uint32_t i, std::uint32_t first, std::size_t node_size,
+                       const TopLevels& top, std::size_t& next,
+                       std::vector<std::uint32_t>& scratch) const {
+    Slots<W> kids = gather(i, first);
     order_slots(kids);
     std::size_t block = node_size, below = 0;
     for (int k = 0; k < kids.size; ++k) {
       const std::uint32_t kid = kids.node[k];
       if (is_leaf(kid))
-        block += leaf_packets(kid, scratch) * sizeof(format::BvhTrianglePacket);
+        block += leaf_packets(kid, kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
       else if (next < top.subtrees.size() && top.subtrees[next].node == kid)
         below += top.subtrees[next++].bytes;
       else
-        below += top_size(kid, node_size, top, next, scratch);
+        below += top_size(kid, kids.first[k], node_size, top, next, scratch);
     }
     return to_line(block) + below;
   }
 
   // The interior slots below the top levels, in the order `write` meets them: each subtree of at
   // most `limit` references (or a leaf's parent) is written apart.
-  void find_top_subtrees(std::uint32_t i, std::uint32_t limit, TopLevels& top) const {
-    const Slots<W> kids = gather(i);
-    Slots<W> ordered = kids;
-    order_slots(ordered);
-    for (int k = 0; k < ordered.size; ++k) {
-      const std::uint32_t kid = ordered.node[k];
+  void find_top_subtrees(std::uint32_t i, std::uint32_t first, std::uint32_t limit,
+                         TopLevels& top) const {
+    Slots<W> kids = gather(i, first);
+    order_slots(kids);
+    for (int k = 0; k < kids.size; ++k) {
+      const std::uint32_t kid = kids.node[k];
       if (is_leaf(kid)) continue;
       if (refs(kid) <= limit)
-        top.subtrees.push_back({kid});
+        top.subtrees.push_back({kid, kids.first[k]});
       else
-        find_top_subtrees(kid, limit, top);
+        find_top_subtrees(kid, kids.first[k], limit, top);
     }
   }
 };
@@ -696,32 +705,33 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   const unsigned threads = resolve_thread_count(options.threads);
   WriteTally tally;
   std::size_t root_lines = 0;
+  const std::uint32_t first = binary.nodes.empty() ? 0 : collapser.first_ref(0);
   if (threads == 1 || collapser.is_leaf(0)) {
     // One writer appends (pre-order), so no sizing pass: the arena grows from an estimate
     // (reserved, so untouched pages cost nothing) and is cut to the bytes written.
     reserve_huge(out.arena, std::size_t(collapser.info.empty() ? 0 : collapser.info[0].refs) * 80 +
                                 sizeof(Node));
-    out.arena.resize(collapser.template write<Node>(0, 1, 0, root_lines, tally));
+    out.arena.resize(collapser.template write<Node>(0, first, 1, 0, root_lines, tally));
   } else {
     TopLevels top;
     const std::uint32_t limit =
         std::max<std::uint32_t>(collapser.info[0].refs / (16 * threads), 64);
-    collapser.find_top_subtrees(0, limit, top);
+    collapser.find_top_subtrees(0, first, limit, top);
     std::vector<WriteTally> tallies(top.subtrees.size());
     parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
       auto& sub = top.subtrees[t];
       std::tie(sub.bytes, sub.leaf_lines) =
-          collapser.subtree_size(sub.node, sizeof(Node), tallies[t].scratch);
+          collapser.subtree_size(sub.node, sub.first, sizeof(Node), tallies[t].scratch);
     });
     std::size_t next = 0;
-    size_arena(out.arena, collapser.top_size(0, sizeof(Node), top, next, tally.scratch));
-    collapser.template write<Node>(0, 1, 0, root_lines, tally, &top);
+    size_arena(out.arena, collapser.top_size(0, first, sizeof(Node), top, next, tally.scratch));
+    collapser.template write<Node>(0, first, 1, 0, root_lines, tally, &top);
     if (top.next != top.subtrees.size())  // every place reserved, in the order found
       throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
     parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
       const auto& sub = top.subtrees[t];
       std::size_t lines = 0;
-      collapser.template write<Node>(sub.node, sub.depth, sub.at, lines, tallies[t]);
+      collapser.template write<Node>(sub.node, sub.first, sub.depth, sub.at, lines, tallies[t]);
     });
     for (const WriteTally& t : tallies) tally.add(t);
   }
