@@ -270,8 +270,9 @@ VBox centroid_bounds(std::span<const BuildRef> refs) {
 // Partition by the split's bin, in place and without a branch on the side (a mispredicted
 // branch per reference cost more than the moves): every reference is swapped with the first one
 // not known to go left, and that boundary advances when it went left (the cyclic Lomuto scheme
-// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. Each side's centroid bounds
-// (the children's bin maps) grow in the same pass. Returns the middle.
+// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. With kCentroids, each side's
+// centroid bounds (the children's bin maps) grow in the same pass. Returns the middle.
+template <bool kCentroids>
 std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Split& s,
                            VBox& left_centroids, VBox& right_centroids) {
   const V4 inf = bvh_simd::splat(std::numeric_limits<float>::infinity());
@@ -284,8 +285,10 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
     const BuildRef r = refs[i];
     const V4 c = bvh_simd::centroid(r);
     const bool left = (bvh_simd::less_mask(map.clamped(c), limit) >> s.axis) & 1;
-    left_centroids.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
-    right_centroids.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
+    if constexpr (kCentroids) {
+      left_centroids.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
+      right_centroids.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
+    }
     refs[i] = refs[l];
     refs[l] = r;
     l += left;
@@ -321,8 +324,8 @@ std::size_t partition_blocks(std::span<BuildRef> refs, const BinMap& map, const 
   std::vector<VBox> lc(blocks), rc(blocks);
   for (std::size_t b = 0; b < blocks; ++b) {
     const std::size_t begin = b * kBinChunk;
-    lefts[b] =
-        partition_refs(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s, lc[b], rc[b]);
+    lefts[b] = partition_refs<true>(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s,
+                                    lc[b], rc[b]);
   }
   std::size_t mid = 0;
   for (std::size_t b = 0; b < blocks; ++b)
@@ -354,6 +357,9 @@ struct Task {
   std::size_t begin, end;
   Box3f box, centroids;  // the references' boxes and centroids
   std::uint32_t depth;
+  // false: `centroids` not computed yet (split_task bounds them where it bins: nodes of a packet
+  // or less never need them).
+  bool has_centroids = true;
 };
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes);
@@ -436,8 +442,7 @@ std::optional<std::pair<Task, Task>> split_packet(const Context& ctx, const Task
   for (int a = 1; a < 3; ++a)
     if (std::abs(g[a]) > std::abs(g[axis])) axis = a;
   const auto side = [&](std::size_t begin, std::size_t end, const VBox& b) {
-    return Task{begin, end, b.box(), centroid_bounds(ctx.refs.subspan(begin, end - begin)).box(),
-                t.depth + 1};
+    return Task{begin, end, b.box(), {}, t.depth + 1, false};
   };
   return std::pair{side(t.begin, t.begin + left, box(best_mask)),
                    side(t.begin + left, t.end, box(other))};
@@ -455,11 +460,14 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
     return std::nullopt;
   }
   if (n <= o.leaf_packet) return split_packet(ctx, t, axis);
+  const std::span<BuildRef> refs = ctx.refs.subspan(t.begin, n);
+  // Bounded here, from the references in their place, when the partition did not: min and max
+  // in another order can keep the other of -0 and +0, which maps to the same bins.
+  const Box3f centroids = t.has_centroids ? t.centroids : centroid_bounds(refs).box();
   const float area = t.box.half_area();
   if (n == 2 && area > 0.0f)
-    if (const int a = first_spread_axis(t.centroids); a >= 0) return split_pair(ctx, t, a, axis);
-  const std::span<BuildRef> refs = ctx.refs.subspan(t.begin, n);
-  const BinMap map(t.centroids, std::max<std::uint32_t>(o.bins, 2));
+    if (const int a = first_spread_axis(centroids); a >= 0) return split_pair(ctx, t, a, axis);
+  const BinMap map(centroids, std::max<std::uint32_t>(o.bins, 2));
   Split s;
   if (area > 0.0f) {
     const unsigned extra = n >= kParallelBinning ? ctx.slots.take_all() : 0u;
@@ -483,16 +491,19 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
                      Task{mid, t.end, r.box(), rc, t.depth + 1}};
   }
   if (n <= o.max_leaf_size && leaf_wins(s, n, area, o)) return std::nullopt;
+  // Large nodes bound their children's centroids in the partition (a pass apart would be serial
+  // at the top); the others leave it to the children that bin.
   VBox lc, rc;
   std::size_t mid = t.begin;
-  if (n >= kParallelBinning) {
+  const bool large = n >= kParallelBinning;
+  if (large) {
     mid += partition_blocks(refs, map, s, lc, rc);
   } else {
-    mid += partition_refs(refs, map, s, lc, rc);
+    mid += partition_refs<false>(refs, map, s, lc, rc);
   }
   axis = s.axis;
-  return std::pair{Task{t.begin, mid, s.left_box.box(), lc.box(), t.depth + 1},
-                   Task{mid, t.end, s.right_box.box(), rc.box(), t.depth + 1}};
+  return std::pair{Task{t.begin, mid, s.left_box.box(), lc.box(), t.depth + 1, large},
+                   Task{mid, t.end, s.right_box.box(), rc.box(), t.depth + 1, large}};
 }
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes) {
