@@ -73,8 +73,9 @@ struct Slots {
   void push(std::uint32_t i, std::uint32_t f) { node[size] = i, first[size] = f, ++size; }
 };
 
-// What one writer of the arena counts, and its scratch list.
-struct WriteTally {
+// What one writer of the arena counts, and its scratch list. A cache line (or more) of its own:
+// writers on different threads update their tallies for every node.
+struct alignas(64) WriteTally {
   std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0, lanes_used = 0;
   std::uint32_t max_depth = 0;
   std::vector<std::uint32_t> scratch;
@@ -284,7 +285,11 @@ struct Collapser {
       subtrees.push_back(0);
     std::vector<Rows> done(subtrees.size());
     parallel_for(subtrees.size(), threads, [&](std::size_t t) {
-      for (std::uint32_t i = subtree_end(subtrees[t]); i-- > subtrees[t];) visit(i, done[t]);
+      // The pending rows on this thread's stack, moved out once: neighbouring elements of `done`
+      // share cache lines, which two threads pushing and popping rows would pass back and forth.
+      Rows rows;
+      for (std::uint32_t i = subtree_end(subtrees[t]); i-- > subtrees[t];) visit(i, rows);
+      done[t] = std::move(rows);
     });
     if (top.empty()) return;
     Rows rows;  // the rows of the subtrees' roots and of the top nodes visited so far
