@@ -280,6 +280,9 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
   // trunc(x) <= bin exactly when x < bin + 1 (x in [0, k - 1], integers exact as floats): the
   // side comes from one compare, without storing the bins.
   const V4 limit = bvh_simd::splat(float(s.bin + 1));
+  // The bounds grow in registers (through the references, they would be stored and reloaded for
+  // every reference, and shared with a neighbouring block's on another thread).
+  VBox lcen = left_centroids, rcen = right_centroids;
   std::size_t l = 0;
   for (std::size_t i = 0; i < refs.size(); ++i) {
     // The swap in registers, as two vectors per reference (a 32-byte copy went through the
@@ -288,8 +291,8 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
     const V4 c = (bvh_simd::xyz(lo) + hi) * bvh_simd::splat(0.5f);  // bvh_simd::centroid
     const bool left = (bvh_simd::less_mask(map.clamped(c), limit) >> s.axis) & 1;
     if constexpr (kCentroids) {
-      left_centroids.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
-      right_centroids.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
+      lcen.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
+      rcen.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
     }
     bvh_simd::store(refs[i].lo, bvh_simd::load(refs[l].lo));
     bvh_simd::store(refs[i].hi, bvh_simd::load(refs[l].hi));
@@ -297,6 +300,7 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
     bvh_simd::store(refs[l].hi, hi);
     l += left;
   }
+  left_centroids = lcen, right_centroids = rcen;
   return l;
 }
 
@@ -319,18 +323,19 @@ struct Segments {
 // partitioned on its own (its two streams stay in cache, where one partition of the whole node
 // swaps across megabytes), then the right references before the middle swap with the left ones
 // after it, the i-th with the i-th in index order. Same sides and centroid bounds; only the
-// order inside the children differs from partition_refs'. (Running the blocks on the free
-// threads measured slower on dragon_871k at two threads and is not done.)
+// order inside the children differs from partition_refs'. The blocks, and the swaps in fixed
+// chunks, run on `threads` (the same bytes on any count). (This measured slower once, while each
+// block's centroid bounds grew through memory next to its neighbour's.)
 std::size_t partition_blocks(std::span<BuildRef> refs, const BinMap& map, const Split& s,
-                             VBox& left_centroids, VBox& right_centroids) {
+                             VBox& left_centroids, VBox& right_centroids, unsigned threads) {
   const std::size_t n = refs.size(), blocks = (n + kBinChunk - 1) / kBinChunk;
   std::vector<std::size_t> lefts(blocks);
   std::vector<VBox> lc(blocks), rc(blocks);
-  for (std::size_t b = 0; b < blocks; ++b) {
+  parallel_for(blocks, threads, [&](std::size_t b) {
     const std::size_t begin = b * kBinChunk;
     lefts[b] = partition_refs<true>(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s,
                                     lc[b], rc[b]);
-  }
+  });
   std::size_t mid = 0;
   for (std::size_t b = 0; b < blocks; ++b)
     mid += lefts[b], left_centroids.grow(lc[b]), right_centroids.grow(rc[b]);
@@ -342,9 +347,12 @@ std::size_t partition_blocks(std::span<BuildRef> refs, const BinMap& map, const 
     left_after.add(std::max(begin, mid), split);
   }
   const std::size_t misplaced = right_before.end_rank.empty() ? 0 : right_before.end_rank.back();
-  std::size_t p = 0, q = 0;
-  for (std::size_t i = 0; i < misplaced; ++i)
-    std::swap(refs[right_before.at(i, p)], refs[left_after.at(i, q)]);
+  // The i-th misplaced pairs swap in fixed chunks of i (each pair on its own, so on any threads).
+  parallel_for((misplaced + kBinChunk - 1) / kBinChunk, threads, [&](std::size_t c) {
+    std::size_t p = 0, q = 0;
+    for (std::size_t i = c * kBinChunk; i < std::min(misplaced, (c + 1) * kBinChunk); ++i)
+      std::swap(refs[right_before.at(i, p)], refs[left_after.at(i, q)]);
+  });
   return mid;
 }
 
@@ -501,7 +509,9 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
   std::size_t mid = t.begin;
   const bool large = n >= kParallelBinning;
   if (large) {
-    mid += partition_blocks(refs, map, s, lc, rc);
+    const unsigned extra = ctx.slots.take_all();
+    mid += partition_blocks(refs, map, s, lc, rc, 1 + extra);
+    if (extra > 0) ctx.slots.give(extra);
   } else {
     mid += partition_refs<false>(refs, map, s, lc, rc);
   }
