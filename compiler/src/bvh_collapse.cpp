@@ -429,9 +429,10 @@ struct Collapser {
     }
   }
 
-  // Before subtree `i` is written: the triangles of its references, once it is small enough, and
-  // their positions once it is smaller, fetched ahead (each subtree once, not again for the
-  // subtrees inside it), so the loads of the packets below find them in cache.
+  // Before subtree `i` (whose references start at `from`) is written: the triangles of its
+  // references and its binary nodes and records, once it is small enough, and the triangles'
+  // positions once it is smaller, fetched ahead (each subtree once, not again for the subtrees
+  // inside it), so that the walk and the packets below find them in cache.
   void prefetch(std::uint32_t i, std::uint32_t from, WriteTally& tally) const {
     if (!bin.triangles.empty() || refs(i) > kPrefetchTriangles) return;
     const std::uint32_t to = from + refs(i);
