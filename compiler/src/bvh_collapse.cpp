@@ -81,9 +81,11 @@ struct alignas(64) WriteTally {
   std::vector<std::uint32_t> scratch;
   // A wide node's leaf slots: their distinct references one after another, each slot's first
   // in `begin` (W + 1 entries), and the references' triangles and corners, loaded apart.
-  std::vector<std::uint32_t> leaf_refs, begin;
-  std::vector<format::Triangle> triangles;
-  std::vector<format::RayTriangle> corners;
+  // (Uninitialised: resizing up between nodes does not zero what is written next.)
+  std::vector<std::uint32_t> leaf_refs;
+  std::uint32_t begin[9];  // W + 1 at most
+  UninitializedVector<format::Triangle> triangles;
+  UninitializedVector<format::RayTriangle> corners;
   // The references whose triangles, and those whose positions, were last prefetched.
   std::uint32_t triangles_from = 0, triangles_to = 0, positions_from = 0, positions_to = 0;
   void add(const WriteTally& o) {
@@ -404,8 +406,8 @@ struct Collapser {
   // corners into `tally.corners`: every reference's triangle first, then every triangle's
   // positions, so that the loads of each pass do not wait on one another.
   void load_leaves(const Slots<W>& kids, WriteTally& tally) const {
+    static_assert(W + 1 <= std::size(WriteTally{}.begin));
     tally.leaf_refs.clear();
-    tally.begin.resize(W + 1);
     for (int k = 0; k < kids.size; ++k) {
       tally.begin[std::size_t(k)] = std::uint32_t(tally.leaf_refs.size());
       if (!is_leaf(kids.node[k])) continue;
@@ -470,7 +472,7 @@ struct Collapser {
     const std::uint32_t count = tally.begin[std::size_t(k) + 1] - tally.begin[std::size_t(k)];
     const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
     tally.lanes_used += count;
-    std::byte* dst = room(at + packets * sizeof(format::BvhTrianglePacket)) + at;
+    std::byte* dst = out.arena.data() + at;  // sized by `write`
     for (std::uint32_t p = 0; p < packets; ++p, dst += sizeof(format::BvhTrianglePacket)) {
       format::BvhTrianglePacket packet;
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
@@ -583,6 +585,12 @@ struct Collapser {
     order_slots(kids);
     load_leaves(kids, tally);
     std::size_t end = at + sizeof(Node);
+    // The arena holds the node and its leaf packets from here on (one resize per node at most).
+    std::size_t leaf_bytes = 0;
+    for (int k = 0; k < kids.size; ++k)
+      leaf_bytes += (tally.begin[k + 1] - tally.begin[k] + format::kBvhPacketSize - 1) /
+                    format::kBvhPacketSize * sizeof(format::BvhTrianglePacket);
+    room(to_line(end + leaf_bytes));
     for (int k = 0; k < kids.size; ++k) {
       const auto& b = bin.nodes[kids.node[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
@@ -592,7 +600,7 @@ struct Collapser {
       end += node.packets[k] * sizeof(format::BvhTrianglePacket);
     }
     leaf_lines = to_line(end - at - sizeof(Node)) / format::kBvhArenaLine;
-    std::memset(room(to_line(end)) + end, 0, to_line(end) - end);  // the arena is not zeroed
+    std::memset(out.arena.data() + end, 0, to_line(end) - end);  // the arena is not zeroed
     end = to_line(end);
     for (int k = 0; k < kids.size; ++k) {
       if (is_leaf(kids.node[k])) continue;
@@ -607,10 +615,10 @@ struct Collapser {
       node.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
     }
     if constexpr (std::is_same_v<Node, format::BvhWideNode<W>>) {
-      std::memcpy(room(at + sizeof node) + at, &node, sizeof node);
+      std::memcpy(out.arena.data() + at, &node, sizeof node);
     } else {
       const Node q = quantize(node);
-      std::memcpy(room(at + sizeof q) + at, &q, sizeof q);
+      std::memcpy(out.arena.data() + at, &q, sizeof q);
     }
     return end;
   }
