@@ -406,7 +406,7 @@ struct Collapser {
   // corners into `tally.corners`: every reference's triangle first, then every triangle's
   // positions, so that the loads of each pass do not wait on one another.
   void load_leaves(const Slots<W>& kids, WriteTally& tally) const {
-    static_assert(W + 1 <= std::size(WriteTally{}.begin));
+    static_assert(W + 1 <= sizeof(WriteTally::begin) / sizeof(std::uint32_t));
     tally.leaf_refs.clear();
     for (int k = 0; k < kids.size; ++k) {
       tally.begin[std::size_t(k)] = std::uint32_t(tally.leaf_refs.size());
