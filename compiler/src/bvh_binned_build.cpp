@@ -270,8 +270,9 @@ VBox centroid_bounds(std::span<const BuildRef> refs) {
 // Partition by the split's bin, in place and without a branch on the side (a mispredicted
 // branch per reference cost more than the moves): every reference is swapped with the first one
 // not known to go left, and that boundary advances when it went left (the cyclic Lomuto scheme
-// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. Each side's centroid bounds
-// (the children's bin maps) grow in the same pass. Returns the middle.
+// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. With kCentroids, each side's
+// centroid bounds (the children's bin maps) grow in the same pass. Returns the middle.
+template <bool kCentroids>
 std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Split& s,
                            VBox& left_centroids, VBox& right_centroids) {
   const V4 inf = bvh_simd::splat(std::numeric_limits<float>::infinity());
@@ -279,17 +280,27 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
   // trunc(x) <= bin exactly when x < bin + 1 (x in [0, k - 1], integers exact as floats): the
   // side comes from one compare, without storing the bins.
   const V4 limit = bvh_simd::splat(float(s.bin + 1));
+  // The bounds grow in registers (through the references, they would be stored and reloaded for
+  // every reference, and shared with a neighbouring block's on another thread).
+  VBox lcen = left_centroids, rcen = right_centroids;
   std::size_t l = 0;
   for (std::size_t i = 0; i < refs.size(); ++i) {
-    const BuildRef r = refs[i];
-    const V4 c = bvh_simd::centroid(r);
+    // The swap in registers, as two vectors per reference (a 32-byte copy went through the
+    // stack).
+    const V4 lo = bvh_simd::load(refs[i].lo), hi = bvh_simd::load(refs[i].hi);
+    const V4 c = (bvh_simd::xyz(lo) + hi) * bvh_simd::splat(0.5f);  // bvh_simd::centroid
     const bool left = (bvh_simd::less_mask(map.clamped(c), limit) >> s.axis) & 1;
-    left_centroids.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
-    right_centroids.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
-    refs[i] = refs[l];
-    refs[l] = r;
+    if constexpr (kCentroids) {
+      lcen.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
+      rcen.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
+    }
+    bvh_simd::store(refs[i].lo, bvh_simd::load(refs[l].lo));
+    bvh_simd::store(refs[i].hi, bvh_simd::load(refs[l].hi));
+    bvh_simd::store(refs[l].lo, lo);
+    bvh_simd::store(refs[l].hi, hi);
     l += left;
   }
+  left_centroids = lcen, right_centroids = rcen;
   return l;
 }
 
@@ -312,18 +323,19 @@ struct Segments {
 // partitioned on its own (its two streams stay in cache, where one partition of the whole node
 // swaps across megabytes), then the right references before the middle swap with the left ones
 // after it, the i-th with the i-th in index order. Same sides and centroid bounds; only the
-// order inside the children differs from partition_refs'. (Running the blocks on the free
-// threads measured slower on dragon_871k at two threads and is not done.)
+// order inside the children differs from partition_refs'. The blocks, and the swaps in fixed
+// chunks, run on `threads` (the same bytes on any count). (This measured slower once, while each
+// block's centroid bounds grew through memory next to its neighbour's.)
 std::size_t partition_blocks(std::span<BuildRef> refs, const BinMap& map, const Split& s,
-                             VBox& left_centroids, VBox& right_centroids) {
+                             VBox& left_centroids, VBox& right_centroids, unsigned threads) {
   const std::size_t n = refs.size(), blocks = (n + kBinChunk - 1) / kBinChunk;
   std::vector<std::size_t> lefts(blocks);
   std::vector<VBox> lc(blocks), rc(blocks);
-  for (std::size_t b = 0; b < blocks; ++b) {
+  parallel_for(blocks, threads, [&](std::size_t b) {
     const std::size_t begin = b * kBinChunk;
-    lefts[b] =
-        partition_refs(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s, lc[b], rc[b]);
-  }
+    lefts[b] = partition_refs<true>(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s,
+                                    lc[b], rc[b]);
+  });
   std::size_t mid = 0;
   for (std::size_t b = 0; b < blocks; ++b)
     mid += lefts[b], left_centroids.grow(lc[b]), right_centroids.grow(rc[b]);
@@ -335,9 +347,12 @@ std::size_t partition_blocks(std::span<BuildRef> refs, const BinMap& map, const 
     left_after.add(std::max(begin, mid), split);
   }
   const std::size_t misplaced = right_before.end_rank.empty() ? 0 : right_before.end_rank.back();
-  std::size_t p = 0, q = 0;
-  for (std::size_t i = 0; i < misplaced; ++i)
-    std::swap(refs[right_before.at(i, p)], refs[left_after.at(i, q)]);
+  // The i-th misplaced pairs swap in fixed chunks of i (each pair on its own, so on any threads).
+  parallel_for((misplaced + kBinChunk - 1) / kBinChunk, threads, [&](std::size_t c) {
+    std::size_t p = 0, q = 0;
+    for (std::size_t i = c * kBinChunk; i < std::min(misplaced, (c + 1) * kBinChunk); ++i)
+      std::swap(refs[right_before.at(i, p)], refs[left_after.at(i, q)]);
+  });
   return mid;
 }
 
@@ -354,6 +369,9 @@ struct Task {
   std::size_t begin, end;
   Box3f box, centroids;  // the references' boxes and centroids
   std::uint32_t depth;
+  // false: `centroids` not computed yet (split_task bounds them where it bins: nodes of a packet
+  // or less never need them).
+  bool has_centroids = true;
 };
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes);
@@ -436,8 +454,7 @@ std::optional<std::pair<Task, Task>> split_packet(const Context& ctx, const Task
   for (int a = 1; a < 3; ++a)
     if (std::abs(g[a]) > std::abs(g[axis])) axis = a;
   const auto side = [&](std::size_t begin, std::size_t end, const VBox& b) {
-    return Task{begin, end, b.box(), centroid_bounds(ctx.refs.subspan(begin, end - begin)).box(),
-                t.depth + 1};
+    return Task{begin, end, b.box(), {}, t.depth + 1, false};
   };
   return std::pair{side(t.begin, t.begin + left, box(best_mask)),
                    side(t.begin + left, t.end, box(other))};
@@ -455,16 +472,19 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
     return std::nullopt;
   }
   if (n <= o.leaf_packet) return split_packet(ctx, t, axis);
+  const std::span<BuildRef> refs = ctx.refs.subspan(t.begin, n);
+  // Bounded here, from the references in their place, when the partition did not: min and max
+  // in another order can keep the other of -0 and +0, which maps to the same bins.
+  const Box3f centroids = t.has_centroids ? t.centroids : centroid_bounds(refs).box();
   const float area = t.box.half_area();
   if (n == 2 && area > 0.0f)
-    if (const int a = first_spread_axis(t.centroids); a >= 0) return split_pair(ctx, t, a, axis);
-  const std::span<BuildRef> refs = ctx.refs.subspan(t.begin, n);
-  const BinMap map(t.centroids, std::max<std::uint32_t>(o.bins, 2));
+    if (const int a = first_spread_axis(centroids); a >= 0) return split_pair(ctx, t, a, axis);
+  const BinMap map(centroids, std::max<std::uint32_t>(o.bins, 2));
   Split s;
   if (area > 0.0f) {
     const unsigned extra = n >= kParallelBinning ? ctx.slots.take_all() : 0u;
     Bins& bins = bin_all(refs, map, 1 + extra);
-    ctx.slots.give(extra);
+    if (extra > 0) ctx.slots.give(extra);  // no atomic per node when nothing was taken
     s = best_split(bins, map, n, area, o);
     bins.clear();
   }
@@ -483,16 +503,21 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
                      Task{mid, t.end, r.box(), rc, t.depth + 1}};
   }
   if (n <= o.max_leaf_size && leaf_wins(s, n, area, o)) return std::nullopt;
+  // Large nodes bound their children's centroids in the partition (a pass apart would be serial
+  // at the top); the others leave it to the children that bin.
   VBox lc, rc;
   std::size_t mid = t.begin;
-  if (n >= kParallelBinning) {
-    mid += partition_blocks(refs, map, s, lc, rc);
+  const bool large = n >= kParallelBinning;
+  if (large) {
+    const unsigned extra = ctx.slots.take_all();
+    mid += partition_blocks(refs, map, s, lc, rc, 1 + extra);
+    if (extra > 0) ctx.slots.give(extra);
   } else {
-    mid += partition_refs(refs, map, s, lc, rc);
+    mid += partition_refs<false>(refs, map, s, lc, rc);
   }
   axis = s.axis;
-  return std::pair{Task{t.begin, mid, s.left_box.box(), lc.box(), t.depth + 1},
-                   Task{mid, t.end, s.right_box.box(), rc.box(), t.depth + 1}};
+  return std::pair{Task{t.begin, mid, s.left_box.box(), lc.box(), t.depth + 1, large},
+                   Task{mid, t.end, s.right_box.box(), rc.box(), t.depth + 1, large}};
 }
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes) {

@@ -64,19 +64,30 @@ format::BvhQuantizedNode<W> quantize(const format::BvhWideNode<W>& in) {
   return out;
 }
 
-// A wide node's children (binary node indices), at most W.
+// A wide node's children (binary node indices), at most W, and the first reference (in leaf
+// order) of each one's subtree, found on the way down instead of by a walk to its first leaf.
 template <int W>
 struct Slots {
-  std::uint32_t node[W];
+  std::uint32_t node[W], first[W];
   int size = 0;
-  void push(std::uint32_t i) { node[size++] = i; }
+  void push(std::uint32_t i, std::uint32_t f) { node[size] = i, first[size] = f, ++size; }
 };
 
-// What one writer of the arena counts, and its scratch list.
-struct WriteTally {
+// What one writer of the arena counts, and its scratch list. A cache line (or more) of its own:
+// writers on different threads update their tallies for every node.
+struct alignas(64) WriteTally {
   std::uint64_t node_count = 0, leaf_count = 0, packet_count = 0, lanes_used = 0;
   std::uint32_t max_depth = 0;
   std::vector<std::uint32_t> scratch;
+  // A wide node's leaf slots: their distinct references one after another, each slot's first
+  // in `begin` (W + 1 entries), and the references' triangles and corners, loaded apart.
+  // (Uninitialised: resizing up between nodes does not zero what is written next.)
+  std::vector<std::uint32_t> leaf_refs;
+  std::uint32_t begin[9];  // W + 1 at most
+  UninitializedVector<format::Triangle> triangles;
+  UninitializedVector<format::RayTriangle> corners;
+  // The references whose triangles, and those whose positions, were last prefetched.
+  std::uint32_t triangles_from = 0, triangles_to = 0, positions_from = 0, positions_to = 0;
   void add(const WriteTally& o) {
     node_count += o.node_count, leaf_count += o.leaf_count, packet_count += o.packet_count;
     lanes_used += o.lanes_used, max_depth = std::max(max_depth, o.max_depth);
@@ -87,7 +98,7 @@ struct WriteTally {
 // counted first, reserves its place while the top levels are written; its writer fills it.
 struct TopLevels {
   struct Subtree {
-    std::uint32_t node;
+    std::uint32_t node, first;  // the binary node, its first reference
     std::size_t bytes = 0, leaf_lines = 0, at = 0;
     std::uint32_t depth = 0;
   };
@@ -104,52 +115,63 @@ struct TopLevels {
   }
 };
 
+// What the collapse keeps per binary node, in one record (32 bytes): the writer reads them for the
+// same nodes, one cache line instead of five arrays' lines. Every field is written by the sweep
+// (the programme's: split for interior nodes only; triangle_area for kOcclusion) before any read.
+template <int W>
+struct CollapseNode {
+  double cost1;          // the programme's cost(node, 1)
+  double triangle_area;  // the triangles' area under the node (kOcclusion)
+  std::uint32_t refs;    // references under the node
+  std::uint8_t split;    // a wide node's slots to the left child (of W)
+  std::uint8_t pick[W];  // [k - 1] k = 1: 1 = leaf; k > 1: 0 = as k - 1, else slots to the left
+};
+static_assert(sizeof(CollapseNode<8>) == 32 && sizeof(CollapseNode<4>) == 32);
+
 template <int W>
 struct CollapseProgramme {
   using Row = std::array<double, W>;
-  // Every element of these is written by `visit` (split: interior nodes only) before any read.
-  UninitializedVector<double> cost1;        // [node]: cost(node, 1)
-  UninitializedVector<std::uint8_t> pick;   // [node * W + k - 1] k = 1: 1 = leaf; k > 1: 0 = as
-                                            // k - 1, else slots to the left
-  UninitializedVector<std::uint8_t> split;  // a wide node's slots to the left child (of W)
-  using Rows = std::vector<std::pair<std::uint32_t, Row>>;  // pending rows: node, costs
+  // A node's costs over 1..W slots, constant from `slots` on (at most its leaves, at most W).
+  struct PendingRow {
+    std::uint32_t node, slots;
+    Row cost;
+  };
+  using Rows = std::vector<PendingRow>;  // pending rows, children before their parent
+  CollapseNode<W>* info;                 // the collapser's, per node
   const WideCollapseOptions& o;
 
-  CollapseProgramme(std::size_t nodes, const WideCollapseOptions& opt)
-      : cost1(nodes), pick(nodes * W), split(nodes), o(opt) {}
+  CollapseProgramme(CollapseNode<W>* nodes, const WideCollapseOptions& opt) : info(nodes), o(opt) {}
 
   // Node i, once its children (if any) have been visited.
   void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs, Rows& rows) {
     const double area = half_area(n);
     const double packets = double((refs + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
     const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
-    std::uint8_t* p = &pick[std::size_t(i) * W];
+    std::uint8_t* p = info[i].pick;
     Row c;
     if (n.count > 0) {
       c.fill(leaf);
       p[0] = 1;
       std::memset(p + 1, 0, W - 1);
-      cost1[i] = leaf;
-      rows.push_back({i, c});
+      info[i].cost1 = leaf;
+      rows.push_back({i, 1, c});
       return;
     }
-    if (rows.size() < 2 || rows.back().first != i + 1 || rows[rows.size() - 2].first != n.offset)
+    if (rows.size() < 2 || rows.back().node != i + 1 || rows[rows.size() - 2].node != n.offset)
       throw std::invalid_argument("collapse_bvh: binary nodes not in depth-first pre-order");
-    const Row l = rows.back().second, r = rows[rows.size() - 2].second;
+    const PendingRow& lr = rows.back();
+    const PendingRow& rr = rows[rows.size() - 2];
+    const Row l = lr.cost, r = rr.cost;
+    const int slots = int(std::min<std::uint32_t>(W, lr.slots + rr.slots));
     rows.resize(rows.size() - 2);
-    double spread[W + 1];           // spread[k]: both children over k slots, k >= 2
-    for (int k = 2; k <= W; ++k) {  // selects, not branches: the winners are data-dependent
-      double best = std::numeric_limits<double>::infinity();
-      std::uint8_t best_left = 0;
-      for (int left = 1; left < k; ++left) {
-        const double s = l[left - 1] + r[k - left - 1];
-        const bool better = s < best;
-        best = better ? s : best;
-        best_left = better ? std::uint8_t(left) : best_left;
-      }
-      spread[k] = best, p[k - 1] = best_left;
-    }
-    split[i] = p[W - 1];
+    double spread[W + 1] = {};  // spread[k]: both children over k slots, k >= 2
+    for (int k = 2; k <= slots; ++k) spread[k] = spread_over(l, r, k, p[k - 1]);
+    // Beyond `slots`, every spread costs the least sum (both rows' last costs), which `slots`
+    // already reaches: fewer slots are as good (the loop below keeps c[k - 2] and picks 0), so
+    // only W's split (the wide node's) is wanted.
+    for (int k = slots + 1; k < W; ++k) spread[k] = spread[slots];
+    if (slots < W) spread[W] = spread_over(l, r, W, p[W - 1]);
+    info[i].split = p[W - 1];
     const double inner = area * o.node_cost + spread[W];
     const bool as_leaf = refs <= o.max_leaf_refs && leaf <= inner;
     c[0] = as_leaf ? leaf : inner;
@@ -159,24 +181,42 @@ struct CollapseProgramme {
       c[k - 1] = fewer ? c[k - 2] : spread[k];
       p[k - 1] = fewer ? std::uint8_t(0) : p[k - 1];
     }
-    cost1[i] = c[0];
-    rows.push_back({i, c});
+    info[i].cost1 = c[0];
+    rows.push_back({i, std::uint32_t(slots), c});
   }
 
-  bool is_leaf(std::uint32_t i) const { return pick[std::size_t(i) * W] == 1; }
+  // The least cost of children rows `l` and `r` over k slots (the first on ties) and, in
+  // `best_left`, the left child's share. Selects, not branches: the winners are data-dependent.
+  static double spread_over(const Row& l, const Row& r, int k, std::uint8_t& best_left) {
+    double best = std::numeric_limits<double>::infinity();
+    best_left = 0;
+    for (int left = 1; left < k; ++left) {
+      const double s = l[left - 1] + r[k - left - 1];
+      const bool better = s < best;
+      best = better ? s : best;
+      best_left = better ? std::uint8_t(left) : best_left;
+    }
+    return best;
+  }
 
-  // The slots subtree i takes when given at most k.
-  void collect(const FlatBvh& bin, std::uint32_t i, int k, Slots<W>& out) const {
-    while (k > 1 && pick[std::size_t(i) * W + k - 1] == 0) --k;
+  bool is_leaf(std::uint32_t i) const { return info[i].pick[0] == 1; }
+
+  // The slots subtree i (whose first reference is `first`) takes when given at most k.
+  void collect(const FlatBvh& bin, std::uint32_t i, std::uint32_t first, int k,
+               Slots<W>& out) const {
+    while (k > 1 && info[i].pick[k - 1] == 0) --k;
     if (k == 1 || bin.nodes[i].count > 0) {
-      out.push(i);
+      out.push(i, first);
       return;
     }
-    const int left = pick[std::size_t(i) * W + k - 1];
-    collect(bin, i + 1, left, out);
-    collect(bin, bin.nodes[i].offset, k - left, out);
+    const int left = info[i].pick[k - 1];
+    collect(bin, i + 1, first, left, out);
+    collect(bin, bin.nodes[i].offset, first + info[i + 1].refs, k - left, out);
   }
 };
+
+// Subtrees of at most this many references prefetch their triangles, and their positions.
+constexpr std::uint32_t kPrefetchTriangles = 256, kPrefetchPositions = 64;
 
 template <int W>
 struct Collapser {
@@ -184,30 +224,34 @@ struct Collapser {
   const Scene* scene;  // corners from here when bin.triangles is empty
   FlatWideBvh& out;
   const WideCollapseOptions& options;
-  UninitializedVector<std::uint32_t> refs;        // references under each binary node
+  UninitializedVector<CollapseNode<W>> info;      // per binary node
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
-  UninitializedVector<double> triangle_area;      // under each binary node (kOcclusion)
-  UninitializedVector<double> prim_area;          // each scene triangle's (kOcclusion, no copies)
+  const bool occlusion;                           // kOcclusion: triangle areas wanted
+  UninitializedVector<double> ref_area;  // each reference's triangle's (kOcclusion, no copies)
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
-      : bin(b), scene(s), out(o), options(opt), refs(b.nodes.size()) {
+      : bin(b),
+        scene(s),
+        out(o),
+        options(opt),
+        info(b.nodes.size()),
+        occlusion(opt.order == WideSlotOrder::kOcclusion) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
-    if (!options.greedy) programme.emplace(bin.nodes.size(), options);
-    const bool occlusion = options.order == WideSlotOrder::kOcclusion;
-    if (occlusion) {
-      triangle_area = UninitializedVector<double>(bin.nodes.size());
-      if (bin.triangles.empty()) prim_area = scene_triangle_areas(*scene, options.threads);
-    }
+    if (!options.greedy) programme.emplace(info.data(), options);
+    if (occlusion && bin.triangles.empty())
+      ref_area = reference_areas(bin, *scene, options.threads);
     sweep(options.threads);
   }
+
+  std::uint32_t refs(std::uint32_t i) const { return info[i].refs; }
 
   // Node i's reference count, triangle area and programme row, its children's known.
   void visit(std::uint32_t i, typename CollapseProgramme<W>::Rows& rows) {
     const auto& n = bin.nodes[i];
-    refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
-    if (!triangle_area.empty()) triangle_area[i] = subtree_triangle_area(n, i);
-    if (programme) programme->visit(i, n, refs[i], rows);
+    info[i].refs = n.count > 0 ? n.count : info[i + 1].refs + info[n.offset].refs;
+    if (occlusion) info[i].triangle_area = subtree_triangle_area(n);
+    if (programme) programme->visit(i, n, info[i].refs, rows);
   }
 
   // One past the last node of subtree i (pre-order: the end of its rightmost path).
@@ -243,14 +287,18 @@ struct Collapser {
       subtrees.push_back(0);
     std::vector<Rows> done(subtrees.size());
     parallel_for(subtrees.size(), threads, [&](std::size_t t) {
-      for (std::uint32_t i = subtree_end(subtrees[t]); i-- > subtrees[t];) visit(i, done[t]);
+      // The pending rows on this thread's stack, moved out once: neighbouring elements of `done`
+      // share cache lines, which two threads pushing and popping rows would pass back and forth.
+      Rows rows;
+      for (std::uint32_t i = subtree_end(subtrees[t]); i-- > subtrees[t];) visit(i, rows);
+      done[t] = std::move(rows);
     });
     if (top.empty()) return;
     Rows rows;  // the rows of the subtrees' roots and of the top nodes visited so far
     for (Rows& d : done) rows.insert(rows.end(), d.begin(), d.end());
     const auto take = [&](std::uint32_t node) {
       const auto it =
-          std::find_if(rows.begin(), rows.end(), [&](auto& r) { return r.first == node; });
+          std::find_if(rows.begin(), rows.end(), [&](auto& r) { return r.node == node; });
       auto row = *it;
       rows.erase(it);
       return row;
@@ -265,22 +313,36 @@ struct Collapser {
   }
 
   // The triangles' area under node i, its children's already known.
-  double subtree_triangle_area(const format::BvhNode& n, std::size_t i) const {
-    if (n.count == 0) return triangle_area[i + 1] + triangle_area[n.offset];
+  double subtree_triangle_area(const format::BvhNode& n) const {
+    if (n.count == 0)
+      return info[&n - bin.nodes.data() + 1].triangle_area + info[n.offset].triangle_area;
     double sum = 0;
     for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r)
-      sum += prim_area.empty() ? area_of(bin.triangles[r]) : prim_area[bin.prim_ids[r]];
+      sum += ref_area.empty() ? area_of(bin.triangles[r]) : ref_area[r];
     return sum;
   }
 
-  // Every scene triangle's area, in scene order (its corners read in sequence, not in the
-  // leaves' scattered order).
-  static UninitializedVector<double> scene_triangle_areas(const Scene& scene, unsigned threads) {
-    UninitializedVector<double> area(scene.triangles.size());
-    parallel_for_batched(area.size(), 65536, threads, [&](std::size_t i) {
-      const auto& t = scene.triangles[i];
-      area[i] =
-          area_of({scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]});
+  // Every reference's triangle area, in leaf order, so that the sweep reads them in sequence.
+  // The scene's triangles and positions are read in the leaves' scattered order, so each is
+  // prefetched ahead (the triangle further ahead than its positions, which it locates), in
+  // fixed chunks on the threads.
+  static UninitializedVector<double> reference_areas(const FlatBvh& bin, const Scene& scene,
+                                                     unsigned threads) {
+    constexpr std::size_t kChunk = 65536, kAheadTriangle = 256, kAheadPositions = 96;
+    const std::size_t n = bin.prim_ids.size();
+    UninitializedVector<double> area(n);
+    parallel_for((n + kChunk - 1) / kChunk, threads, [&](std::size_t c) {
+      const std::size_t end = std::min(n, (c + 1) * kChunk);
+      for (std::size_t r = c * kChunk; r < end; ++r) {
+        if (r + kAheadTriangle < end)
+          __builtin_prefetch(&scene.triangles[bin.prim_ids[r + kAheadTriangle]]);
+        if (r + kAheadPositions < end)
+          for (const std::uint32_t v : scene.triangles[bin.prim_ids[r + kAheadPositions]].v)
+            __builtin_prefetch(&scene.positions[v]);
+        const auto& t = scene.triangles[bin.prim_ids[r]];
+        area[r] =
+            area_of({scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]});
+      }
     });
     return area;
   }
@@ -300,8 +362,9 @@ struct Collapser {
       case WideSlotOrder::kOcclusion: {
         // P / C with P = min(1, triangle area / area) and C = cost / area: min(area, tri) / cost.
         // The greedy collapse has no programme: a rough cost instead.
-        const double cost = programme ? programme->cost1[i] : area * (1.0 + double(refs[i]) * 0.25);
-        return cost > 0 ? std::min(area, triangle_area[i]) / cost : 0.0;
+        const CollapseNode<W>& c = info[i];
+        const double cost = programme ? c.cost1 : area * (1.0 + double(c.refs) * 0.25);
+        return cost > 0 ? std::min(area, c.triangle_area) / cost : 0.0;
       }
       default:
         return 0.0;
@@ -310,7 +373,7 @@ struct Collapser {
 
   bool is_leaf(std::uint32_t i) const {
     if (programme) return programme->is_leaf(i);
-    return bin.nodes[i].count > 0 || refs[i] <= format::kBvhPacketSize;
+    return bin.nodes[i].count > 0 || refs(i) <= format::kBvhPacketSize;
   }
 
   // The references of binary subtree `i`, in leaf order (contiguous by pre-order).
@@ -319,41 +382,107 @@ struct Collapser {
     return bin.nodes[i].offset;
   }
 
-  format::RayTriangle corners_of(std::uint32_t r) const {
-    if (!bin.triangles.empty()) return bin.triangles[r];
-    const auto& t = scene->triangles[bin.prim_ids[r]];
-    return {scene->positions[t.v[0]], scene->positions[t.v[1]], scene->positions[t.v[2]]};
-  }
-
   // Subtree `i`'s references, one per triangle, into `list`: binary leaves are deduplicated,
   // but a presplit (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
-  void distinct_refs(std::uint32_t i, std::vector<std::uint32_t>& list) const {
+  void distinct_refs(std::uint32_t i, std::uint32_t first, std::vector<std::uint32_t>& list) const {
     list.clear();
-    for (std::uint32_t r = first_ref(i), end = r + refs[i]; r < end; ++r) {
-      const bool seen = std::any_of(list.begin(), list.end(), [&](std::uint32_t k) {
-        return bin.prim_ids[k] == bin.prim_ids[r];
-      });
+    append_distinct_refs(i, first, list);
+  }
+
+  // distinct_refs appended to `list` (the duplicates looked for among this subtree's alone).
+  void append_distinct_refs(std::uint32_t i, std::uint32_t first,
+                            std::vector<std::uint32_t>& list) const {
+    const std::size_t base = list.size();
+    for (std::uint32_t r = first, end = r + refs(i); r < end; ++r) {
+      const bool seen =
+          std::any_of(list.begin() + std::ptrdiff_t(base), list.end(),
+                      [&](std::uint32_t k) { return bin.prim_ids[k] == bin.prim_ids[r]; });
       if (!seen) list.push_back(r);
     }
   }
 
-  // Packs subtree `i`'s references into packets at byte `at` of the arena; returns their count.
-  std::uint8_t write_leaf(std::uint32_t i, std::size_t at, WriteTally& tally) const {
-    const std::uint32_t packets = leaf_packets(i, tally.scratch);
-    const std::vector<std::uint32_t>& list = tally.scratch;
-    const auto count = std::uint32_t(list.size());
+  // The distinct references of node `kids`' leaf slots into `tally.leaf_refs` (slot k's from
+  // tally.begin[k]; interior slots hold none), checked against the format's limit, and their
+  // corners into `tally.corners`: every reference's triangle first, then every triangle's
+  // positions, so that the loads of each pass do not wait on one another.
+  void load_leaves(const Slots<W>& kids, WriteTally& tally) const {
+    static_assert(W + 1 <= sizeof(WriteTally::begin) / sizeof(std::uint32_t));
+    tally.leaf_refs.clear();
+    for (int k = 0; k < kids.size; ++k) {
+      tally.begin[std::size_t(k)] = std::uint32_t(tally.leaf_refs.size());
+      if (!is_leaf(kids.node[k])) continue;
+      append_distinct_refs(kids.node[k], kids.first[k], tally.leaf_refs);
+      check_leaf(std::uint32_t(tally.leaf_refs.size() - tally.begin[std::size_t(k)]));
+    }
+    tally.begin[std::size_t(kids.size)] = std::uint32_t(tally.leaf_refs.size());
+    const std::size_t n = tally.leaf_refs.size();
+    tally.corners.resize(n);
+    if (!bin.triangles.empty()) {
+      for (std::size_t j = 0; j < n; ++j) tally.corners[j] = bin.triangles[tally.leaf_refs[j]];
+      return;
+    }
+    tally.triangles.resize(n);
+    for (std::size_t j = 0; j < n; ++j)
+      tally.triangles[j] = scene->triangles[bin.prim_ids[tally.leaf_refs[j]]];
+    for (std::size_t j = 0; j < n; ++j) {
+      const format::Triangle& t = tally.triangles[j];
+      tally.corners[j] = {scene->positions[t.v[0]], scene->positions[t.v[1]],
+                          scene->positions[t.v[2]]};
+    }
+  }
+
+  // Before subtree `i` (whose references start at `from`) is written: the triangles of its
+  // references and its binary nodes and records, once it is small enough, and the triangles'
+  // positions once it is smaller, fetched ahead (each subtree once, not again for the subtrees
+  // inside it), so that the walk and the packets below find them in cache.
+  void prefetch(std::uint32_t i, std::uint32_t from, WriteTally& tally) const {
+    if (!bin.triangles.empty() || refs(i) > kPrefetchTriangles) return;
+    const std::uint32_t to = from + refs(i);
+    if (from < tally.triangles_from || to > tally.triangles_to) {
+      for (std::uint32_t r = from; r < to; ++r)
+        __builtin_prefetch(&scene->triangles[bin.prim_ids[r]]);
+      tally.triangles_from = from, tally.triangles_to = to;
+      // The subtree's binary nodes and records too: the writer reads them in slot order.
+      const std::uint32_t end = subtree_end(i);
+      for (std::uint32_t j = i; j < end; j += 2)
+        __builtin_prefetch(&bin.nodes[j]), __builtin_prefetch(&info[j]);
+    }
+    if (refs(i) > kPrefetchPositions || (from >= tally.positions_from && to <= tally.positions_to))
+      return;
+    for (std::uint32_t r = from; r < to; ++r) {
+      const format::Triangle& t = scene->triangles[bin.prim_ids[r]];
+      for (const std::uint32_t v : t.v) __builtin_prefetch(&scene->positions[v]);
+    }
+    tally.positions_from = from, tally.positions_to = to;
+  }
+
+  static std::uint32_t check_leaf(std::uint32_t count) {
+    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+    if (packets > format::kBvhMaxLeafPackets)
+      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
+                                  " references does not fit a wide leaf");
+    return packets;
+  }
+
+  // Packs leaf slot k of the node whose leaves load_leaves loaded into packets at byte `at` of
+  // the arena; returns their count.
+  std::uint8_t write_leaf(int k, std::size_t at, WriteTally& tally) const {
+    const std::uint32_t* list = tally.leaf_refs.data() + tally.begin[std::size_t(k)];
+    const format::RayTriangle* corners = tally.corners.data() + tally.begin[std::size_t(k)];
+    const std::uint32_t count = tally.begin[std::size_t(k) + 1] - tally.begin[std::size_t(k)];
+    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
     tally.lanes_used += count;
-    std::byte* dst = room(at + packets * sizeof(format::BvhTrianglePacket)) + at;
+    std::byte* dst = out.arena.data() + at;  // sized by `write`
     for (std::uint32_t p = 0; p < packets; ++p, dst += sizeof(format::BvhTrianglePacket)) {
       format::BvhTrianglePacket packet;
       for (std::uint32_t lane = 0; lane < format::kBvhPacketSize; ++lane) {
         // Unused lanes repeat the leaf's last triangle: every lane is a real triangle.
-        const std::uint32_t r = list[std::min(p * format::kBvhPacketSize + lane, count - 1)];
-        const format::RayTriangle t = corners_of(r);
-        const format::Float3 corners[3] = {t.v0, t.v1, t.v2};
-        for (int c = 0; c < 3; ++c)
-          for (int a = 0; a < 3; ++a) packet.v[c][a][lane] = format::at(corners[c], a);
-        packet.prim[lane] = bin.prim_ids[r];
+        const std::uint32_t j = std::min(p * format::kBvhPacketSize + lane, count - 1);
+        const format::RayTriangle& t = corners[j];
+        const format::Float3 c[3] = {t.v0, t.v1, t.v2};
+        for (int v = 0; v < 3; ++v)
+          for (int a = 0; a < 3; ++a) packet.v[v][a][lane] = format::at(c[v], a);
+        packet.prim[lane] = bin.prim_ids[list[j]];
       }
       std::memcpy(dst, &packet, sizeof packet);
     }
@@ -364,31 +493,27 @@ struct Collapser {
 
   // The packets of a leaf slot, checked against the format's limit; its distinct references in
   // `scratch`.
-  std::uint32_t leaf_packets(std::uint32_t i, std::vector<std::uint32_t>& scratch) const {
-    distinct_refs(i, scratch);
-    const auto count = std::uint32_t(scratch.size());
-    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
-    if (packets > format::kBvhMaxLeafPackets)
-      throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
-                                  " references does not fit a wide leaf");
-    return packets;
+  std::uint32_t leaf_packets(std::uint32_t i, std::uint32_t first,
+                             std::vector<std::uint32_t>& scratch) const {
+    distinct_refs(i, first, scratch);
+    return check_leaf(std::uint32_t(scratch.size()));
   }
 
   // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
   // the largest child until W.
-  Slots<W> gather(std::uint32_t i) const {
+  Slots<W> gather(std::uint32_t i, std::uint32_t first) const {
     Slots<W> kids;
     if (bin.nodes[i].count > 0 || (!programme && is_leaf(i))) {
-      kids.push(i);
+      kids.push(i, first);
       return kids;
     }
     if (programme) {
-      const int left = programme->split[i];
-      programme->collect(bin, i + 1, left, kids);
-      programme->collect(bin, bin.nodes[i].offset, W - left, kids);
+      const int left = info[i].split;
+      programme->collect(bin, i + 1, first, left, kids);
+      programme->collect(bin, bin.nodes[i].offset, first + refs(i + 1), W - left, kids);
       return kids;
     }
-    kids.push(i + 1), kids.push(bin.nodes[i].offset);
+    kids.push(i + 1, first), kids.push(bin.nodes[i].offset, first + refs(i + 1));
     while (kids.size < W) {
       int best = -1;
       float best_area = -1;
@@ -396,9 +521,11 @@ struct Collapser {
         if (!is_leaf(kids.node[k]) && half_area(bin.nodes[kids.node[k]]) > best_area)
           best = k, best_area = half_area(bin.nodes[kids.node[k]]);
       if (best < 0) break;
-      const std::uint32_t open = kids.node[best];
+      const std::uint32_t open = kids.node[best], open_first = kids.first[best];
       std::copy_backward(kids.node + best + 1, kids.node + kids.size, kids.node + kids.size + 1);
+      std::copy_backward(kids.first + best + 1, kids.first + kids.size, kids.first + kids.size + 1);
       kids.node[best] = open + 1, kids.node[best + 1] = bin.nodes[open].offset;
+      kids.first[best] = open_first, kids.first[best + 1] = open_first + refs(open + 1);
       kids.size += 1;
     }
     return kids;
@@ -411,12 +538,12 @@ struct Collapser {
     double score[W];
     for (int k = 0; k < kids.size; ++k) score[k] = slot_score(kids.node[k]);
     for (int k = 1; k < kids.size; ++k) {
-      const std::uint32_t node = kids.node[k];
+      const std::uint32_t node = kids.node[k], first = kids.first[k];
       const double key = score[k];
       int j = k;
       for (; j > 0 && key > score[j - 1]; --j)
-        kids.node[j] = kids.node[j - 1], score[j] = score[j - 1];
-      kids.node[j] = node, score[j] = key;
+        kids.node[j] = kids.node[j - 1], kids.first[j] = kids.first[j - 1], score[j] = score[j - 1];
+      kids.node[j] = node, kids.first[j] = first, score[j] = key;
     }
   }
 
@@ -442,8 +569,8 @@ struct Collapser {
   // `leaf_lines` to the lines its own leaf packets span. Interior children listed in `top` are
   // not written: their places (sized by `top`) are recorded there for writers of their own.
   template <class Node>
-  std::size_t write(std::uint32_t i, std::uint32_t depth, std::size_t at, std::size_t& leaf_lines,
-                    WriteTally& tally, TopLevels* top = nullptr) const {
+  std::size_t write(std::uint32_t i, std::uint32_t first, std::uint32_t depth, std::size_t at,
+                    std::size_t& leaf_lines, WriteTally& tally, TopLevels* top = nullptr) const {
     tally.node_count += 1;
     tally.max_depth = std::max(tally.max_depth, depth);
     format::BvhWideNode<W> node{};
@@ -453,19 +580,27 @@ struct Collapser {
         node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
-    Slots<W> kids = gather(i);
+    prefetch(i, first, tally);
+    Slots<W> kids = gather(i, first);
     order_slots(kids);
+    load_leaves(kids, tally);
     std::size_t end = at + sizeof(Node);
+    // The arena holds the node and its leaf packets from here on (one resize per node at most).
+    std::size_t leaf_bytes = 0;
+    for (int k = 0; k < kids.size; ++k)
+      leaf_bytes += (tally.begin[k + 1] - tally.begin[k] + format::kBvhPacketSize - 1) /
+                    format::kBvhPacketSize * sizeof(format::BvhTrianglePacket);
+    room(to_line(end + leaf_bytes));
     for (int k = 0; k < kids.size; ++k) {
       const auto& b = bin.nodes[kids.node[k]];
       for (int a = 0; a < 3; ++a) node.bounds[a][0][k] = b.min[a], node.bounds[a][1][k] = b.max[a];
       if (!is_leaf(kids.node[k])) continue;
       node.child[k] = format::kBvhLeafFlag | unit(end);
-      node.packets[k] = write_leaf(kids.node[k], end, tally);
+      node.packets[k] = write_leaf(k, end, tally);
       end += node.packets[k] * sizeof(format::BvhTrianglePacket);
     }
     leaf_lines = to_line(end - at - sizeof(Node)) / format::kBvhArenaLine;
-    std::memset(room(to_line(end)) + end, 0, to_line(end) - end);  // the arena is not zeroed
+    std::memset(out.arena.data() + end, 0, to_line(end) - end);  // the arena is not zeroed
     end = to_line(end);
     for (int k = 0; k < kids.size; ++k) {
       if (is_leaf(kids.node[k])) continue;
@@ -475,64 +610,67 @@ struct Collapser {
         const TopLevels::Subtree& sub = top->place(kids.node[k], end, depth + 1);
         child_lines = sub.leaf_lines, end += sub.bytes;
       } else {
-        end = write<Node>(kids.node[k], depth + 1, end, child_lines, tally, top);
+        end = write<Node>(kids.node[k], kids.first[k], depth + 1, end, child_lines, tally, top);
       }
       node.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
     }
     if constexpr (std::is_same_v<Node, format::BvhWideNode<W>>) {
-      std::memcpy(room(at + sizeof node) + at, &node, sizeof node);
+      std::memcpy(out.arena.data() + at, &node, sizeof node);
     } else {
       const Node q = quantize(node);
-      std::memcpy(room(at + sizeof q) + at, &q, sizeof q);
+      std::memcpy(out.arena.data() + at, &q, sizeof q);
     }
     return end;
   }
 
   // What `write` will write for binary node `i`: bytes and the node's own leaf lines.
-  std::pair<std::size_t, std::size_t> subtree_size(std::uint32_t i, std::size_t node_size,
+  std::pair<std::size_t, std::size_t> subtree_size(std::uint32_t i, std::uint32_t first,
+                                                   std::size_t node_size,
                                                    std::vector<std::uint32_t>& scratch) const {
-    const Slots<W> kids = gather(i);
+    const Slots<W> kids = gather(i, first);
     std::size_t block = node_size, below = 0;
     for (int k = 0; k < kids.size; ++k) {
       if (is_leaf(kids.node[k]))
-        block += leaf_packets(kids.node[k], scratch) * sizeof(format::BvhTrianglePacket);
+        block +=
+            leaf_packets(kids.node[k], kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
       else
-        below += subtree_size(kids.node[k], node_size, scratch).first;
+        below += subtree_size(kids.node[k], kids.first[k], node_size, scratch).first;
     }
     return {to_line(block) + below, (to_line(block) - node_size) / format::kBvhArenaLine};
   }
 
   // subtree_size for the top levels, taking the sizes of the subtrees in `top` as counted.
-  std::size_t top_size(std::uint32_t i, std::size_t node_size, const TopLevels& top,
-                       std::size_t& next, std::vector<std::uint32_t>& scratch) const {
-    Slots<W> kids = gather(i);
+  std::size_t top_size(std::uint32_t i, std::uint32_t first, std::size_t node_size,
+                       const TopLevels& top, std::size_t& next,
+                       std::vector<std::uint32_t>& scratch) const {
+    Slots<W> kids = gather(i, first);
     order_slots(kids);
     std::size_t block = node_size, below = 0;
     for (int k = 0; k < kids.size; ++k) {
       const std::uint32_t kid = kids.node[k];
       if (is_leaf(kid))
-        block += leaf_packets(kid, scratch) * sizeof(format::BvhTrianglePacket);
+        block += leaf_packets(kid, kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
       else if (next < top.subtrees.size() && top.subtrees[next].node == kid)
         below += top.subtrees[next++].bytes;
       else
-        below += top_size(kid, node_size, top, next, scratch);
+        below += top_size(kid, kids.first[k], node_size, top, next, scratch);
     }
     return to_line(block) + below;
   }
 
   // The interior slots below the top levels, in the order `write` meets them: each subtree of at
   // most `limit` references (or a leaf's parent) is written apart.
-  void find_top_subtrees(std::uint32_t i, std::uint32_t limit, TopLevels& top) const {
-    const Slots<W> kids = gather(i);
-    Slots<W> ordered = kids;
-    order_slots(ordered);
-    for (int k = 0; k < ordered.size; ++k) {
-      const std::uint32_t kid = ordered.node[k];
+  void find_top_subtrees(std::uint32_t i, std::uint32_t first, std::uint32_t limit,
+                         TopLevels& top) const {
+    Slots<W> kids = gather(i, first);
+    order_slots(kids);
+    for (int k = 0; k < kids.size; ++k) {
+      const std::uint32_t kid = kids.node[k];
       if (is_leaf(kid)) continue;
-      if (refs[kid] <= limit)
-        top.subtrees.push_back({kid});
+      if (refs(kid) <= limit)
+        top.subtrees.push_back({kid, kids.first[k]});
       else
-        find_top_subtrees(kid, limit, top);
+        find_top_subtrees(kid, kids.first[k], limit, top);
     }
   }
 };
@@ -581,38 +719,40 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   const unsigned threads = resolve_thread_count(options.threads);
   WriteTally tally;
   std::size_t root_lines = 0;
+  const std::uint32_t first = binary.nodes.empty() ? 0 : collapser.first_ref(0);
   if (threads == 1 || collapser.is_leaf(0)) {
     // One writer appends (pre-order), so no sizing pass: the arena grows from an estimate
     // (reserved, so untouched pages cost nothing) and is cut to the bytes written.
-    reserve_huge(out.arena,
-                 std::size_t(collapser.refs.empty() ? 0 : collapser.refs[0]) * 80 + sizeof(Node));
-    out.arena.resize(collapser.template write<Node>(0, 1, 0, root_lines, tally));
+    reserve_huge(out.arena, std::size_t(collapser.info.empty() ? 0 : collapser.info[0].refs) * 80 +
+                                sizeof(Node));
+    out.arena.resize(collapser.template write<Node>(0, first, 1, 0, root_lines, tally));
   } else {
     TopLevels top;
-    const std::uint32_t limit = std::max<std::uint32_t>(collapser.refs[0] / (16 * threads), 64);
-    collapser.find_top_subtrees(0, limit, top);
+    const std::uint32_t limit =
+        std::max<std::uint32_t>(collapser.info[0].refs / (16 * threads), 64);
+    collapser.find_top_subtrees(0, first, limit, top);
     std::vector<WriteTally> tallies(top.subtrees.size());
     parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
       auto& sub = top.subtrees[t];
       std::tie(sub.bytes, sub.leaf_lines) =
-          collapser.subtree_size(sub.node, sizeof(Node), tallies[t].scratch);
+          collapser.subtree_size(sub.node, sub.first, sizeof(Node), tallies[t].scratch);
     });
     std::size_t next = 0;
-    size_arena(out.arena, collapser.top_size(0, sizeof(Node), top, next, tally.scratch));
-    collapser.template write<Node>(0, 1, 0, root_lines, tally, &top);
+    size_arena(out.arena, collapser.top_size(0, first, sizeof(Node), top, next, tally.scratch));
+    collapser.template write<Node>(0, first, 1, 0, root_lines, tally, &top);
     if (top.next != top.subtrees.size())  // every place reserved, in the order found
       throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
     parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
       const auto& sub = top.subtrees[t];
       std::size_t lines = 0;
-      collapser.template write<Node>(sub.node, sub.depth, sub.at, lines, tallies[t]);
+      collapser.template write<Node>(sub.node, sub.first, sub.depth, sub.at, lines, tallies[t]);
     });
     for (const WriteTally& t : tallies) tally.add(t);
   }
   out.stats.node_count = tally.node_count, out.stats.leaf_count = tally.leaf_count;
   out.stats.packet_count = tally.packet_count, out.stats.max_depth = tally.max_depth;
   if (collapser.programme && !binary.nodes.empty())
-    out.stats.sah_cost = collapser.programme->cost1[0] / half_area(binary.nodes[0]);
+    out.stats.sah_cost = collapser.info[0].cost1 / half_area(binary.nodes[0]);
   if (options.index_tree) IndexTreeReader<Node, W>{out}.read(0);
   return tally.lanes_used;
 }
