@@ -83,7 +83,7 @@ struct alignas(64) WriteTally {
   // in `begin` (W + 1 entries), and the references' triangles and corners, loaded apart.
   // (Uninitialised: resizing up between nodes does not zero what is written next.)
   std::vector<std::uint32_t> leaf_refs;
-  std::uint32_t begin[9];  // W + 1 at most
+  std::uint32_t begin[17];  // W + 1 at most (W <= 16)
   UninitializedVector<format::Triangle> triangles;
   UninitializedVector<format::RayTriangle> corners;
   // The references whose triangles, and those whose positions, were last prefetched.
