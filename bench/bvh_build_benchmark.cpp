@@ -4,20 +4,19 @@
 // so that load from other processes on a shared machine hits both sides alike.
 //
 // Usage: kiln_bench_bvh_build [--rounds=N] [--only=binned|sbvh] [--sbvh-alpha=X]
-//                             [--leaf-packet=N] MESH...
+//                             [--leaf-packet=N] [--width=4|8|16] MESH...
 //   MESH  a file import_scene reads, or [LABEL=]@DIR[/PATTERN] (bench_args.hpp)
 //
 // One thread is timed by the process's CPU time (CLOCK_PROCESS_CPUTIME_ID: Embree may build on a
 // TBB worker rather than the calling thread; time slices lost to other processes do not count),
 // all threads by wall time. Kiln: build_bvh (binary tree, no leaf triangle copy, as the wide
-// layout uses it) and, timed apart, its collapse to 8 wide with triangle packets, the arena
-// `kiln build` stores by default. Embree: rtcCommitScene on a fresh scene; Embree 3.13 builds a
-// BVH8<triangle4> there on an AVX machine (its verbose log says so), leaf data included, so the
-// like-for-like ratio is Kiln's build plus collapse ("+ w8"); the binary-only ratio is kept for
-// comparison with earlier figures. The collapse columns are its medians over the rounds (1T CPU,
-// all threads wall).
-// Peak memory: the largest net heap growth during the build (Kiln: operator new, counted here;
-// Embree: its memory monitor), per input triangle.
+// layout uses it) and, timed apart, its collapse to --width children (default 16) with triangle
+// packets, the arena `kiln build` stores by default. Embree: rtcCommitScene on a fresh scene;
+// Embree 3.13 builds a BVH8<triangle4> there on an AVX machine (its verbose log says so), leaf data
+// included, so the like-for-like ratio is Kiln's build plus collapse ("+ wN"); the binary-only
+// ratio is kept for comparison with earlier figures. The collapse columns are its medians over the
+// rounds (1T CPU, all threads wall). Peak memory: the largest net heap growth during the build
+// (Kiln: operator new, counted here; Embree: its memory monitor), per input triangle.
 #include <malloc.h>
 #include <time.h>
 
@@ -119,11 +118,13 @@ float g_sbvh_alpha = kiln::BvhBuildOptions{}.sbvh_alpha;  // --sbvh-alpha=X
 // --leaf-packet=N: leaves priced per packet of N, as `kiln build` builds for the 8-wide layout
 // (4); 0 prices each reference (the binary layout's tree).
 std::uint32_t g_leaf_packet = kiln::format::kBvhPacketSize;
+// --width=W: the wide layout the collapse writes (16: `kiln build`'s default with float boxes).
+std::uint32_t g_width = 16;
 
 struct KilnResult {
   kiln::BvhStatistics stats;
   double collapse_seconds = 0;
-  double wide_sah = 0;  // the 8-wide tree's SAH cost (the collapse's model)
+  double wide_sah = 0;  // the wide tree's SAH cost (the collapse's model)
 };
 
 KilnResult kiln_build(const kiln::Scene& scene, kiln::BvhBuilder builder, unsigned threads,
@@ -148,7 +149,7 @@ KilnResult kiln_build(const kiln::Scene& scene, kiln::BvhBuilder builder, unsign
   c.threads = threads;
   c.index_tree = false;  // as kiln build: the arena alone
   const kiln::FlatWideBvh wide =
-      kiln::collapse_bvh(flat, 8, scene.triangles.size(), false, &scene, c);
+      kiln::collapse_bvh(flat, g_width, scene.triangles.size(), false, &scene, c);
   out.collapse_seconds = (threads == 1 ? cpu_seconds() : wall_seconds()) - c0;
   out.wide_sah = wide.stats.sah_cost;
   return out;
@@ -208,8 +209,8 @@ RTCDevice embree_device(unsigned threads) {
 
 struct Row {
   std::vector<double> seconds, peak, ratio;
-  std::vector<double> ratio_total;  // (build + collapse to 8 wide) / Embree, per round
-  std::vector<double> collapse;     // the collapse to 8 wide, per round
+  std::vector<double> ratio_total;  // (build + collapse to --width) / Embree, per round
+  std::vector<double> collapse;     // the collapse to --width, per round
   double kept = 0;
   KilnResult kiln;
 };
@@ -260,11 +261,11 @@ void report(const Mesh& m, unsigned hw) {
   const double tris = double(m.scene.triangles.size());
   std::printf("\n### %s (%zu triangles)\n\n", m.label.c_str(), m.scene.triangles.size());
   std::printf(
-      "| builder | 1T s | %uT s | Mtris/s 1T | Mtris/s %uT | ÷ Embree 1T | ÷ Embree %uT | + w8 ÷ "
-      "Embree 1T | + w8 ÷ Embree %uT | SAH | w8 SAH | nodes | peak B/tri | collapse w8 1T s "
-      "| collapse w8 %uT s |\n|---|"
+      "| builder | 1T s | %uT s | Mtris/s 1T | Mtris/s %uT | ÷ Embree 1T | ÷ Embree %uT | + w%u ÷ "
+      "Embree 1T | + w%u ÷ Embree %uT | SAH | w%u SAH | nodes | peak B/tri | collapse w%u 1T s "
+      "| collapse w%u %uT s |\n|---|"
       "---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
-      hw, hw, hw, hw, hw);
+      hw, hw, hw, g_width, g_width, hw, g_width, g_width, g_width, hw);
   for (const auto& [name, row1] : m.rows[0]) {
     const Row& row2 = m.rows[1].at(name);
     const double s1 = median(row1.seconds), s2 = median(row2.seconds);
@@ -300,6 +301,14 @@ int main(int argc, char** argv) {
     }
     if (arg.starts_with("--sbvh-alpha=")) {
       g_sbvh_alpha = std::stof(arg.substr(13));
+      continue;
+    }
+    if (arg.starts_with("--width=")) {
+      g_width = std::uint32_t(std::stoul(arg.substr(8)));
+      if (g_width != 4 && g_width != 8 && g_width != 16) {
+        std::fprintf(stderr, "--width: 4, 8 or 16\n");
+        return 1;
+      }
       continue;
     }
     if (arg.starts_with("--only=")) {
