@@ -189,6 +189,36 @@ KILN_SIMD std::uint32_t sortable(float f) {
   return bits ^ (std::uint32_t(std::int32_t(bits) >> 31) | 0x80000000u);
 }
 
+#ifdef KILN_WIDE_RANKS_AVX512
+// Closest hit, 16-wide, three or more entered children (bits `mask`): each child's rank in the
+// insertion sort's order of next_child (keys (sortable distance, slot), farthest first) counted
+// in one compare of all 16 keys, and the child written straight to its stack place; the nearest
+// (the last place) is returned. The same order as the insertion sort (keys are unique), so the
+// same hits as every other kernel, without its data-dependent branches. Writes one entry more
+// than it pushes: a node at depth D (root 1) finds at most (W - 1)(D - 1) entries on the stack
+// and writes up to index (W - 1) D, which the stack's (W - 1) kBvhMaxDepth + 1 entries hold.
+KILN_SIMD WideEntry ranked_children16(const format::BvhWideNode<16>& n, unsigned mask,
+                                      const float* dist, WideEntry* stack, std::uint32_t& top) {
+  const __m512i bits = _mm512_castps_si512(_mm512_loadu_ps(dist));
+  const __m512i keys = _mm512_xor_si512(
+      bits, _mm512_or_si512(_mm512_srai_epi32(bits, 31), _mm512_set1_epi32(int(0x80000000u))));
+  alignas(64) std::uint32_t key[16];
+  _mm512_store_si512(key, keys);
+  WideEntry* base = stack + top;
+  const unsigned count = unsigned(__builtin_popcount(mask));
+  for (unsigned todo = mask; todo != 0; todo &= todo - 1) {
+    const int s = __builtin_ctz(todo);
+    const __m512i k = _mm512_set1_epi32(int(key[s]));
+    const __mmask16 after = __mmask16(mask & ~((2u << s) - 1u));  // entered slots above s
+    const unsigned farther = _mm512_mask_cmpgt_epu32_mask(__mmask16(mask), keys, k) |
+                             _mm512_mask_cmpeq_epu32_mask(after, keys, k);
+    base[__builtin_popcount(farther)] = {n.child[s], n.packets[s], dist[s]};
+  }
+  top += count - 1;
+  return stack[top];
+}
+#endif
+
 // Of the entered children of `n` (bits `mask`, at least one), returns the one to visit next and
 // pushes the others: kOrdered, nearest next and the rest farthest first (so nearer ones pop
 // first); otherwise in slot order (the collapse orders slots for any-hit rays).
@@ -207,6 +237,10 @@ KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, 
       stack[top++] = {n.child[far], n.packets[far], dist[far]};
       return {n.child[near], n.packets[near], dist[near]};
     }
+#ifdef KILN_WIDE_RANKS_AVX512
+    if constexpr (W == 16)
+      return ranked_children16(n, mask | 1u << slot | 1u << second, dist, stack, top);
+#endif
     std::uint64_t keys[W];
     keys[0] = std::uint64_t(sortable(dist[slot])) << 32 | std::uint32_t(slot);
     int count = 1;
