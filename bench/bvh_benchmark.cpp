@@ -1005,6 +1005,27 @@ double median_ratio(const Times& t, std::size_t contestant, std::size_t referenc
   return median(ratios);
 }
 
+// Node visits and triangle tests per closest-hit ray of one kind (untimed, counting kernels).
+void print_work(const MeshCase& mesh, const std::vector<Contestant>& contestants,
+                kiln::RayKind kind, const char* label) {
+  std::printf(
+      "\nWork per closest-hit %s ray (untimed): node visits + triangle tests (wide: "
+      "tests = 4 per packet):\n\n",
+      label);
+  const auto& rays =
+      g_meshes.empty() ? std::vector<kiln::Ray>{} : const_cast<MeshCase&>(mesh).rays[kind];
+  for (const auto& c : contestants) {
+    if (!c.cost || c.name.find("scalar") != std::string::npos) continue;
+    double nodes = 0, tests = 0;
+    for (const auto& ray : rays) {
+      const kiln::Cost k = c.cost(ray);
+      nodes += k.nodes, tests += k.tests;
+    }
+    const double n = double(std::max<std::size_t>(rays.size(), 1));
+    std::printf("- %s: %.1f nodes, %.1f tests\n", c.name.c_str(), nodes / n, tests / n);
+  }
+}
+
 void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& contestants,
                        const std::vector<std::array<Times, 2>>& times, std::size_t rays) {
   std::printf("\n### %s (%s triangles%s): median Mrays/s of %d rounds\n\n", mesh.label.c_str(),
@@ -1023,22 +1044,8 @@ void print_alternating(const MeshCase& mesh, const std::vector<Contestant>& cont
         std::printf(" %s |", format("%.2f", double(rays) / median(times[k][t][c]) * 1e-6).c_str());
     std::printf("\n");
   }
-  std::printf(
-      "\nWork per closest-hit diffuse ray (untimed): node visits + triangle tests (wide: "
-      "tests = 4 per packet):\n\n");
-  const auto& diffuse = g_meshes.empty()
-                            ? std::vector<kiln::Ray>{}
-                            : const_cast<MeshCase&>(mesh).rays[kiln::RayKind::kDiffuse];
-  for (const auto& c : contestants) {
-    if (!c.cost || c.name.find("scalar") != std::string::npos) continue;
-    double nodes = 0, tests = 0;
-    for (const auto& ray : diffuse) {
-      const kiln::Cost k = c.cost(ray);
-      nodes += k.nodes, tests += k.tests;
-    }
-    const double n = double(std::max<std::size_t>(diffuse.size(), 1));
-    std::printf("- %s: %.1f nodes, %.1f tests\n", c.name.c_str(), nodes / n, tests / n);
-  }
+  print_work(mesh, contestants, kiln::RayKind::kPrimary, "primary");
+  print_work(mesh, contestants, kiln::RayKind::kDiffuse, "diffuse");
   auto find = [&](const std::string& name) {
     for (std::size_t c = 0; c < contestants.size(); ++c)
       if (contestants[c].name == name) return c;

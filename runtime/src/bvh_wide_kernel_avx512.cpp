@@ -82,6 +82,7 @@ struct Avx512F16 {
 using F4 = Avx512F4;
 using F8 = Avx512F8;
 #define KILN_WIDE_F16 Avx512F16
+#define KILN_WIDE_RANKS_AVX512
 
 #include "bvh_wide_traverse.inl"
 

@@ -189,12 +189,52 @@ KILN_SIMD std::uint32_t sortable(float f) {
   return bits ^ (std::uint32_t(std::int32_t(bits) >> 31) | 0x80000000u);
 }
 
+#ifdef KILN_WIDE_RANKS_AVX512
+inline constexpr bool kRanks16 = true;
+
+template <class Node>
+KILN_SIMD void prefetch_child(std::uint32_t word, std::uint32_t packets, const std::byte* arena);
+
+// Closest hit, 16-wide, three or more entered children (bits `mask`): each child's rank in the
+// insertion sort's order of next_child (keys (sortable distance, slot), farthest first) counted
+// in one compare of all 16 keys, and the child written straight to its stack place; the nearest
+// (the last place) is returned. The same order as the insertion sort (keys are unique), so the
+// same hits as every other kernel, without its data-dependent branches. Writes one entry more
+// than it pushes: a node at depth D (root 1) finds at most (W - 1)(D - 1) entries on the stack
+// and writes up to index (W - 1) D, which the stack's (W - 1) kBvhMaxDepth + 1 entries hold.
+// Each child is prefetched as it is placed (one walk over the entered children, not two).
+KILN_SIMD WideEntry ranked_children16(const format::BvhWideNode<16>& n, unsigned mask,
+                                      const float* dist, WideEntry* stack, std::uint32_t& top,
+                                      const std::byte* arena) {
+  const __m512i bits = _mm512_castps_si512(_mm512_loadu_ps(dist));
+  const __m512i keys = _mm512_xor_si512(
+      bits, _mm512_or_si512(_mm512_srai_epi32(bits, 31), _mm512_set1_epi32(int(0x80000000u))));
+  alignas(64) std::uint32_t key[16];
+  _mm512_store_si512(key, keys);
+  WideEntry* base = stack + top;
+  const unsigned count = unsigned(__builtin_popcount(mask));
+  for (unsigned todo = mask; todo != 0; todo &= todo - 1) {
+    const int s = __builtin_ctz(todo);
+    const __m512i k = _mm512_set1_epi32(int(key[s]));
+    const __mmask16 after = __mmask16(mask & ~((2u << s) - 1u));  // entered slots above s
+    const unsigned farther = _mm512_mask_cmpgt_epu32_mask(__mmask16(mask), keys, k) |
+                             _mm512_mask_cmpeq_epu32_mask(after, keys, k);
+    prefetch_child<format::BvhWideNode<16>>(n.child[s], n.packets[s], arena);
+    base[__builtin_popcount(farther)] = {n.child[s], n.packets[s], dist[s]};
+  }
+  top += count - 1;
+  return stack[top];
+}
+#else
+inline constexpr bool kRanks16 = false;
+#endif
+
 // Of the entered children of `n` (bits `mask`, at least one), returns the one to visit next and
 // pushes the others: kOrdered, nearest next and the rest farthest first (so nearer ones pop
 // first); otherwise in slot order (the collapse orders slots for any-hit rays).
 template <int W, bool kOrdered, class Node>
 KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, WideEntry* stack,
-                               std::uint32_t& top) {
+                               std::uint32_t& top, [[maybe_unused]] const std::byte* arena) {
   int slot = __builtin_ctz(mask);
   mask &= mask - 1;
   if (mask == 0) return {n.child[slot], n.packets[slot], dist[slot]};
@@ -207,6 +247,10 @@ KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, 
       stack[top++] = {n.child[far], n.packets[far], dist[far]};
       return {n.child[near], n.packets[near], dist[near]};
     }
+#ifdef KILN_WIDE_RANKS_AVX512
+    if constexpr (W == 16)
+      return ranked_children16(n, mask | 1u << slot | 1u << second, dist, stack, top, arena);
+#endif
     std::uint64_t keys[W];
     keys[0] = std::uint64_t(sortable(dist[slot])) << 32 | std::uint32_t(slot);
     int count = 1;
@@ -293,8 +337,11 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
       if (mask == 0) goto pop;
       // Any hit: only the child visited next. The others wait on the stack until its whole
       // subtree is done, and are not visited at all when the ray is blocked in it.
-      if constexpr (!kAny) prefetch_children(n, mask, arena);
-      e = next_child<W, !kAny>(n, mask, dist, stack, top);
+      // (16-wide with ranks: three or more children are prefetched as they are placed.)
+      if constexpr (!kAny)
+        if (!(kRanks16 && W == 16) || __builtin_popcount(mask) < 3)
+          prefetch_children(n, mask, arena);
+      e = next_child<W, !kAny>(n, mask, dist, stack, top, arena);
       if constexpr (kAny) prefetch_child<Node>(e.word, e.packets, arena);
     }
     {
