@@ -230,7 +230,9 @@ KILN_SIMD WideEntry ranked_children16(const format::BvhWideNode<16>& n, unsigned
 // over them. The stack is two arrays (words, packet counts; any hit needs no distances) growing
 // downwards from index kAnyStack16: the children are compressed into the low lanes in slot order
 // and stored below the top with a masked store, so the lowest slot lies lowest and they pop in
-// slot order, as next_child pushes them.
+// slot order, as next_child pushes them. (A child popped right after its push waits for the
+// masked store, which does not forward; making every next child go through the stack that way
+// was 20-30 % slower, so the first entered child is still read from the node.)
 inline constexpr std::uint32_t kAnyStack16 = 15 * format::kBvhMaxDepth;
 KILN_SIMD void push_any16(const format::BvhWideNode<16>& n, unsigned rest, std::uint32_t* words,
                           std::uint32_t* packets, std::uint32_t& top) {
@@ -345,7 +347,8 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
   int best_lane = 0;
   WideEntry stack[(W - 1) * format::kBvhMaxDepth + 1];
 #ifdef KILN_WIDE_RANKS_AVX512
-  // Any hit, 16-wide: the stack as two arrays (push_any16), 15 entries spare for its stores.
+  // Any hit, 16-wide: the stack as two arrays (push_any16); the masked stores write only the
+  // entries pushed, at most (W - 1) per level.
   [[maybe_unused]] std::uint32_t any_words[kAny && W == 16 ? kAnyStack16 : 1];
   [[maybe_unused]] std::uint32_t any_packets[kAny && W == 16 ? kAnyStack16 : 1];
 #endif
