@@ -225,6 +225,27 @@ KILN_SIMD WideEntry ranked_children16(const format::BvhWideNode<16>& n, unsigned
   top += count - 1;
   return stack[top];
 }
+
+// Any hit, 16-wide: the entered children after the first (bits `rest`) pushed in one go, no loop
+// over them. The stack is two arrays (words, packet counts; any hit needs no distances) growing
+// downwards from index kAnyStack16: the children are compressed into the low lanes in slot order
+// and stored below the top with a masked store, so the lowest slot lies lowest and they pop in
+// slot order, as next_child pushes them. (A child popped right after its push waits for the
+// masked store, which does not forward; making every next child go through the stack that way
+// was 20-30 % slower, so the first entered child is still read from the node.)
+inline constexpr std::uint32_t kAnyStack16 = 15 * format::kBvhMaxDepth;
+KILN_SIMD void push_any16(const format::BvhWideNode<16>& n, unsigned rest, std::uint32_t* words,
+                          std::uint32_t* packets, std::uint32_t& top) {
+  const unsigned count = unsigned(__builtin_popcount(rest));
+  const __m512i child = _mm512_loadu_si512(n.child);
+  const __m512i packet =
+      _mm512_cvtepu8_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(n.packets)));
+  const __mmask16 low = __mmask16((1u << count) - 1u);
+  top -= count;
+  _mm512_mask_storeu_epi32(words + top, low, _mm512_maskz_compress_epi32(__mmask16(rest), child));
+  _mm512_mask_storeu_epi32(packets + top, low,
+                           _mm512_maskz_compress_epi32(__mmask16(rest), packet));
+}
 #else
 inline constexpr bool kRanks16 = false;
 #endif
@@ -325,7 +346,16 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
   const format::BvhTrianglePacket* best_packet = nullptr;
   int best_lane = 0;
   WideEntry stack[(W - 1) * format::kBvhMaxDepth + 1];
+#ifdef KILN_WIDE_RANKS_AVX512
+  // Any hit, 16-wide: the stack as two arrays (push_any16); the masked stores write only the
+  // entries pushed, at most (W - 1) per level.
+  [[maybe_unused]] std::uint32_t any_words[kAny && W == 16 ? kAnyStack16 : 1];
+  [[maybe_unused]] std::uint32_t any_packets[kAny && W == 16 ? kAnyStack16 : 1];
+#endif
   std::uint32_t top = 0;
+#ifdef KILN_WIDE_RANKS_AVX512
+  if constexpr (kAny && W == 16) top = kAnyStack16;
+#endif
   alignas(32) float dist[W];
   WideEntry e{0, 0, ray.tmin};
   for (;;) {
@@ -341,7 +371,14 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
       if constexpr (!kAny)
         if (!(kRanks16 && W == 16) || __builtin_popcount(mask) < 3)
           prefetch_children(n, mask, arena);
-      e = next_child<W, !kAny>(n, mask, dist, stack, top, arena);
+#ifdef KILN_WIDE_RANKS_AVX512
+      if constexpr (kAny && W == 16) {
+        const int slot = __builtin_ctz(mask);
+        push_any16(n, mask & (mask - 1), any_words, any_packets, top);
+        e = {n.child[slot], n.packets[slot], 0.0f};
+      } else
+#endif
+        e = next_child<W, !kAny>(n, mask, dist, stack, top, arena);
       if constexpr (kAny) prefetch_child<Node>(e.word, e.packets, arena);
     }
     {
@@ -360,6 +397,14 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
     }
   pop:  // the next subtree that can still hold a closer hit
     do {
+#ifdef KILN_WIDE_RANKS_AVX512
+      if constexpr (kAny && W == 16) {
+        if (top == kAnyStack16) return Hit{};
+        e = {any_words[top], any_packets[top], 0.0f};
+        ++top;
+        continue;
+      }
+#endif
       if (top == 0) {
         if (best_packet == nullptr) return Hit{};
         hit.prim = best_packet->prim[best_lane];
