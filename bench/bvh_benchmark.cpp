@@ -857,11 +857,13 @@ bool wanted(const std::string& prefix) {
                      [&](const std::string& n) { return n.starts_with(prefix); });
 }
 
-// The name of a --collapse variant's contestant.
+// The key of a --collapse variant (its tree), and the name of its contestant (with the kernel).
+std::string collapse_key(const std::string& label) {
+  return "sbvh w" + std::to_string(g_settings.collapse_width) + " " + label;
+}
 std::string collapse_name(const std::string& label) {
-  const std::uint32_t width = g_settings.collapse_width;
-  return "sbvh w" + std::to_string(width) + " " + label + " " +
-         kiln::bvh_kernel_name(kiln::bvh_auto_kernel(width));
+  return collapse_key(label) + " " +
+         kiln::bvh_kernel_name(kiln::bvh_auto_kernel(g_settings.collapse_width));
 }
 
 // The --collapse variants of the SBVH's wide layout (8-wide unless --collapse-width), default
@@ -870,7 +872,7 @@ void add_collapse_variants(MeshCase& mesh, KilnArenas& arenas, std::vector<Conte
   const std::size_t triangles = mesh.scene.triangles.size();
   const std::uint32_t width = g_settings.collapse_width;
   for (const auto& [label, options] : g_settings.collapses) {
-    const std::string key = "sbvh w" + std::to_string(width) + " " + label;
+    const std::string key = collapse_key(label);
     const std::string name = collapse_name(label);
     if (!wanted(name)) continue;
     const kiln::FlatBvh& flat = sbvh_for_variant(mesh, label);

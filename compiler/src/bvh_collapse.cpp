@@ -64,6 +64,11 @@ format::BvhQuantizedNode<W> quantize(const format::BvhWideNode<W>& in) {
   return out;
 }
 
+// The packets that `count` references fill.
+constexpr std::uint32_t packets_of(std::uint32_t count) {
+  return (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+}
+
 // A wide node's children (binary node indices), at most W, and the first reference (in leaf
 // order) of each one's subtree, found on the way down instead of by a walk to its first leaf.
 template <int W>
@@ -115,9 +120,10 @@ struct TopLevels {
   }
 };
 
-// What the collapse keeps per binary node, in one record (32 bytes): the writer reads them for the
-// same nodes, one cache line instead of five arrays' lines. Every field is written by the sweep
-// (the programme's: split for interior nodes only; triangle_area for kOcclusion) before any read.
+// What the collapse keeps per binary node, in one record (32 bytes, 40 at W = 16): the writer
+// reads them for the same nodes, one cache line instead of five arrays' lines. Every field is
+// written by the sweep (the programme's: split for interior nodes only; triangle_area for
+// kOcclusion) before any read.
 template <int W>
 struct CollapseNode {
   double cost1;          // the programme's cost(node, 1)
@@ -145,7 +151,7 @@ struct CollapseProgramme {
   // Node i, once its children (if any) have been visited.
   void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs, Rows& rows) {
     const double area = half_area(n);
-    const double packets = double((refs + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
+    const double packets = double(packets_of(refs));
     const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
     std::uint8_t* p = info[i].pick;
     Row c;
@@ -257,7 +263,7 @@ struct Collapser {
   void visit(std::uint32_t i, typename CollapseProgramme<W>::Rows& rows) {
     const auto& n = bin.nodes[i];
     info[i].refs = n.count > 0 ? n.count : info[i + 1].refs + info[n.offset].refs;
-    if (occlusion) info[i].triangle_area = subtree_triangle_area(n);
+    if (occlusion) info[i].triangle_area = subtree_triangle_area(i, n);
     if (programme) programme->visit(i, n, info[i].refs, rows);
   }
 
@@ -320,9 +326,8 @@ struct Collapser {
   }
 
   // The triangles' area under node i, its children's already known.
-  double subtree_triangle_area(const format::BvhNode& n) const {
-    if (n.count == 0)
-      return info[&n - bin.nodes.data() + 1].triangle_area + info[n.offset].triangle_area;
+  double subtree_triangle_area(std::uint32_t i, const format::BvhNode& n) const {
+    if (n.count == 0) return info[i + 1].triangle_area + info[n.offset].triangle_area;
     double sum = 0;
     for (std::uint32_t r = n.offset; r < n.offset + n.count; ++r)
       sum += ref_area.empty() ? area_of(bin.triangles[r]) : ref_area[r];
@@ -389,14 +394,9 @@ struct Collapser {
     return bin.nodes[i].offset;
   }
 
-  // Subtree `i`'s references, one per triangle, into `list`: binary leaves are deduplicated,
-  // but a presplit (or SBVH) triangle may sit in two binary leaves that become one wide leaf.
-  void distinct_refs(std::uint32_t i, std::uint32_t first, std::vector<std::uint32_t>& list) const {
-    list.clear();
-    append_distinct_refs(i, first, list);
-  }
-
-  // distinct_refs appended to `list` (the duplicates looked for among this subtree's alone).
+  // Subtree `i`'s references (from `first`), one per triangle, appended to `list`: binary leaves
+  // are deduplicated, but a presplit (or SBVH) triangle may sit in two binary leaves that become
+  // one wide leaf (the duplicates are looked for among this subtree's references alone).
   void append_distinct_refs(std::uint32_t i, std::uint32_t first,
                             std::vector<std::uint32_t>& list) const {
     const std::size_t base = list.size();
@@ -464,7 +464,7 @@ struct Collapser {
   }
 
   static std::uint32_t check_leaf(std::uint32_t count) {
-    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+    const std::uint32_t packets = packets_of(count);
     if (packets > format::kBvhMaxLeafPackets)
       throw std::invalid_argument("a BVH leaf of " + std::to_string(count) +
                                   " references does not fit a wide leaf");
@@ -477,7 +477,7 @@ struct Collapser {
     const std::uint32_t* list = tally.leaf_refs.data() + tally.begin[std::size_t(k)];
     const format::RayTriangle* corners = tally.corners.data() + tally.begin[std::size_t(k)];
     const std::uint32_t count = tally.begin[std::size_t(k) + 1] - tally.begin[std::size_t(k)];
-    const std::uint32_t packets = (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
+    const std::uint32_t packets = packets_of(count);
     tally.lanes_used += count;
     std::byte* dst = out.arena.data() + at;  // sized by `write`
     for (std::uint32_t p = 0; p < packets; ++p, dst += sizeof(format::BvhTrianglePacket)) {
@@ -502,7 +502,8 @@ struct Collapser {
   // `scratch`.
   std::uint32_t leaf_packets(std::uint32_t i, std::uint32_t first,
                              std::vector<std::uint32_t>& scratch) const {
-    distinct_refs(i, first, scratch);
+    scratch.clear();
+    append_distinct_refs(i, first, scratch);
     return check_leaf(std::uint32_t(scratch.size()));
   }
 
@@ -595,8 +596,8 @@ struct Collapser {
     // The arena holds the node and its leaf packets from here on (one resize per node at most).
     std::size_t leaf_bytes = 0;
     for (int k = 0; k < kids.size; ++k)
-      leaf_bytes += (tally.begin[k + 1] - tally.begin[k] + format::kBvhPacketSize - 1) /
-                    format::kBvhPacketSize * sizeof(format::BvhTrianglePacket);
+      leaf_bytes +=
+          packets_of(tally.begin[k + 1] - tally.begin[k]) * sizeof(format::BvhTrianglePacket);
     room(to_line(end + leaf_bytes));
     for (int k = 0; k < kids.size; ++k) {
       const auto& b = bin.nodes[kids.node[k]];
