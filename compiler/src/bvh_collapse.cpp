@@ -141,6 +141,7 @@ struct CollapseProgramme {
   struct PendingRow {
     std::uint32_t node, slots;
     Row cost;
+    PendingRow() {}  // filled where made (no zeroing first)
   };
   using Rows = std::vector<PendingRow>;  // pending rows, children before their parent
   CollapseNode<W>* info;                 // the collapser's, per node
@@ -148,30 +149,30 @@ struct CollapseProgramme {
 
   CollapseProgramme(CollapseNode<W>* nodes, const WideCollapseOptions& opt) : info(nodes), o(opt) {}
 
-  // Node i, once its children (if any) have been visited.
+  // Node i, once its children (if any) have been visited: its row replaces theirs.
   void visit(std::uint32_t i, const format::BvhNode& n, std::uint32_t refs, Rows& rows) {
     const double area = half_area(n);
     const double packets = double(packets_of(refs));
     const double leaf = area * (o.leaf_cost + o.packet_cost * packets);
     std::uint8_t* p = info[i].pick;
-    Row c;
     if (n.count > 0) {
-      c.fill(leaf);
+      PendingRow& row = rows.emplace_back();
+      row.node = i, row.slots = 1;
+      row.cost.fill(leaf);
       p[0] = 1;
       std::memset(p + 1, 0, W - 1);
       info[i].cost1 = leaf;
-      rows.push_back({i, 1, c});
       return;
     }
     if (rows.size() < 2 || rows.back().node != i + 1 || rows[rows.size() - 2].node != n.offset)
       throw std::invalid_argument("collapse_bvh: binary nodes not in depth-first pre-order");
     const PendingRow& lr = rows.back();
-    const PendingRow& rr = rows[rows.size() - 2];
-    const Row l = lr.cost, r = rr.cost;
-    const int slots = int(std::min<std::uint32_t>(W, lr.slots + rr.slots));
+    PendingRow& rr = rows[rows.size() - 2];  // becomes node i's row once read
+    // (Each child's row has a slot or more: the max only tells the compiler.)
+    const int slots = std::max(2, int(std::min<std::uint32_t>(W, lr.slots + rr.slots)));
     const int left_slots = int(lr.slots);
-    rows.resize(rows.size() - 2);
-    double spread[W + 1] = {};  // spread[k]: both children over k slots, k >= 2
+    double spread[W + 1];  // spread[k]: both children over k slots, k >= 2
+    const Row &l = lr.cost, &r = rr.cost;
     for (int k = 2; k <= slots; ++k) spread[k] = spread_over(l, r, k, left_slots, p[k - 1]);
     // Beyond `slots`, every spread costs the least sum (both rows' last costs), which `slots`
     // already reaches: fewer slots are as good (the loop below keeps c[k - 2] and picks 0), so
@@ -181,15 +182,18 @@ struct CollapseProgramme {
     info[i].split = p[W - 1];
     const double inner = area * o.node_cost + spread[W];
     const bool as_leaf = refs <= o.max_leaf_refs && leaf <= inner;
-    c[0] = as_leaf ? leaf : inner;
+    double c = as_leaf ? leaf : inner;  // the cost over k slots, written to rr's row
     p[0] = as_leaf ? 1 : 0;
+    info[i].cost1 = c;
+    rr.cost[0] = c;
     for (int k = 2; k <= W; ++k) {
-      const bool fewer = c[k - 2] <= spread[k];  // as good with fewer slots
-      c[k - 1] = fewer ? c[k - 2] : spread[k];
+      const bool fewer = c <= spread[k];  // as good with fewer slots
+      c = fewer ? c : spread[k];
+      rr.cost[k - 1] = c;
       p[k - 1] = fewer ? std::uint8_t(0) : p[k - 1];
     }
-    info[i].cost1 = c[0];
-    rows.push_back({i, std::uint32_t(slots), c});
+    rr.node = i, rr.slots = std::uint32_t(slots);
+    rows.pop_back();
   }
 
   // The least cost of children rows `l` and `r` over k slots (the first on ties) and, in
