@@ -174,24 +174,25 @@ struct CollapseProgramme {
     double spread[W + 1];  // spread[k]: both children over k slots, k >= 2
     const Row &l = lr.cost, &r = rr.cost;
     for (int k = 2; k <= slots; ++k) spread[k] = spread_over(l, r, k, left_slots, p[k - 1]);
-    // Beyond `slots`, every spread costs the least sum (both rows' last costs), which `slots`
-    // already reaches: fewer slots are as good (the loop below keeps c[k - 2] and picks 0), so
-    // only W's split (the wide node's) is wanted.
-    for (int k = slots + 1; k < W; ++k) spread[k] = spread[slots];
-    if (slots < W) spread[W] = spread_over(l, r, W, left_slots, p[W - 1]);
-    info[i].split = p[W - 1];
-    const double inner = area * o.node_cost + spread[W];
+    // Beyond `slots` (< W), every share a spread tries meets both rows in their constant tails
+    // (the left row from left_slots - 1 on, the right from its slots - 1 on), so each spread over
+    // k > slots, W's included, sums the same doubles in the same order as over `slots`: the same
+    // cost and pick. Fewer slots are as good there (cost kept, pick 0): the loops stop at `slots`.
+    info[i].split = p[slots - 1];
+    const double inner = area * o.node_cost + spread[slots];
     const bool as_leaf = refs <= o.max_leaf_refs && leaf <= inner;
     double c = as_leaf ? leaf : inner;  // the cost over k slots, written to rr's row
     p[0] = as_leaf ? 1 : 0;
     info[i].cost1 = c;
     rr.cost[0] = c;
-    for (int k = 2; k <= W; ++k) {
+    for (int k = 2; k <= slots; ++k) {
       const bool fewer = c <= spread[k];  // as good with fewer slots
       c = fewer ? c : spread[k];
       rr.cost[k - 1] = c;
       p[k - 1] = fewer ? std::uint8_t(0) : p[k - 1];
     }
+    std::fill(rr.cost.begin() + slots, rr.cost.end(), c);
+    std::memset(p + slots, 0, std::size_t(W - slots));
     rr.node = i, rr.slots = std::uint32_t(slots);
     rows.pop_back();
   }
