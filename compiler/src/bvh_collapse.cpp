@@ -544,12 +544,30 @@ struct Collapser {
     return kids;
   }
 
-  // Orders the slots by decreasing score, ties in the tree's order (a stable insertion sort,
-  // each score computed once).
+  // Orders the slots by decreasing score, ties in the tree's order (a stable sort, each score
+  // computed once): each slot's place is the count of slots ahead of it, greater or equal and
+  // before, which takes no branches; with a NaN score (no order), an insertion sort instead.
   void order_slots(Slots<W>& kids) const {
     if (options.order == WideSlotOrder::kTree) return;
     double score[W];
-    for (int k = 0; k < kids.size; ++k) score[k] = slot_score(kids.node[k]);
+    bool unordered = false;
+    for (int k = 0; k < kids.size; ++k) {
+      score[k] = slot_score(kids.node[k]);
+      unordered |= score[k] != score[k];
+    }
+    if (unordered) return insertion_sort(kids, score);
+    Slots<W> sorted;
+    sorted.size = kids.size;
+    for (int k = 0; k < kids.size; ++k) {
+      int place = 0;
+      for (int j = 0; j < kids.size; ++j)
+        place += int(score[j] > score[k]) | (int(j < k) & int(score[j] == score[k]));
+      sorted.node[place] = kids.node[k], sorted.first[place] = kids.first[k];
+    }
+    kids = sorted;
+  }
+
+  static void insertion_sort(Slots<W>& kids, double* score) {
     for (int k = 1; k < kids.size; ++k) {
       const std::uint32_t node = kids.node[k], first = kids.first[k];
       const double key = score[k];
