@@ -69,13 +69,16 @@ constexpr std::uint32_t packets_of(std::uint32_t count) {
   return (count + format::kBvhPacketSize - 1) / format::kBvhPacketSize;
 }
 
-// A wide node's children (binary node indices), at most W, and the first reference (in leaf
-// order) of each one's subtree, found on the way down instead of by a walk to its first leaf.
+// A wide node's children (binary node indices), at most W, the first reference (in leaf order)
+// of each one's subtree and one past its last binary node (pre-order), found on the way down
+// instead of by walks to its first and last leaves.
 template <int W>
 struct Slots {
-  std::uint32_t node[W], first[W];
+  std::uint32_t node[W], first[W], past[W];
   int size = 0;
-  void push(std::uint32_t i, std::uint32_t f) { node[size] = i, first[size] = f, ++size; }
+  void push(std::uint32_t i, std::uint32_t f, std::uint32_t p) {
+    node[size] = i, first[size] = f, past[size] = p, ++size;
+  }
 };
 
 // What one writer of the arena counts, and its scratch list. A cache line (or more) of its own:
@@ -92,7 +95,9 @@ struct alignas(64) WriteTally {
   UninitializedVector<format::Triangle> triangles;
   UninitializedVector<format::RayTriangle> corners;
   // The references whose triangles, and those whose positions, were last prefetched.
-  std::uint32_t triangles_from = 0, triangles_to = 0, positions_from = 0, positions_to = 0;
+  // (Triangles: the last two subtrees', the one being written and the next sibling's.)
+  std::uint32_t triangles_from[2] = {}, triangles_to[2] = {}, positions_from = 0, positions_to = 0;
+  int triangles_oldest = 0;
   void add(const WriteTally& o) {
     node_count += o.node_count, leaf_count += o.leaf_count, packet_count += o.packet_count;
     lanes_used += o.lanes_used, max_depth = std::max(max_depth, o.max_depth);
@@ -103,7 +108,7 @@ struct alignas(64) WriteTally {
 // counted first, reserves its place while the top levels are written; its writer fills it.
 struct TopLevels {
   struct Subtree {
-    std::uint32_t node, first;  // the binary node, its first reference
+    std::uint32_t node, first, past;  // the binary node, its first reference, its subtree's end
     std::size_t bytes = 0, leaf_lines = 0, at = 0;
     std::uint32_t depth = 0;
   };
@@ -220,16 +225,16 @@ struct CollapseProgramme {
   bool is_leaf(std::uint32_t i) const { return info[i].pick[0] == 1; }
 
   // The slots subtree i (whose first reference is `first`) takes when given at most k.
-  void collect(const FlatBvh& bin, std::uint32_t i, std::uint32_t first, int k,
+  void collect(const FlatBvh& bin, std::uint32_t i, std::uint32_t first, std::uint32_t past, int k,
                Slots<W>& out) const {
     while (k > 1 && info[i].pick[k - 1] == 0) --k;
     if (k == 1 || bin.nodes[i].count > 0) {
-      out.push(i, first);
+      out.push(i, first, past);
       return;
     }
     const int left = info[i].pick[k - 1];
-    collect(bin, i + 1, first, left, out);
-    collect(bin, bin.nodes[i].offset, first + info[i + 1].refs, k - left, out);
+    collect(bin, i + 1, first, bin.nodes[i].offset, left, out);
+    collect(bin, bin.nodes[i].offset, first + info[i + 1].refs, past, k - left, out);
   }
 };
 
@@ -443,22 +448,15 @@ struct Collapser {
     }
   }
 
-  // Before subtree `i` (whose references start at `from`) is written: the triangles of its
-  // references and its binary nodes and records, once it is small enough, and the triangles'
-  // positions once it is smaller, fetched ahead (each subtree once, not again for the subtrees
-  // inside it), so that the walk and the packets below find them in cache.
-  void prefetch(std::uint32_t i, std::uint32_t from, WriteTally& tally) const {
+  // Before subtree `i` (whose references start at `from`, its nodes end before `past`) is
+  // written: the triangles of its references and its binary nodes and records, once it is small
+  // enough (fetched ahead while its previous sibling is written: prefetch_next), and the
+  // triangles' positions once it is smaller, fetched (each subtree once, not again for the
+  // subtrees inside it), so that the walk and the packets below find them in cache.
+  void prefetch(std::uint32_t i, std::uint32_t from, std::uint32_t past, WriteTally& tally) const {
     if (!bin.triangles.empty() || refs(i) > kPrefetchTriangles) return;
+    prefetch_subtree(i, from, past, tally);
     const std::uint32_t to = from + refs(i);
-    if (from < tally.triangles_from || to > tally.triangles_to) {
-      for (std::uint32_t r = from; r < to; ++r)
-        __builtin_prefetch(&scene->triangles[bin.prim_ids[r]]);
-      tally.triangles_from = from, tally.triangles_to = to;
-      // The subtree's binary nodes and records too: the writer reads them in slot order.
-      const std::uint32_t end = subtree_end(i);
-      for (std::uint32_t j = i; j < end; j += 2)
-        __builtin_prefetch(&bin.nodes[j]), __builtin_prefetch(&info[j]);
-    }
     if (refs(i) > kPrefetchPositions || (from >= tally.positions_from && to <= tally.positions_to))
       return;
     for (std::uint32_t r = from; r < to; ++r) {
@@ -466,6 +464,38 @@ struct Collapser {
       for (const std::uint32_t v : t.v) __builtin_prefetch(&scene->positions[v]);
     }
     tally.positions_from = from, tally.positions_to = to;
+  }
+
+  // The first interior slot from `k` on, prefetched (if small enough) while the slots before it
+  // are written.
+  void prefetch_next(const Slots<W>& kids, int k, WriteTally& tally) const {
+    if (!bin.triangles.empty()) return;
+    for (; k < kids.size; ++k)
+      if (!is_leaf(kids.node[k])) {
+        if (refs(kids.node[k]) <= kPrefetchTriangles)
+          prefetch_subtree(kids.node[k], kids.first[k], kids.past[k], tally);
+        return;
+      }
+  }
+
+  // Subtree i's triangles, binary nodes and records, unless within one of the last two fetched.
+  void prefetch_subtree(std::uint32_t i, std::uint32_t from, std::uint32_t past,
+                        WriteTally& tally) const {
+    const std::uint32_t to = from + refs(i);
+    for (int s = 0; s < 2; ++s)
+      if (from >= tally.triangles_from[s] && to <= tally.triangles_to[s]) return;
+    for (std::uint32_t r = from; r < to; ++r)
+      __builtin_prefetch(&scene->triangles[bin.prim_ids[r]]);
+    // The subtree's binary nodes and records too: the writer reads them in slot order.
+    prefetch_lines(&bin.nodes[i], &bin.nodes[0] + past);
+    prefetch_lines(&info[i], &info[0] + past);
+    const int s = tally.triangles_oldest;
+    tally.triangles_from[s] = from, tally.triangles_to[s] = to, tally.triangles_oldest = 1 - s;
+  }
+
+  static void prefetch_lines(const void* from, const void* to) {
+    for (auto* a = static_cast<const char*>(from); a < static_cast<const char*>(to); a += 64)
+      __builtin_prefetch(a);
   }
 
   static std::uint32_t check_leaf(std::uint32_t count) {
@@ -514,19 +544,20 @@ struct Collapser {
 
   // The binary nodes that become node `i`'s children: the programme's slots, or (greedy) open
   // the largest child until W.
-  Slots<W> gather(std::uint32_t i, std::uint32_t first) const {
+  Slots<W> gather(std::uint32_t i, std::uint32_t first, std::uint32_t past) const {
     Slots<W> kids;
     if (bin.nodes[i].count > 0 || (!programme && is_leaf(i))) {
-      kids.push(i, first);
+      kids.push(i, first, past);
       return kids;
     }
+    const std::uint32_t right = bin.nodes[i].offset;
     if (programme) {
       const int left = info[i].split;
-      programme->collect(bin, i + 1, first, left, kids);
-      programme->collect(bin, bin.nodes[i].offset, first + refs(i + 1), W - left, kids);
+      programme->collect(bin, i + 1, first, right, left, kids);
+      programme->collect(bin, right, first + refs(i + 1), past, W - left, kids);
       return kids;
     }
-    kids.push(i + 1, first), kids.push(bin.nodes[i].offset, first + refs(i + 1));
+    kids.push(i + 1, first, right), kids.push(right, first + refs(i + 1), past);
     while (kids.size < W) {
       int best = -1;
       float best_area = -1;
@@ -537,8 +568,10 @@ struct Collapser {
       const std::uint32_t open = kids.node[best], open_first = kids.first[best];
       std::copy_backward(kids.node + best + 1, kids.node + kids.size, kids.node + kids.size + 1);
       std::copy_backward(kids.first + best + 1, kids.first + kids.size, kids.first + kids.size + 1);
+      std::copy_backward(kids.past + best + 1, kids.past + kids.size, kids.past + kids.size + 1);
       kids.node[best] = open + 1, kids.node[best + 1] = bin.nodes[open].offset;
       kids.first[best] = open_first, kids.first[best + 1] = open_first + refs(open + 1);
+      kids.past[best + 1] = kids.past[best], kids.past[best] = bin.nodes[open].offset;
       kids.size += 1;
     }
     return kids;
@@ -563,18 +596,21 @@ struct Collapser {
       for (int j = 0; j < kids.size; ++j)
         place += int(score[j] > score[k]) | (int(j < k) & int(score[j] == score[k]));
       sorted.node[place] = kids.node[k], sorted.first[place] = kids.first[k];
+      sorted.past[place] = kids.past[k];
     }
     kids = sorted;
   }
 
   static void insertion_sort(Slots<W>& kids, double* score) {
     for (int k = 1; k < kids.size; ++k) {
-      const std::uint32_t node = kids.node[k], first = kids.first[k];
+      const std::uint32_t node = kids.node[k], first = kids.first[k], past = kids.past[k];
       const double key = score[k];
       int j = k;
-      for (; j > 0 && key > score[j - 1]; --j)
-        kids.node[j] = kids.node[j - 1], kids.first[j] = kids.first[j - 1], score[j] = score[j - 1];
-      kids.node[j] = node, kids.first[j] = first, score[j] = key;
+      for (; j > 0 && key > score[j - 1]; --j) {
+        kids.node[j] = kids.node[j - 1], kids.first[j] = kids.first[j - 1];
+        kids.past[j] = kids.past[j - 1], score[j] = score[j - 1];
+      }
+      kids.node[j] = node, kids.first[j] = first, kids.past[j] = past, score[j] = key;
     }
   }
 
@@ -600,8 +636,9 @@ struct Collapser {
   // `leaf_lines` to the lines its own leaf packets span. Interior children listed in `top` are
   // not written: their places (sized by `top`) are recorded there for writers of their own.
   template <class Node>
-  std::size_t write(std::uint32_t i, std::uint32_t first, std::uint32_t depth, std::size_t at,
-                    std::size_t& leaf_lines, WriteTally& tally, TopLevels* top = nullptr) const {
+  std::size_t write(std::uint32_t i, std::uint32_t first, std::uint32_t past, std::uint32_t depth,
+                    std::size_t at, std::size_t& leaf_lines, WriteTally& tally,
+                    TopLevels* top = nullptr) const {
     tally.node_count += 1;
     tally.max_depth = std::max(tally.max_depth, depth);
     format::BvhWideNode<W> node{};
@@ -611,9 +648,10 @@ struct Collapser {
         node.bounds[a][1][k] = -std::numeric_limits<float>::infinity();
       }
     for (int k = 0; k < W; ++k) node.child[k] = format::kBvhLeafFlag;
-    prefetch(i, first, tally);
-    Slots<W> kids = gather(i, first);
+    prefetch(i, first, past, tally);
+    Slots<W> kids = gather(i, first, past);
     order_slots(kids);
+    prefetch_next(kids, 0, tally);
     load_leaves(kids, tally);
     std::size_t end = at + sizeof(Node);
     // The arena holds the node and its leaf packets from here on (one resize per node at most).
@@ -637,11 +675,13 @@ struct Collapser {
       if (is_leaf(kids.node[k])) continue;
       std::size_t child_lines = 0;
       node.child[k] = unit(end);
+      prefetch_next(kids, k + 1, tally);
       if (top && top->has(kids.node[k])) {
         const TopLevels::Subtree& sub = top->place(kids.node[k], end, depth + 1);
         child_lines = sub.leaf_lines, end += sub.bytes;
       } else {
-        end = write<Node>(kids.node[k], kids.first[k], depth + 1, end, child_lines, tally, top);
+        end = write<Node>(kids.node[k], kids.first[k], kids.past[k], depth + 1, end, child_lines,
+                          tally, top);
       }
       node.packets[k] = std::uint8_t(std::min<std::size_t>(child_lines, 255));
     }
@@ -656,25 +696,25 @@ struct Collapser {
 
   // What `write` will write for binary node `i`: bytes and the node's own leaf lines.
   std::pair<std::size_t, std::size_t> subtree_size(std::uint32_t i, std::uint32_t first,
-                                                   std::size_t node_size,
+                                                   std::uint32_t past, std::size_t node_size,
                                                    std::vector<std::uint32_t>& scratch) const {
-    const Slots<W> kids = gather(i, first);
+    const Slots<W> kids = gather(i, first, past);
     std::size_t block = node_size, below = 0;
     for (int k = 0; k < kids.size; ++k) {
       if (is_leaf(kids.node[k]))
         block +=
             leaf_packets(kids.node[k], kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
       else
-        below += subtree_size(kids.node[k], kids.first[k], node_size, scratch).first;
+        below += subtree_size(kids.node[k], kids.first[k], kids.past[k], node_size, scratch).first;
     }
     return {to_line(block) + below, (to_line(block) - node_size) / format::kBvhArenaLine};
   }
 
   // subtree_size for the top levels, taking the sizes of the subtrees in `top` as counted.
-  std::size_t top_size(std::uint32_t i, std::uint32_t first, std::size_t node_size,
-                       const TopLevels& top, std::size_t& next,
+  std::size_t top_size(std::uint32_t i, std::uint32_t first, std::uint32_t past,
+                       std::size_t node_size, const TopLevels& top, std::size_t& next,
                        std::vector<std::uint32_t>& scratch) const {
-    Slots<W> kids = gather(i, first);
+    Slots<W> kids = gather(i, first, past);
     order_slots(kids);
     std::size_t block = node_size, below = 0;
     for (int k = 0; k < kids.size; ++k) {
@@ -684,24 +724,24 @@ struct Collapser {
       else if (next < top.subtrees.size() && top.subtrees[next].node == kid)
         below += top.subtrees[next++].bytes;
       else
-        below += top_size(kid, kids.first[k], node_size, top, next, scratch);
+        below += top_size(kid, kids.first[k], kids.past[k], node_size, top, next, scratch);
     }
     return to_line(block) + below;
   }
 
   // The interior slots below the top levels, in the order `write` meets them: each subtree of at
   // most `limit` references (or a leaf's parent) is written apart.
-  void find_top_subtrees(std::uint32_t i, std::uint32_t first, std::uint32_t limit,
-                         TopLevels& top) const {
-    Slots<W> kids = gather(i, first);
+  void find_top_subtrees(std::uint32_t i, std::uint32_t first, std::uint32_t past,
+                         std::uint32_t limit, TopLevels& top) const {
+    Slots<W> kids = gather(i, first, past);
     order_slots(kids);
     for (int k = 0; k < kids.size; ++k) {
       const std::uint32_t kid = kids.node[k];
       if (is_leaf(kid)) continue;
       if (refs(kid) <= limit)
-        top.subtrees.push_back({kid, kids.first[k]});
+        top.subtrees.push_back({kid, kids.first[k], kids.past[k]});
       else
-        find_top_subtrees(kid, kids.first[k], limit, top);
+        find_top_subtrees(kid, kids.first[k], kids.past[k], limit, top);
     }
   }
 };
@@ -751,32 +791,35 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
   WriteTally tally;
   std::size_t root_lines = 0;
   const std::uint32_t first = binary.nodes.empty() ? 0 : collapser.first_ref(0);
+  const auto past = std::uint32_t(binary.nodes.size());
   if (threads == 1 || collapser.is_leaf(0)) {
     // One writer appends (pre-order), so no sizing pass: the arena grows from an estimate
     // (reserved, so untouched pages cost nothing) and is cut to the bytes written.
     reserve_huge(out.arena, std::size_t(collapser.info.empty() ? 0 : collapser.info[0].refs) * 80 +
                                 sizeof(Node));
-    out.arena.resize(collapser.template write<Node>(0, first, 1, 0, root_lines, tally));
+    out.arena.resize(collapser.template write<Node>(0, first, past, 1, 0, root_lines, tally));
   } else {
     TopLevels top;
     const std::uint32_t limit =
         std::max<std::uint32_t>(collapser.info[0].refs / (16 * threads), 64);
-    collapser.find_top_subtrees(0, first, limit, top);
+    collapser.find_top_subtrees(0, first, past, limit, top);
     std::vector<WriteTally> tallies(top.subtrees.size());
     parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
       auto& sub = top.subtrees[t];
       std::tie(sub.bytes, sub.leaf_lines) =
-          collapser.subtree_size(sub.node, sub.first, sizeof(Node), tallies[t].scratch);
+          collapser.subtree_size(sub.node, sub.first, sub.past, sizeof(Node), tallies[t].scratch);
     });
     std::size_t next = 0;
-    size_arena(out.arena, collapser.top_size(0, first, sizeof(Node), top, next, tally.scratch));
-    collapser.template write<Node>(0, first, 1, 0, root_lines, tally, &top);
+    size_arena(out.arena,
+               collapser.top_size(0, first, past, sizeof(Node), top, next, tally.scratch));
+    collapser.template write<Node>(0, first, past, 1, 0, root_lines, tally, &top);
     if (top.next != top.subtrees.size())  // every place reserved, in the order found
       throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
     parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
       const auto& sub = top.subtrees[t];
       std::size_t lines = 0;
-      collapser.template write<Node>(sub.node, sub.first, sub.depth, sub.at, lines, tallies[t]);
+      collapser.template write<Node>(sub.node, sub.first, sub.past, sub.depth, sub.at, lines,
+                                     tallies[t]);
     });
     for (const WriteTally& t : tallies) tally.add(t);
   }
