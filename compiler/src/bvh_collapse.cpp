@@ -409,11 +409,13 @@ struct Collapser {
   // one wide leaf (the duplicates are looked for among this subtree's references alone).
   void append_distinct_refs(std::uint32_t i, std::uint32_t first,
                             std::vector<std::uint32_t>& list) const {
-    const std::size_t base = list.size();
+    // A reference repeats one in the list iff its triangle is among the subtree's references
+    // before it (each one's first is in the list): those ids are compared, in sequence and
+    // without branches, instead of the listed references' ids.
+    const std::uint32_t* ids = bin.prim_ids.data();
     for (std::uint32_t r = first, end = r + refs(i); r < end; ++r) {
-      const bool seen =
-          std::any_of(list.begin() + std::ptrdiff_t(base), list.end(),
-                      [&](std::uint32_t k) { return bin.prim_ids[k] == bin.prim_ids[r]; });
+      bool seen = false;
+      for (std::uint32_t q = first; q < r; ++q) seen |= ids[q] == ids[r];
       if (!seen) list.push_back(r);
     }
   }
