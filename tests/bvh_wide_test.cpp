@@ -266,6 +266,83 @@ TEST(WideBvh, SahCollapseCostsNoMoreThanTheGreedyCollapse) {
   }
 }
 
+// The programme's costs by its recurrence alone, every share of every slot count tried (the
+// collapse skips shares and slot counts that cannot win): cost[i][k - 1] is binary subtree i's
+// least cost over at most k slots.
+struct ReferenceProgramme {
+  const FlatBvh& bin;
+  const WideCollapseOptions& o;
+  int width;
+  std::vector<std::vector<double>> cost;
+  std::vector<std::uint32_t> refs;
+  std::vector<char> leaf;  // the subtree is one leaf (given one slot)
+
+  ReferenceProgramme(const FlatBvh& b, const WideCollapseOptions& opt, int w)
+      : bin(b), o(opt), width(w), cost(b.nodes.size()), refs(b.nodes.size()), leaf(b.nodes.size()) {
+    visit(0);
+  }
+
+  void visit(std::uint32_t i) {
+    const format::BvhNode& n = bin.nodes[i];
+    const float dx = n.max[0] - n.min[0], dy = n.max[1] - n.min[1], dz = n.max[2] - n.min[2];
+    const double area = dx * dy + dy * dz + dz * dx;
+    if (n.count == 0) visit(i + 1), visit(n.offset);
+    refs[i] = n.count > 0 ? n.count : refs[i + 1] + refs[n.offset];
+    const double packets = double((refs[i] + format::kBvhPacketSize - 1) / format::kBvhPacketSize);
+    const double as_leaf = area * (o.leaf_cost + o.packet_cost * packets);
+    cost[i].assign(std::size_t(width), as_leaf);
+    leaf[i] = n.count > 0;
+    if (n.count > 0) return;
+    const std::vector<double>&l = cost[i + 1], &r = cost[n.offset];
+    std::vector<double> spread(std::size_t(width) + 1, INFINITY);
+    for (int k = 2; k <= width; ++k)
+      for (int left = 1; left < k; ++left)
+        spread[k] = std::min(spread[k], l[left - 1] + r[k - left - 1]);
+    const double inner = area * o.node_cost + spread[width];
+    leaf[i] = refs[i] <= o.max_leaf_refs && as_leaf <= inner;
+    cost[i][0] = leaf[i] ? as_leaf : inner;
+    for (int k = 2; k <= width; ++k) cost[i][k - 1] = std::min(cost[i][k - 2], spread[k]);
+  }
+};
+
+// The collapse's SAH cost is the reference programme's, to the bit, on every width, builder and
+// cost setting; and (binned: no duplicate references, so the model's packets are the stored
+// ones) the tree it writes costs that: its picks are the least cost's. (The shortcuts the
+// collapse takes, shares beyond a child's slots and slot counts beyond a node's, must not change
+// a bit.)
+TEST(WideBvh, ProgrammeCostIsTheRecurrencesLeast) {
+  std::map<std::string, Scene> scenes = test::worst_cases();
+  scenes.emplace("icosphere", test::icosphere(4));
+  for (const auto& [name, scene] : scenes)
+    for (const BvhBuilder builder : kBuilders)
+      for (const double packet_cost : {0.5, 2.0}) {
+        BvhBuildOptions b;
+        b.builder = builder;
+        const FlatBvh binary = build_bvh(scene, b);
+        const format::BvhNode& root = binary.nodes[0];
+        const float dx = root.max[0] - root.min[0], dy = root.max[1] - root.min[1],
+                    dz = root.max[2] - root.min[2];
+        const float root_area = dx * dy + dy * dz + dz * dx;
+        for (const int width : {4, 8, 16}) {
+          SCOPED_TRACE(name + " " + bvh_builder_name(builder) + " width " + std::to_string(width) +
+                       " packet cost " + std::to_string(packet_cost));
+          WideCollapseOptions c;
+          c.packet_cost = packet_cost;
+          const FlatWideBvh wide =
+              collapse_bvh(binary, std::uint32_t(width), scene.triangles.size(), false, nullptr, c);
+          const ReferenceProgramme ref(binary, c, width);
+          EXPECT_EQ(wide.stats.sah_cost, ref.cost[0][0] / root_area);
+          if (builder != BvhBuilder::kBinned) continue;
+          double stored = width == 4   ? wide_sah<4>(wide, c)
+                          : width == 8 ? wide_sah<8>(wide, c)
+                                       : wide_sah<16>(wide, c);
+          if (!ref.leaf[0]) stored += double(root_area) * c.node_cost;  // the root node's own
+          // (The stored boxes' areas in double, the programme's in float: 1e-6 apart at most.)
+          EXPECT_NEAR(stored / root_area, wide.stats.sah_cost, 1e-6 * wide.stats.sah_cost);
+        }
+      }
+}
+
 // Every quantised child box contains the float box it encodes.
 TEST(WideBvh, QuantizedBoxesContainTheFloatBoxes) {
   const Scene scene = test::icosphere(4);

@@ -117,10 +117,10 @@ struct TopLevels {
   bool has(std::uint32_t node) const {
     return next < subtrees.size() && subtrees[next].node == node;
   }
-  const Subtree& place(std::uint32_t node, std::size_t at, std::uint32_t depth) {
-    Subtree& s = subtrees[next++];
-    (void)node;
-    s.at = at, s.depth = depth;
+  // The next one, placed (place_top) at `at`.
+  const Subtree& take(std::size_t at) {
+    const Subtree& s = subtrees[next++];
+    if (s.at != at) throw std::logic_error("collapse_bvh: a subtree written out of its place");
     return s;
   }
 };
@@ -679,7 +679,7 @@ struct Collapser {
       node.child[k] = unit(end);
       prefetch_next(kids, k + 1, tally);
       if (top && top->has(kids.node[k])) {
-        const TopLevels::Subtree& sub = top->place(kids.node[k], end, depth + 1);
+        const TopLevels::Subtree& sub = top->take(end);
         child_lines = sub.leaf_lines, end += sub.bytes;
       } else {
         end = write<Node>(kids.node[k], kids.first[k], kids.past[k], depth + 1, end, child_lines,
@@ -712,23 +712,31 @@ struct Collapser {
     return {to_line(block) + below, (to_line(block) - node_size) / format::kBvhArenaLine};
   }
 
-  // subtree_size for the top levels, taking the sizes of the subtrees in `top` as counted.
-  std::size_t top_size(std::uint32_t i, std::uint32_t first, std::uint32_t past,
-                       std::size_t node_size, const TopLevels& top, std::size_t& next,
-                       std::vector<std::uint32_t>& scratch) const {
+  // The places (and depths) of the subtrees in `top` (sizes counted), in the order `write` meets
+  // them below node `i` written at byte `at`; returns the end of node i's subtree.
+  std::size_t place_top(std::uint32_t i, std::uint32_t first, std::uint32_t past, std::size_t at,
+                        std::uint32_t depth, std::size_t node_size, TopLevels& top,
+                        std::vector<std::uint32_t>& scratch) const {
     Slots<W> kids = gather(i, first, past);
     order_slots(kids);
-    std::size_t block = node_size, below = 0;
+    std::size_t block = node_size;
+    for (int k = 0; k < kids.size; ++k)
+      if (is_leaf(kids.node[k]))
+        block +=
+            leaf_packets(kids.node[k], kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
+    std::size_t end = at + to_line(block);
     for (int k = 0; k < kids.size; ++k) {
       const std::uint32_t kid = kids.node[k];
-      if (is_leaf(kid))
-        block += leaf_packets(kid, kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
-      else if (next < top.subtrees.size() && top.subtrees[next].node == kid)
-        below += top.subtrees[next++].bytes;
-      else
-        below += top_size(kid, kids.first[k], kids.past[k], node_size, top, next, scratch);
+      if (is_leaf(kid)) continue;
+      if (top.has(kid)) {
+        TopLevels::Subtree& sub = top.subtrees[top.next++];
+        sub.at = end, sub.depth = depth + 1;
+        end += sub.bytes;
+      } else {
+        end = place_top(kid, kids.first[k], kids.past[k], end, depth + 1, node_size, top, scratch);
+      }
     }
-    return to_line(block) + below;
+    return end;
   }
 
   // The interior slots below the top levels, in the order `write` meets them: each subtree of at
@@ -811,17 +819,22 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
       std::tie(sub.bytes, sub.leaf_lines) =
           collapser.subtree_size(sub.node, sub.first, sub.past, sizeof(Node), tallies[t].scratch);
     });
-    std::size_t next = 0;
     size_arena(out.arena,
-               collapser.top_size(0, first, past, sizeof(Node), top, next, tally.scratch));
-    collapser.template write<Node>(0, first, past, 1, 0, root_lines, tally, &top);
+               collapser.place_top(0, first, past, 0, 1, sizeof(Node), top, tally.scratch));
     if (top.next != top.subtrees.size())  // every place reserved, in the order found
       throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
-    parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
-      const auto& sub = top.subtrees[t];
+    top.next = 0;
+    // The top levels are one more task beside the subtrees: their few nodes lie between the
+    // subtrees, each on a page of the arena to fault in.
+    parallel_for(top.subtrees.size() + 1, threads, [&](std::size_t t) {
       std::size_t lines = 0;
+      if (t == 0) {
+        collapser.template write<Node>(0, first, past, 1, 0, root_lines, tally, &top);
+        return;
+      }
+      const auto& sub = top.subtrees[t - 1];
       collapser.template write<Node>(sub.node, sub.first, sub.past, sub.depth, sub.at, lines,
-                                     tallies[t]);
+                                     tallies[t - 1]);
     });
     for (const WriteTally& t : tallies) tally.add(t);
   }
