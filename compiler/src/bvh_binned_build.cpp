@@ -335,19 +335,14 @@ VBox centroid_bounds(std::span<const BuildRef> refs) {
 // Partition by the split's bin, in place and without a branch on the side (a mispredicted
 // branch per reference cost more than the moves): every reference is swapped with the first one
 // not known to go left, and that boundary advances when it went left (the cyclic Lomuto scheme
-// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. With kCentroids, each side's
-// centroid bounds (the children's bin maps) grow in the same pass. Returns the middle.
-template <bool kCentroids>
-std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Split& s,
-                           VBox& left_centroids, VBox& right_centroids) {
-  const V4 inf = bvh_simd::splat(std::numeric_limits<float>::infinity());
-  const V4 ninf = bvh_simd::splat(-std::numeric_limits<float>::infinity());
+// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. The children bound their
+// centroids where they bin (split_task): growing both sides' bounds here took four selects and
+// four min/max per reference, more than a child's plain pass, also on the largest nodes.
+// Returns the middle.
+std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Split& s) {
   // trunc(x) <= bin exactly when x < bin + 1 (x in [0, k - 1], integers exact as floats): the
   // side comes from one compare, without storing the bins.
   const V4 limit = bvh_simd::splat(float(s.bin + 1));
-  // The bounds grow in registers (through the references, they would be stored and reloaded for
-  // every reference, and shared with a neighbouring block's on another thread).
-  VBox lcen = left_centroids, rcen = right_centroids;
   std::size_t l = 0;
   for (std::size_t i = 0; i < refs.size(); ++i) {
     // The swap in registers, as two vectors per reference (a 32-byte copy went through the
@@ -355,17 +350,12 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
     const V4 lo = bvh_simd::load(refs[i].lo), hi = bvh_simd::load(refs[i].hi);
     const V4 c = (bvh_simd::xyz(lo) + hi) * bvh_simd::splat(0.5f);  // bvh_simd::centroid
     const bool left = (bvh_simd::less_mask(map.clamped(c), limit) >> s.axis) & 1;
-    if constexpr (kCentroids) {
-      lcen.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
-      rcen.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
-    }
     bvh_simd::store(refs[i].lo, bvh_simd::load(refs[l].lo));
     bvh_simd::store(refs[i].hi, bvh_simd::load(refs[l].hi));
     bvh_simd::store(refs[l].lo, lo);
     bvh_simd::store(refs[l].hi, hi);
     l += left;
   }
-  left_centroids = lcen, right_centroids = rcen;
   return l;
 }
 
@@ -387,23 +377,19 @@ struct Segments {
 // partition_refs for large nodes, in fixed blocks: each block of kBinChunk references is
 // partitioned on its own (its two streams stay in cache, where one partition of the whole node
 // swaps across megabytes), then the right references before the middle swap with the left ones
-// after it, the i-th with the i-th in index order. Same sides and centroid bounds; only the
-// order inside the children differs from partition_refs'. The blocks, and the swaps in fixed
-// chunks, run on `threads` (the same bytes on any count). (This measured slower once, while each
-// block's centroid bounds grew through memory next to its neighbour's.)
+// after it, the i-th with the i-th in index order. Same sides; only the order inside the
+// children differs from partition_refs'. The blocks, and the swaps in fixed chunks, run on
+// `threads` (the same bytes on any count).
 std::size_t partition_blocks(std::span<BuildRef> refs, const BinMap& map, const Split& s,
-                             VBox& left_centroids, VBox& right_centroids, unsigned threads) {
+                             unsigned threads) {
   const std::size_t n = refs.size(), blocks = (n + kBinChunk - 1) / kBinChunk;
   std::vector<std::size_t> lefts(blocks);
-  std::vector<VBox> lc(blocks), rc(blocks);
   parallel_for(blocks, threads, [&](std::size_t b) {
     const std::size_t begin = b * kBinChunk;
-    lefts[b] = partition_refs<true>(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s,
-                                    lc[b], rc[b]);
+    lefts[b] = partition_refs(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s);
   });
   std::size_t mid = 0;
-  for (std::size_t b = 0; b < blocks; ++b)
-    mid += lefts[b], left_centroids.grow(lc[b]), right_centroids.grow(rc[b]);
+  for (std::size_t b = 0; b < blocks; ++b) mid += lefts[b];
   Segments right_before, left_after;  // misplaced: right ones before mid, left ones after
   for (std::size_t b = 0; b < blocks; ++b) {
     const std::size_t begin = b * kBinChunk, end = std::min(n, begin + kBinChunk);
@@ -568,21 +554,18 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
                      Task{mid, t.end, r.box(), rc, t.depth + 1}};
   }
   if (n <= o.max_leaf_size && leaf_wins(s, n, area, o)) return std::nullopt;
-  // Large nodes bound their children's centroids in the partition (a pass apart would be serial
-  // at the top); the others leave it to the children that bin.
-  VBox lc, rc;
   std::size_t mid = t.begin;
-  const bool large = n >= kParallelBinning;
-  if (large) {
+  if (n >= kParallelBinning) {
     const unsigned extra = ctx.slots.take_all();
-    mid += partition_blocks(refs, map, s, lc, rc, 1 + extra);
+    mid += partition_blocks(refs, map, s, 1 + extra);
     if (extra > 0) ctx.slots.give(extra);
   } else {
-    mid += partition_refs<false>(refs, map, s, lc, rc);
+    mid += partition_refs(refs, map, s);
   }
   axis = s.axis;
-  return std::pair{Task{t.begin, mid, s.left_box.box(), lc.box(), t.depth + 1, large},
-                   Task{mid, t.end, s.right_box.box(), rc.box(), t.depth + 1, large}};
+  // The children bound their centroids where they bin (none do at a packet or less).
+  return std::pair{Task{t.begin, mid, s.left_box.box(), {}, t.depth + 1, false},
+                   Task{mid, t.end, s.right_box.box(), {}, t.depth + 1, false}};
 }
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes) {
