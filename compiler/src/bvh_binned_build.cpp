@@ -237,6 +237,14 @@ void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const B
   }
 }
 
+// The bits of `x` in reverse order (bit i to bit 63 - i).
+inline std::uint64_t reverse_bits(std::uint64_t x) {
+  x = ((x >> 1) & 0x5555555555555555u) | ((x & 0x5555555555555555u) << 1);
+  x = ((x >> 2) & 0x3333333333333333u) | ((x & 0x3333333333333333u) << 2);
+  x = ((x >> 4) & 0x0F0F0F0F0F0F0F0Fu) | ((x & 0x0F0F0F0F0F0F0F0Fu) << 4);
+  return __builtin_bswap64(x);
+}
+
 // sweep_axis for k <= 64 (one occupancy word per axis), in two loops over the word's bits and
 // no list of the occupied bins: the descending pass keeps, for each bin, the box and half area
 // of the occupied bins above it (grown from the top down, as sweep_axis and best_split grow
@@ -258,9 +266,10 @@ void sweep_axis_64(Bins& bins, int a, std::size_t n, float node_area, const BvhB
   Corners above[64];  // above[b]: the occupied bins above b
   float above_area[64];
   VBox acc;
-  for (std::uint64_t w = word; w;) {
-    const int b = 63 - std::countl_zero(w);
-    w ^= std::uint64_t(1) << b;
+  // Bits from the top down as the reversed word's from the bottom up: clearing the lowest bit
+  // is a shorter chain from one bin to the next than clearing the highest.
+  for (std::uint64_t w = reverse_bits(word); w; w &= w - 1) {
+    const int b = 63 - std::countr_zero(w);
     above[b] = {acc.lo, acc.hi}, above_area[b] = bvh_simd::half_area(acc);
     acc.grow(bins.box[base + b]);
   }
