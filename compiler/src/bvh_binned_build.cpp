@@ -237,8 +237,82 @@ void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const B
   }
 }
 
-Split best_split(const Bins& bins, const BinMap& map, std::size_t n, float node_area,
+// The bits of `x` in reverse order (bit i to bit 63 - i).
+inline std::uint64_t reverse_bits(std::uint64_t x) {
+  x = ((x >> 1) & 0x5555555555555555u) | ((x & 0x5555555555555555u) << 1);
+  x = ((x >> 2) & 0x3333333333333333u) | ((x & 0x3333333333333333u) << 2);
+  x = ((x >> 4) & 0x0F0F0F0F0F0F0F0Fu) | ((x & 0x0F0F0F0F0F0F0F0Fu) << 4);
+  return __builtin_bswap64(x);
+}
+
+// sweep_axis for k <= 64 (one occupancy word per axis), in two loops over the word's bits and
+// no list of the occupied bins: the descending pass keeps, for each bin, the box and half area
+// of the occupied bins above it (grown from the top down, as sweep_axis and best_split grow
+// them); the ascending pass takes each candidate's left box as it grows, keeps the winner's
+// boxes when it takes one (the boxes best_split would regrow, in the same order), and empties
+// each bin once it has read it. The same costs, winner and boxes as sweep_axis + best_split's
+// regrowth, with fewer short loops (each ends with a mispredicted branch) per node. Leaves the
+// axis's bins empty (its occupancy word is cleared by the caller).
+void sweep_axis_64(Bins& bins, int a, std::size_t n, float node_area, const BvhBuildOptions& o,
+                   Split& best) {
+  const std::size_t base = std::size_t(a) * bins.k;
+  const std::uint64_t word = bins.used[std::size_t(a)];
+  const int top = 63 - std::countl_zero(word);
+  const auto empty = [&](int b) { bins.box[base + b] = VBox{}, bins.count[base + b] = 0; };
+  if ((word & (word - 1)) == 0) return empty(top);  // one occupied bin: no candidate
+  struct Corners {
+    V4 lo, hi;  // uninitialised (a VBox array would be filled with empty boxes first)
+  };
+  Corners above[64];  // above[b]: the occupied bins above b
+  float above_area[64];
+  VBox acc;
+  // Bits from the top down as the reversed word's from the bottom up: clearing the lowest bit
+  // is a shorter chain from one bin to the next than clearing the highest.
+  for (std::uint64_t w = reverse_bits(word); w; w &= w - 1) {
+    const int b = 63 - std::countr_zero(w);
+    above[b] = {acc.lo, acc.hi}, above_area[b] = bvh_simd::half_area(acc);
+    acc.grow(bins.box[base + b]);
+  }
+  VBox left;
+  std::size_t left_count = 0;
+  for (std::uint64_t w = word ^ (std::uint64_t(1) << top); w; w &= w - 1) {
+    const int b = std::countr_zero(w);
+    left.grow(bins.box[base + b]);
+    left_count += bins.count[base + b];
+    empty(b);
+    const float sum =
+        bvh_simd::half_area(left) * float(left_count) + above_area[b] * float(n - left_count);
+    if (!(sum < best.sum)) continue;
+    const float cost = o.traversal_cost + o.intersection_cost * sum / node_area;
+    if (cost < best.cost)
+      best.cost = cost, best.sum = sum, best.axis = a, best.bin = std::uint32_t(b),
+      best.left_count = left_count, best.left_box = left,
+      best.right_box = {above[b].lo, above[b].hi};
+  }
+  empty(top);
+}
+
+// best_split for k <= 64 through sweep_axis_64; empties `bins` (Bins::clear has nothing left).
+Split best_split_64(Bins& bins, const BinMap& map, std::size_t n, float node_area,
+                    const BvhBuildOptions& o) {
+  Split best;
+  for (int a = 0; a < 3; ++a) {
+    if (map.axis_scale[a] > 0.0f) {
+      sweep_axis_64(bins, a, n, node_area, o, best);
+    } else {
+      bins.for_each(a, [&](std::uint32_t b) {
+        bins.box[std::size_t(a) * bins.k + b] = VBox{};
+        bins.count[std::size_t(a) * bins.k + b] = 0;
+      });
+    }
+    bins.used[std::size_t(a)] = 0;
+  }
+  return best;
+}
+
+Split best_split(Bins& bins, const BinMap& map, std::size_t n, float node_area,
                  const BvhBuildOptions& o) {
+  if (bins.k <= 64) return best_split_64(bins, map, n, node_area, o);
   Split best;
   for (int a = 0; a < 3; ++a)
     if (map.axis_scale[a] > 0.0f) sweep_axis(bins, a, n, node_area, o, best);
@@ -270,19 +344,14 @@ VBox centroid_bounds(std::span<const BuildRef> refs) {
 // Partition by the split's bin, in place and without a branch on the side (a mispredicted
 // branch per reference cost more than the moves): every reference is swapped with the first one
 // not known to go left, and that boundary advances when it went left (the cyclic Lomuto scheme
-// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. With kCentroids, each side's
-// centroid bounds (the children's bin maps) grow in the same pass. Returns the middle.
-template <bool kCentroids>
-std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Split& s,
-                           VBox& left_centroids, VBox& right_centroids) {
-  const V4 inf = bvh_simd::splat(std::numeric_limits<float>::infinity());
-  const V4 ninf = bvh_simd::splat(-std::numeric_limits<float>::infinity());
+// of Edelkamp and Weiss's BlockQuicksort). Deterministic, no buffer. The children bound their
+// centroids where they bin (split_task): growing both sides' bounds here took four selects and
+// four min/max per reference, more than a child's plain pass, also on the largest nodes.
+// Returns the middle.
+std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Split& s) {
   // trunc(x) <= bin exactly when x < bin + 1 (x in [0, k - 1], integers exact as floats): the
   // side comes from one compare, without storing the bins.
   const V4 limit = bvh_simd::splat(float(s.bin + 1));
-  // The bounds grow in registers (through the references, they would be stored and reloaded for
-  // every reference, and shared with a neighbouring block's on another thread).
-  VBox lcen = left_centroids, rcen = right_centroids;
   std::size_t l = 0;
   for (std::size_t i = 0; i < refs.size(); ++i) {
     // The swap in registers, as two vectors per reference (a 32-byte copy went through the
@@ -290,17 +359,12 @@ std::size_t partition_refs(std::span<BuildRef> refs, const BinMap& map, const Sp
     const V4 lo = bvh_simd::load(refs[i].lo), hi = bvh_simd::load(refs[i].hi);
     const V4 c = (bvh_simd::xyz(lo) + hi) * bvh_simd::splat(0.5f);  // bvh_simd::centroid
     const bool left = (bvh_simd::less_mask(map.clamped(c), limit) >> s.axis) & 1;
-    if constexpr (kCentroids) {
-      lcen.grow(bvh_simd::select(left, c, inf), bvh_simd::select(left, c, ninf));
-      rcen.grow(bvh_simd::select(left, inf, c), bvh_simd::select(left, ninf, c));
-    }
     bvh_simd::store(refs[i].lo, bvh_simd::load(refs[l].lo));
     bvh_simd::store(refs[i].hi, bvh_simd::load(refs[l].hi));
     bvh_simd::store(refs[l].lo, lo);
     bvh_simd::store(refs[l].hi, hi);
     l += left;
   }
-  left_centroids = lcen, right_centroids = rcen;
   return l;
 }
 
@@ -322,23 +386,19 @@ struct Segments {
 // partition_refs for large nodes, in fixed blocks: each block of kBinChunk references is
 // partitioned on its own (its two streams stay in cache, where one partition of the whole node
 // swaps across megabytes), then the right references before the middle swap with the left ones
-// after it, the i-th with the i-th in index order. Same sides and centroid bounds; only the
-// order inside the children differs from partition_refs'. The blocks, and the swaps in fixed
-// chunks, run on `threads` (the same bytes on any count). (This measured slower once, while each
-// block's centroid bounds grew through memory next to its neighbour's.)
+// after it, the i-th with the i-th in index order. Same sides; only the order inside the
+// children differs from partition_refs'. The blocks, and the swaps in fixed chunks, run on
+// `threads` (the same bytes on any count).
 std::size_t partition_blocks(std::span<BuildRef> refs, const BinMap& map, const Split& s,
-                             VBox& left_centroids, VBox& right_centroids, unsigned threads) {
+                             unsigned threads) {
   const std::size_t n = refs.size(), blocks = (n + kBinChunk - 1) / kBinChunk;
   std::vector<std::size_t> lefts(blocks);
-  std::vector<VBox> lc(blocks), rc(blocks);
   parallel_for(blocks, threads, [&](std::size_t b) {
     const std::size_t begin = b * kBinChunk;
-    lefts[b] = partition_refs<true>(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s,
-                                    lc[b], rc[b]);
+    lefts[b] = partition_refs(refs.subspan(begin, std::min(kBinChunk, n - begin)), map, s);
   });
   std::size_t mid = 0;
-  for (std::size_t b = 0; b < blocks; ++b)
-    mid += lefts[b], left_centroids.grow(lc[b]), right_centroids.grow(rc[b]);
+  for (std::size_t b = 0; b < blocks; ++b) mid += lefts[b];
   Segments right_before, left_after;  // misplaced: right ones before mid, left ones after
   for (std::size_t b = 0; b < blocks; ++b) {
     const std::size_t begin = b * kBinChunk, end = std::min(n, begin + kBinChunk);
@@ -503,21 +563,18 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
                      Task{mid, t.end, r.box(), rc, t.depth + 1}};
   }
   if (n <= o.max_leaf_size && leaf_wins(s, n, area, o)) return std::nullopt;
-  // Large nodes bound their children's centroids in the partition (a pass apart would be serial
-  // at the top); the others leave it to the children that bin.
-  VBox lc, rc;
   std::size_t mid = t.begin;
-  const bool large = n >= kParallelBinning;
-  if (large) {
+  if (n >= kParallelBinning) {
     const unsigned extra = ctx.slots.take_all();
-    mid += partition_blocks(refs, map, s, lc, rc, 1 + extra);
+    mid += partition_blocks(refs, map, s, 1 + extra);
     if (extra > 0) ctx.slots.give(extra);
   } else {
-    mid += partition_refs<false>(refs, map, s, lc, rc);
+    mid += partition_refs(refs, map, s);
   }
   axis = s.axis;
-  return std::pair{Task{t.begin, mid, s.left_box.box(), lc.box(), t.depth + 1, large},
-                   Task{mid, t.end, s.right_box.box(), rc.box(), t.depth + 1, large}};
+  // The children bound their centroids where they bin (none do at a packet or less).
+  return std::pair{Task{t.begin, mid, s.left_box.box(), {}, t.depth + 1, false},
+                   Task{mid, t.end, s.right_box.box(), {}, t.depth + 1, false}};
 }
 
 void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes) {
@@ -558,12 +615,17 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
   const std::size_t chunks = (refs.size() + kBinChunk - 1) / kBinChunk;
   std::vector<VBox> box(std::max<std::size_t>(chunks, 1)), centroids(box.size());
   parallel_for(chunks, options.threads, [&](std::size_t c) {
+    // Grown in registers, stored once: through memory, neighbouring chunks' boxes share cache
+    // lines that both threads would write for every reference (at two threads this pass took
+    // five times its one-thread share of the samples).
+    VBox b, cb;
     for (const BuildRef& r :
          refs.subspan(c * kBinChunk, std::min(kBinChunk, refs.size() - c * kBinChunk))) {
-      box[c].grow(bvh_simd::lower(r), bvh_simd::upper(r));
+      b.grow(bvh_simd::lower(r), bvh_simd::upper(r));
       const V4 p = bvh_simd::centroid(r);
-      centroids[c].grow(p, p);
+      cb.grow(p, p);
     }
+    box[c] = b, centroids[c] = cb;
   });
   for (std::size_t c = 1; c < chunks; ++c) box[0].grow(box[c]), centroids[0].grow(centroids[c]);
   WorkerSlots slots(resolve_thread_count(options.threads));
