@@ -8,7 +8,9 @@
 //              F4 also has a lane-mask type M: lt_m, gt_m, eq_m, or_m, and_m, andnot_m (~a & b)
 //              and bits(M);
 //   KILN_WIDE_F16  (optional) the 16-lane float vector of 16-wide nodes (load, store, set1, add,
-//              sub, mul, max, min, le); by default two F8 halves (PairVec).
+//              sub, mul, max, min, le); by default two F8 halves (PairVec);
+//   KILN_WIDE_RANKS_AVX512  (optional, the AVX-512 kernel) its own paths: the ray set up in
+//              vector registers, 16-wide children placed by rank, the any-hit push in one go.
 // Everything here has internal linkage, so each instruction set's copy stays its own.
 //
 // The arithmetic per triangle is that of watertight.hpp operation for operation, per box that of
@@ -58,8 +60,10 @@ struct BoxLanes {
   int near[3];  // bounds[axis][near] is the entry plane (1 = max for a negative direction)
 };
 
+#ifndef KILN_WIDE_RANKS_AVX512
 template <class V>
-KILN_SIMD BoxLanes<V> box_lanes(const BoxRay& r) {
+KILN_SIMD BoxLanes<V> box_lanes(const Ray& ray) {
+  const BoxRay r = prepare_box_ray(ray);
   BoxLanes<V> b;
   for (int a = 0; a < 3; ++a) {
     b.org[a] = V::set1(r.org[a]);
@@ -71,6 +75,7 @@ KILN_SIMD BoxLanes<V> box_lanes(const BoxRay& r) {
   }
   return b;
 }
+#endif
 
 /// Per-ray constants of the triangle test, splatted once per ray rather than per leaf.
 struct TriLanes {
@@ -78,7 +83,9 @@ struct TriLanes {
   std::size_t row[3];      // byte offset of axis kx, ky, kz in a corner's rows (v[c][axis])
 };
 
-KILN_SIMD TriLanes tri_lanes(const WatertightRay& r) {
+#ifndef KILN_WIDE_RANKS_AVX512
+KILN_SIMD TriLanes tri_lanes(const Ray& ray) {
+  const WatertightRay r = prepare_watertight(ray);
   TriLanes t;
   const int axis[3] = {r.kx, r.ky, r.kz};
   const float shear[3] = {r.sx, r.sy, r.sz};
@@ -89,6 +96,73 @@ KILN_SIMD TriLanes tri_lanes(const WatertightRay& r) {
   }
   return t;
 }
+#else
+// The AVX-512 kernel sets a ray up in vector registers: one division for the three reciprocals,
+// one for the three shears, the permuted axes by a lane permute instead of through memory. The
+// same operations on the same operands as prepare_box_ray and prepare_watertight, so the same
+// bits. The entry planes come from the direction's sign bits, not from the reciprocal's sign: the
+// same planes (1 / -0 = -inf; a NaN component makes both planes' distances NaN, which the max and
+// min drop either way), but the node's first loads need not wait for the division.
+KILN_SIMD __m128 ray_org4(const Ray& ray) {  // x, y, z, tmin
+  return _mm_loadu_ps(reinterpret_cast<const float*>(&ray));
+}
+KILN_SIMD __m128 ray_dir4(const Ray& ray) {  // x, y, z, tmax
+  return _mm_loadu_ps(reinterpret_cast<const float*>(&ray) + 4);
+}
+
+template <class V>
+KILN_SIMD BoxLanes<V> box_lanes(const Ray& ray) {
+  static_assert(sizeof(Ray) == 8 * sizeof(float));
+  const __m128 o = ray_org4(ray), d = ray_dir4(ray);
+  const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), d);  // lane 3 (1 / tmax) unused
+  // Scaling the reciprocal instead of each far distance: the same number of roundings, so
+  // pbrt's 1 + 2 gamma(3) still covers them (ray_box.hpp), one multiply less per axis.
+  const __m128 inv_far = _mm_mul_ps(inv, _mm_set1_ps(kFarScale));
+  const unsigned sign = unsigned(_mm_movemask_ps(d));
+  BoxLanes<V> b;
+  for (int a = 0; a < 3; ++a) {
+    b.org[a] = V::set1(o[a]);
+    b.inv[a] = V::set1(inv[a]);
+    b.inv_far[a] = V::set1(inv_far[a]);
+    b.near[a] = int(sign >> a & 1u);
+  }
+  return b;
+}
+
+// prepare_watertight's axes: kz the largest |d| by the same three comparisons (ax > ay, ax > az,
+// ay > az, in one compare, indexing a table made for that bit order), kx and ky swapped for d[kz]
+// < 0.
+KILN_SIMD __m128i watertight_axes(__m128 d) {
+  const __m128 a = _mm_andnot_ps(_mm_set1_ps(-0.0f), d);
+  const __m128 lhs = _mm_permute_ps(a, _MM_SHUFFLE(1, 1, 0, 0));  // ax, ax, ay
+  const __m128 rhs = _mm_permute_ps(a, _MM_SHUFFLE(2, 2, 2, 1));  // ay, az, az
+  const unsigned index = unsigned(_mm_movemask_ps(_mm_cmpgt_ps(lhs, rhs))) & 7u;
+  const unsigned kz = 0x1210222u >> (4 * index) & 3u;
+  unsigned kx = 0x021u >> (4 * kz) & 3u, ky = 0x102u >> (4 * kz) & 3u;
+  const unsigned negative = unsigned(_mm_movemask_ps(_mm_cmplt_ps(d, _mm_setzero_ps())));
+  const unsigned swap = (kx ^ ky) & (0u - (negative >> kz & 1u));
+  kx ^= swap, ky ^= swap;
+  return _mm_setr_epi32(int(kx), int(ky), int(kz), int(kz));
+}
+
+KILN_SIMD TriLanes tri_lanes(const Ray& ray) {
+  const __m128i axes = watertight_axes(ray_dir4(ray));
+  const __m128 d = _mm_permutevar_ps(ray_dir4(ray), axes);  // d[kx], d[ky], d[kz], d[kz]
+  const __m128 o = _mm_permutevar_ps(ray_org4(ray), axes);
+  const __m128 num = _mm_blend_ps(d, _mm_set1_ps(1.0f), 0xC);     // d[kx], d[ky], 1, 1
+  const __m128 shear = _mm_div_ps(num, _mm_permute_ps(d, 0xAA));  // sx, sy, sz = 1 / d[kz]
+  TriLanes t;
+  t.org[0] = _mm_permute_ps(o, 0x00), t.org[1] = _mm_permute_ps(o, 0x55);
+  t.org[2] = _mm_permute_ps(o, 0xAA);
+  t.shear[0] = _mm_permute_ps(shear, 0x00), t.shear[1] = _mm_permute_ps(shear, 0x55);
+  t.shear[2] = _mm_permute_ps(shear, 0xAA);
+  const std::size_t row = sizeof(float) * format::kBvhPacketSize;
+  t.row[0] = std::size_t(_mm_extract_epi32(axes, 0)) * row;
+  t.row[1] = std::size_t(_mm_extract_epi32(axes, 1)) * row;
+  t.row[2] = std::size_t(_mm_extract_epi32(axes, 2)) * row;
+  return t;
+}
+#endif
 
 // One box plane of every child: side 0 min, 1 max.
 template <class V, int W>
@@ -119,9 +193,8 @@ KILN_SIMD unsigned test_children(const Node& n, const BoxLanes<V>& r, typename V
 
 // The closest (or, kAny, the first) lane of a packet hit in (tmin, tmax); -1 when none.
 template <bool kAny>
-KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRay& r,
-                          const TriLanes& l, float tmin, float tmax, float& t_out, float& u_out,
-                          float& v_out) {
+KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const Ray& ray, const TriLanes& l,
+                          float tmin, float tmax, float& t_out, float& u_out, float& v_out) {
   using T = F4::T;
   T x[3], y[3], z[3];
   for (int c = 0; c < 3; ++c) {
@@ -164,7 +237,8 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
       const format::Float3 a{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]};
       const format::Float3 b{p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]};
       const format::Float3 c{p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]};
-      if (!intersect_watertight(r, a, b, c, tmin, tmax, lt, lu, lv)) continue;
+      // Rare (an exact zero edge function): the scalar ray is set up here, not per ray.
+      if (!intersect_watertight(prepare_watertight(ray), a, b, c, tmin, tmax, lt, lu, lv)) continue;
     } else {
       if (!(ts[lane] < tmax)) continue;
       lt = ts[lane], lu = vs[lane] / dets[lane], lv = ws[lane] / dets[lane];
@@ -337,9 +411,8 @@ template <class Node, int W, bool kAny, bool kCount>
 KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost) {
   using V = typename NodeVec<W>::V;
   const std::byte* arena = view.arena().data();
-  const BoxLanes<V> box = box_lanes<V>(prepare_box_ray(ray));
-  const WatertightRay tri_ray = prepare_watertight(ray);
-  const TriLanes tri = tri_lanes(tri_ray);
+  const BoxLanes<V> box = box_lanes<V>(ray);
+  const TriLanes tri = tri_lanes(ray);
   const typename V::T tmin = V::set1(ray.tmin);
   Hit hit;
   hit.t = ray.tmax;
@@ -386,7 +459,7 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
           arena + std::size_t(e.word & ~format::kBvhLeafFlag) * format::kBvhArenaUnit);
       for (const auto* end = p + e.packets; p < end; ++p) {
         if constexpr (kCount) cost->tests += format::kBvhPacketSize;
-        const int lane = test_packet<kAny>(*p, tri_ray, tri, ray.tmin, hit.t, hit.t, hit.u, hit.v);
+        const int lane = test_packet<kAny>(*p, ray, tri, ray.tmin, hit.t, hit.t, hit.u, hit.v);
         if (lane < 0) continue;
         best_packet = p, best_lane = lane;
         if constexpr (kAny) {
