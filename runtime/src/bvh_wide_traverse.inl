@@ -8,7 +8,9 @@
 //              F4 also has a lane-mask type M: lt_m, gt_m, eq_m, or_m, and_m, andnot_m (~a & b)
 //              and bits(M);
 //   KILN_WIDE_F16  (optional) the 16-lane float vector of 16-wide nodes (load, store, set1, add,
-//              sub, mul, max, min, le); by default two F8 halves (PairVec).
+//              sub, mul, max, min, le); by default two F8 halves (PairVec);
+//   KILN_WIDE_RANKS_AVX512  (optional, the AVX-512 kernel) its own paths: the ray set up in
+//              vector registers, 16-wide children placed by rank, the any-hit push in one go.
 // Everything here has internal linkage, so each instruction set's copy stays its own.
 //
 // The arithmetic per triangle is that of watertight.hpp operation for operation, per box that of
@@ -58,8 +60,10 @@ struct BoxLanes {
   int near[3];  // bounds[axis][near] is the entry plane (1 = max for a negative direction)
 };
 
+#ifndef KILN_WIDE_RANKS_AVX512
 template <class V>
-KILN_SIMD BoxLanes<V> box_lanes(const BoxRay& r) {
+KILN_SIMD BoxLanes<V> box_lanes(const Ray& ray) {
+  const BoxRay r = prepare_box_ray(ray);
   BoxLanes<V> b;
   for (int a = 0; a < 3; ++a) {
     b.org[a] = V::set1(r.org[a]);
@@ -71,6 +75,7 @@ KILN_SIMD BoxLanes<V> box_lanes(const BoxRay& r) {
   }
   return b;
 }
+#endif
 
 /// Per-ray constants of the triangle test, splatted once per ray rather than per leaf.
 struct TriLanes {
@@ -78,7 +83,9 @@ struct TriLanes {
   std::size_t row[3];      // byte offset of axis kx, ky, kz in a corner's rows (v[c][axis])
 };
 
-KILN_SIMD TriLanes tri_lanes(const WatertightRay& r) {
+#ifndef KILN_WIDE_RANKS_AVX512
+KILN_SIMD TriLanes tri_lanes(const Ray& ray) {
+  const WatertightRay r = prepare_watertight(ray);
   TriLanes t;
   const int axis[3] = {r.kx, r.ky, r.kz};
   const float shear[3] = {r.sx, r.sy, r.sz};
@@ -89,6 +96,73 @@ KILN_SIMD TriLanes tri_lanes(const WatertightRay& r) {
   }
   return t;
 }
+#else
+// The AVX-512 kernel sets a ray up in vector registers: one division for the three reciprocals,
+// one for the three shears, the permuted axes by a lane permute instead of through memory. The
+// same operations on the same operands as prepare_box_ray and prepare_watertight, so the same
+// bits. The entry planes come from the direction's sign bits, not from the reciprocal's sign: the
+// same planes (1 / -0 = -inf; a NaN component makes both planes' distances NaN, which the max and
+// min drop either way), but the node's first loads need not wait for the division.
+KILN_SIMD __m128 ray_org4(const Ray& ray) {  // x, y, z, tmin
+  return _mm_loadu_ps(reinterpret_cast<const float*>(&ray));
+}
+KILN_SIMD __m128 ray_dir4(const Ray& ray) {  // x, y, z, tmax
+  return _mm_loadu_ps(reinterpret_cast<const float*>(&ray) + 4);
+}
+
+template <class V>
+KILN_SIMD BoxLanes<V> box_lanes(const Ray& ray) {
+  static_assert(sizeof(Ray) == 8 * sizeof(float));
+  const __m128 o = ray_org4(ray), d = ray_dir4(ray);
+  const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), d);  // lane 3 (1 / tmax) unused
+  // Scaling the reciprocal instead of each far distance: the same number of roundings, so
+  // pbrt's 1 + 2 gamma(3) still covers them (ray_box.hpp), one multiply less per axis.
+  const __m128 inv_far = _mm_mul_ps(inv, _mm_set1_ps(kFarScale));
+  const unsigned sign = unsigned(_mm_movemask_ps(d));
+  BoxLanes<V> b;
+  for (int a = 0; a < 3; ++a) {
+    b.org[a] = V::set1(o[a]);
+    b.inv[a] = V::set1(inv[a]);
+    b.inv_far[a] = V::set1(inv_far[a]);
+    b.near[a] = int(sign >> a & 1u);
+  }
+  return b;
+}
+
+// prepare_watertight's axes: kz the largest |d| by the same three comparisons (ax > ay, ax > az,
+// ay > az, in one compare, indexing a table made for that bit order), kx and ky swapped for d[kz]
+// < 0.
+KILN_SIMD __m128i watertight_axes(__m128 d) {
+  const __m128 a = _mm_andnot_ps(_mm_set1_ps(-0.0f), d);
+  const __m128 lhs = _mm_permute_ps(a, _MM_SHUFFLE(1, 1, 0, 0));  // ax, ax, ay
+  const __m128 rhs = _mm_permute_ps(a, _MM_SHUFFLE(2, 2, 2, 1));  // ay, az, az
+  const unsigned index = unsigned(_mm_movemask_ps(_mm_cmpgt_ps(lhs, rhs))) & 7u;
+  const unsigned kz = 0x1210222u >> (4 * index) & 3u;
+  unsigned kx = 0x021u >> (4 * kz) & 3u, ky = 0x102u >> (4 * kz) & 3u;
+  const unsigned negative = unsigned(_mm_movemask_ps(_mm_cmplt_ps(d, _mm_setzero_ps())));
+  const unsigned swap = (kx ^ ky) & (0u - (negative >> kz & 1u));
+  kx ^= swap, ky ^= swap;
+  return _mm_setr_epi32(int(kx), int(ky), int(kz), int(kz));
+}
+
+KILN_SIMD TriLanes tri_lanes(const Ray& ray) {
+  const __m128i axes = watertight_axes(ray_dir4(ray));
+  const __m128 d = _mm_permutevar_ps(ray_dir4(ray), axes);  // d[kx], d[ky], d[kz], d[kz]
+  const __m128 o = _mm_permutevar_ps(ray_org4(ray), axes);
+  const __m128 num = _mm_blend_ps(d, _mm_set1_ps(1.0f), 0xC);     // d[kx], d[ky], 1, 1
+  const __m128 shear = _mm_div_ps(num, _mm_permute_ps(d, 0xAA));  // sx, sy, sz = 1 / d[kz]
+  TriLanes t;
+  t.org[0] = _mm_permute_ps(o, 0x00), t.org[1] = _mm_permute_ps(o, 0x55);
+  t.org[2] = _mm_permute_ps(o, 0xAA);
+  t.shear[0] = _mm_permute_ps(shear, 0x00), t.shear[1] = _mm_permute_ps(shear, 0x55);
+  t.shear[2] = _mm_permute_ps(shear, 0xAA);
+  const std::size_t row = sizeof(float) * format::kBvhPacketSize;
+  t.row[0] = std::size_t(_mm_extract_epi32(axes, 0)) * row;
+  t.row[1] = std::size_t(_mm_extract_epi32(axes, 1)) * row;
+  t.row[2] = std::size_t(_mm_extract_epi32(axes, 2)) * row;
+  return t;
+}
+#endif
 
 // One box plane of every child: side 0 min, 1 max.
 template <class V, int W>
@@ -119,9 +193,8 @@ KILN_SIMD unsigned test_children(const Node& n, const BoxLanes<V>& r, typename V
 
 // The closest (or, kAny, the first) lane of a packet hit in (tmin, tmax); -1 when none.
 template <bool kAny>
-KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRay& r,
-                          const TriLanes& l, float tmin, float tmax, float& t_out, float& u_out,
-                          float& v_out) {
+KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const Ray& ray, const TriLanes& l,
+                          float tmin, float tmax, float& t_out, float& u_out, float& v_out) {
   using T = F4::T;
   T x[3], y[3], z[3];
   for (int c = 0; c < 3; ++c) {
@@ -164,7 +237,8 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
       const format::Float3 a{p.v[0][0][lane], p.v[0][1][lane], p.v[0][2][lane]};
       const format::Float3 b{p.v[1][0][lane], p.v[1][1][lane], p.v[1][2][lane]};
       const format::Float3 c{p.v[2][0][lane], p.v[2][1][lane], p.v[2][2][lane]};
-      if (!intersect_watertight(r, a, b, c, tmin, tmax, lt, lu, lv)) continue;
+      // Rare (an exact zero edge function): the scalar ray is set up here, not per ray.
+      if (!intersect_watertight(prepare_watertight(ray), a, b, c, tmin, tmax, lt, lu, lv)) continue;
     } else {
       if (!(ts[lane] < tmax)) continue;
       lt = ts[lane], lu = vs[lane] / dets[lane], lv = ws[lane] / dets[lane];
@@ -176,11 +250,24 @@ KILN_SIMD int test_packet(const format::BvhTrianglePacket& p, const WatertightRa
   return best;
 }
 
-/// A child to visit: its word, packet count (or, interior, prefetch lines) and entry distance.
+/// A child to visit: its word, packet count (or, interior, prefetch lines) and entry distance;
+/// in the AVX-512 kernel also its depth below the root (kPrefetchDepth).
 struct WideEntry {
   std::uint32_t word, packets;
   float t;
+#ifdef KILN_WIDE_RANKS_AVX512
+  std::uint32_t depth;
+#endif
 };
+
+KILN_SIMD WideEntry entry(std::uint32_t word, std::uint32_t packets, float t,
+                          [[maybe_unused]] std::uint32_t depth) {
+#ifdef KILN_WIDE_RANKS_AVX512
+  return {word, packets, t, depth};
+#else
+  return {word, packets, t};
+#endif
+}
 
 // Float bits made to sort as unsigned integers (negative distances included).
 KILN_SIMD std::uint32_t sortable(float f) {
@@ -205,7 +292,7 @@ KILN_SIMD void prefetch_child(std::uint32_t word, std::uint32_t packets, const s
 // Each child is prefetched as it is placed (one walk over the entered children, not two).
 KILN_SIMD WideEntry ranked_children16(const format::BvhWideNode<16>& n, unsigned mask,
                                       const float* dist, WideEntry* stack, std::uint32_t& top,
-                                      const std::byte* arena) {
+                                      const std::byte* arena, std::uint32_t depth, bool prefetch) {
   const __m512i bits = _mm512_castps_si512(_mm512_loadu_ps(dist));
   const __m512i keys = _mm512_xor_si512(
       bits, _mm512_or_si512(_mm512_srai_epi32(bits, 31), _mm512_set1_epi32(int(0x80000000u))));
@@ -219,8 +306,8 @@ KILN_SIMD WideEntry ranked_children16(const format::BvhWideNode<16>& n, unsigned
     const __mmask16 after = __mmask16(mask & ~((2u << s) - 1u));  // entered slots above s
     const unsigned farther = _mm512_mask_cmpgt_epu32_mask(__mmask16(mask), keys, k) |
                              _mm512_mask_cmpeq_epu32_mask(after, keys, k);
-    prefetch_child<format::BvhWideNode<16>>(n.child[s], n.packets[s], arena);
-    base[__builtin_popcount(farther)] = {n.child[s], n.packets[s], dist[s]};
+    if (prefetch) prefetch_child<format::BvhWideNode<16>>(n.child[s], n.packets[s], arena);
+    base[__builtin_popcount(farther)] = entry(n.child[s], n.packets[s], dist[s], depth);
   }
   top += count - 1;
   return stack[top];
@@ -255,22 +342,24 @@ inline constexpr bool kRanks16 = false;
 // first); otherwise in slot order (the collapse orders slots for any-hit rays).
 template <int W, bool kOrdered, class Node>
 KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, WideEntry* stack,
-                               std::uint32_t& top, [[maybe_unused]] const std::byte* arena) {
+                               std::uint32_t& top, [[maybe_unused]] const std::byte* arena,
+                               std::uint32_t depth, [[maybe_unused]] bool prefetch) {
   int slot = __builtin_ctz(mask);
   mask &= mask - 1;
-  if (mask == 0) return {n.child[slot], n.packets[slot], dist[slot]};
+  if (mask == 0) return entry(n.child[slot], n.packets[slot], dist[slot], depth);
   if constexpr (kOrdered) {
     const int second = __builtin_ctz(mask);
     mask &= mask - 1;
     if (mask == 0) {  // two children, the common case: one compare
       const int near = dist[second] < dist[slot] ? second : slot;
       const int far = near == slot ? second : slot;
-      stack[top++] = {n.child[far], n.packets[far], dist[far]};
-      return {n.child[near], n.packets[near], dist[near]};
+      stack[top++] = entry(n.child[far], n.packets[far], dist[far], depth);
+      return entry(n.child[near], n.packets[near], dist[near], depth);
     }
 #ifdef KILN_WIDE_RANKS_AVX512
     if constexpr (W == 16)
-      return ranked_children16(n, mask | 1u << slot | 1u << second, dist, stack, top, arena);
+      return ranked_children16(n, mask | 1u << slot | 1u << second, dist, stack, top, arena, depth,
+                               prefetch);
 #endif
     std::uint64_t keys[W];
     keys[0] = std::uint64_t(sortable(dist[slot])) << 32 | std::uint32_t(slot);
@@ -284,7 +373,7 @@ KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, 
     }
     for (int k = 0; k < count - 1; ++k) {
       const int s = int(keys[k] & 0xFu);
-      stack[top++] = {n.child[s], n.packets[s], dist[s]};
+      stack[top++] = entry(n.child[s], n.packets[s], dist[s], depth);
     }
     slot = int(keys[count - 1] & 0xFu);
   } else {
@@ -292,11 +381,17 @@ KILN_SIMD WideEntry next_child(const Node& n, unsigned mask, const float* dist, 
     while (mask != 0) {
       const int s = 31 - __builtin_clz(mask);
       mask &= ~(1u << s);
-      stack[top++] = {n.child[s], n.packets[s], dist[s]};
+      stack[top++] = entry(n.child[s], n.packets[s], dist[s], depth);
     }
   }
-  return {n.child[slot], n.packets[slot], dist[slot]};
+  return entry(n.child[slot], n.packets[slot], dist[slot], depth);
 }
+
+/// AVX-512, 16-wide closest hit: the children of nodes at depths below this (the root is 0) are
+/// not prefetched. Those top levels (1 + 16 nodes, whose children are the 272 nodes of levels 1
+/// and 2, about 140 KiB with their first leaf lines) stay in the L2 cache across rays, so their
+/// prefetches only took issue slots: without them primary rays gain 6-11 %.
+inline constexpr std::uint32_t kPrefetchDepth = 2;
 
 /// The nodes' lines, and at most this many lines of an interior child's leaf packets, are loaded
 /// ahead when a child is entered.
@@ -337,9 +432,8 @@ template <class Node, int W, bool kAny, bool kCount>
 KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost) {
   using V = typename NodeVec<W>::V;
   const std::byte* arena = view.arena().data();
-  const BoxLanes<V> box = box_lanes<V>(prepare_box_ray(ray));
-  const WatertightRay tri_ray = prepare_watertight(ray);
-  const TriLanes tri = tri_lanes(tri_ray);
+  const BoxLanes<V> box = box_lanes<V>(ray);
+  const TriLanes tri = tri_lanes(ray);
   const typename V::T tmin = V::set1(ray.tmin);
   Hit hit;
   hit.t = ray.tmax;
@@ -357,7 +451,7 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
   if constexpr (kAny && W == 16) top = kAnyStack16;
 #endif
   alignas(32) float dist[W];
-  WideEntry e{0, 0, ray.tmin};
+  WideEntry e = entry(0, 0, ray.tmin, 0);
   for (;;) {
     while ((e.word & format::kBvhLeafFlag) == 0) {
       const auto& n =
@@ -365,20 +459,27 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
       if constexpr (kCount) cost->nodes += 1;
       const unsigned mask = test_children<Node, V>(n, box, tmin, V::set1(hit.t), dist);
       if (mask == 0) goto pop;
-      // Any hit: only the child visited next. The others wait on the stack until its whole
-      // subtree is done, and are not visited at all when the ray is blocked in it.
-      // (16-wide with ranks: three or more children are prefetched as they are placed.)
+        // Any hit: only the child visited next. The others wait on the stack until its whole
+        // subtree is done, and are not visited at all when the ray is blocked in it.
+        // (16-wide with ranks: three or more children are prefetched as they are placed.)
+#ifdef KILN_WIDE_RANKS_AVX512
+      const bool prefetch = W != 16 || e.depth >= kPrefetchDepth;
+      const std::uint32_t below = e.depth + 1;
+#else
+      constexpr bool prefetch = true;
+      constexpr std::uint32_t below = 0;
+#endif
       if constexpr (!kAny)
-        if (!(kRanks16 && W == 16) || __builtin_popcount(mask) < 3)
+        if ((!(kRanks16 && W == 16) || __builtin_popcount(mask) < 3) && prefetch)
           prefetch_children(n, mask, arena);
 #ifdef KILN_WIDE_RANKS_AVX512
       if constexpr (kAny && W == 16) {
         const int slot = __builtin_ctz(mask);
         push_any16(n, mask & (mask - 1), any_words, any_packets, top);
-        e = {n.child[slot], n.packets[slot], 0.0f};
+        e = entry(n.child[slot], n.packets[slot], 0.0f, 0);
       } else
 #endif
-        e = next_child<W, !kAny>(n, mask, dist, stack, top, arena);
+        e = next_child<W, !kAny>(n, mask, dist, stack, top, arena, below, prefetch);
       if constexpr (kAny) prefetch_child<Node>(e.word, e.packets, arena);
     }
     {
@@ -386,7 +487,7 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
           arena + std::size_t(e.word & ~format::kBvhLeafFlag) * format::kBvhArenaUnit);
       for (const auto* end = p + e.packets; p < end; ++p) {
         if constexpr (kCount) cost->tests += format::kBvhPacketSize;
-        const int lane = test_packet<kAny>(*p, tri_ray, tri, ray.tmin, hit.t, hit.t, hit.u, hit.v);
+        const int lane = test_packet<kAny>(*p, ray, tri, ray.tmin, hit.t, hit.t, hit.u, hit.v);
         if (lane < 0) continue;
         best_packet = p, best_lane = lane;
         if constexpr (kAny) {
@@ -400,7 +501,7 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
 #ifdef KILN_WIDE_RANKS_AVX512
       if constexpr (kAny && W == 16) {
         if (top == kAnyStack16) return Hit{};
-        e = {any_words[top], any_packets[top], 0.0f};
+        e = entry(any_words[top], any_packets[top], 0.0f, 0);
         ++top;
         continue;
       }
