@@ -538,8 +538,12 @@ TEST(WideBvh, KernelChoiceFollowsTheEnvironment) {
   unsetenv("KILN_BVH_KERNEL");
   EXPECT_NE(bvh_auto_kernel(), BvhKernel::kAuto);
   // 16-wide nodes: AVX-512 first where the CPU has it, AVX2 first for the narrower ones.
-  if (bvh_kernel_supported(BvhKernel::kAvx512)) EXPECT_EQ(bvh_auto_kernel(16), BvhKernel::kAvx512);
-  if (bvh_kernel_supported(BvhKernel::kAvx2)) EXPECT_EQ(bvh_auto_kernel(8), BvhKernel::kAvx2);
+  if (bvh_kernel_supported(BvhKernel::kAvx512)) {
+    EXPECT_EQ(bvh_auto_kernel(16), BvhKernel::kAvx512);
+  }
+  if (bvh_kernel_supported(BvhKernel::kAvx2)) {
+    EXPECT_EQ(bvh_auto_kernel(8), BvhKernel::kAvx2);
+  }
   for (const BvhKernel k : kKernels)
     if (!bvh_kernel_supported(k)) {
       setenv("KILN_BVH_KERNEL", bvh_kernel_name(k), 1);
