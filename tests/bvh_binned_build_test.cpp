@@ -8,6 +8,7 @@
 #include <limits>
 #include <random>
 #include <set>
+#include <string>
 #include <vector>
 
 #include "kiln/compiler/bvh_builder.hpp"
@@ -129,6 +130,62 @@ TEST(BvhBinnedBuild, SameTreeOnAnyThreadCountWithParallelChunkBinning) {
         ASSERT_LE(node.min[a], format::at(b.min, a));
         ASSERT_GE(node.max[a], format::at(b.max, a));
       }
+    }
+  }
+}
+
+// The counts, depth and SAH cost the build counts as it emits the nodes (subtrees built on other
+// threads counted once appended) are those of a depth-first walk over the finished nodes, and of
+// flat_bvh_statistics' pass over them, to the bit, on any thread count.
+TEST(BvhBinnedBuild, StatisticsCountedWhileBuildingAreThoseOfTheFinishedTree) {
+  const Scene scene = random_scene(100000, 5);
+  for (const std::uint32_t packet : {0u, 4u}) {
+    for (const unsigned threads : {1u, 2u, 8u}) {
+      BvhBuildOptions options;
+      options.threads = threads;
+      options.leaf_packet = packet;
+      options.leaf_triangles = false;
+      const FlatBvh bvh = build_bvh(scene, options);
+      const auto& nodes = bvh.nodes;
+      // The walk: pre-order from the root, depth 1 at the root, the SAH summed in visit order.
+      const auto area = [](const format::BvhNode& n) {
+        const double dx = double(n.max[0]) - n.min[0], dy = double(n.max[1]) - n.min[1],
+                     dz = double(n.max[2]) - n.min[2];
+        return dx < 0 || dy < 0 || dz < 0 ? 0.0 : dx * dy + dy * dz + dz * dx;
+      };
+      double sah = 0;
+      std::uint64_t leaves = 0, references = 0;
+      std::uint32_t depth = 0, largest = 0;
+      std::vector<std::pair<std::uint32_t, std::uint32_t>> stack{{0, 1}};
+      while (!stack.empty()) {
+        const auto [i, d] = stack.back();
+        stack.pop_back();
+        const format::BvhNode& n = nodes[i];
+        const double a = area(n) / area(nodes[0]);
+        depth = std::max(depth, d);
+        if (n.count != 0) {
+          sah += a * options.intersection_cost * double(n.count);
+          leaves += 1, references += n.count, largest = std::max<std::uint32_t>(largest, n.count);
+        } else {
+          sah += a * options.traversal_cost;
+          stack.push_back({n.offset, d + 1});
+          stack.push_back({i + 1, d + 1});
+        }
+      }
+      const BvhStatistics pass = flat_bvh_statistics(nodes, scene.triangles.size(), options);
+      const BvhStatistics& s = bvh.stats;
+      const std::string at = std::to_string(threads) + " threads, packet " + std::to_string(packet);
+      EXPECT_EQ(s.node_count, nodes.size()) << at;
+      EXPECT_EQ(s.leaf_count, leaves) << at;
+      EXPECT_EQ(s.reference_count, references) << at;
+      EXPECT_EQ(s.max_depth, depth) << at;
+      EXPECT_EQ(s.max_leaf_size, largest) << at;
+      EXPECT_EQ(s.sah_cost, sah) << at;  // the same doubles summed in the same order
+      EXPECT_EQ(pass.sah_cost, sah) << at;
+      EXPECT_EQ(pass.max_depth, depth) << at;
+      EXPECT_EQ(s.average_leaf_size, pass.average_leaf_size) << at;
+      EXPECT_EQ(s.bytes_per_triangle, pass.bytes_per_triangle) << at;
+      EXPECT_EQ(s.duplication_factor, pass.duplication_factor) << at;
     }
   }
 }

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -144,11 +145,44 @@ struct Split {
   VBox left_box, right_box;
 };
 
+// The statistics of the final node array (flat_bvh_statistics'), counted as it fills: the thread
+// that emits into it counts each node once decided (a leaf, or interior before its children),
+// and a subtree built apart once appended, so every node in index order (the SAH cost is a sum
+// of doubles in that order); the nodes are counted where they are written or just after, not
+// streamed again. The depth from the leaves' tasks, on whichever thread emits them.
+struct NodeTally {
+  // Read by every thread for every node: apart from the lines the counting thread writes.
+  const std::vector<format::BvhNode>* nodes = nullptr;  // the final array
+  double root_area = 0;
+  alignas(64) std::atomic<std::uint32_t> max_depth{0};  // written only when it grows
+  alignas(64) std::size_t counted = 0;                  // nodes[0, counted) are counted
+  BvhStatistics stats;
+
+  void count(const format::BvhNode& n, bool leaf, const BvhBuildOptions& o) {
+    stats.sah_cost += bvh_sah_term(n, leaf, root_area, o);
+    counted += 1;
+    if (!leaf) return;
+    stats.leaf_count += 1;
+    stats.reference_count += n.count;
+    stats.max_leaf_size = std::max<std::uint32_t>(stats.max_leaf_size, n.count);
+  }
+  // The nodes appended since the last count (a subtree built apart).
+  void catch_up(const std::vector<format::BvhNode>& all, const BvhBuildOptions& o) {
+    for (std::size_t i = counted; i < all.size(); ++i) count(all[i], all[i].count != 0, o);
+  }
+  void leaf_depth(std::uint32_t depth) {
+    std::uint32_t m = max_depth.load(std::memory_order_relaxed);
+    while (depth > m && !max_depth.compare_exchange_weak(m, depth, std::memory_order_relaxed)) {
+    }
+  }
+};
+
 struct Context {
   std::span<BuildRef> refs;
   const BvhBuildOptions& o;
   WorkerSlots& slots;      // threads free for a subtree or a parallel binning
   PendingRights& pending;  // right children a thread with nothing to do may build
+  NodeTally& tally;
 };
 
 void bin_range(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
@@ -582,7 +616,9 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
   nodes.push_back(leaf_node(t.box, t.begin, t.end - t.begin));
   int axis = 0;
   const auto children = split_task(ctx, t, axis);
-  if (!children) return;
+  NodeTally* const tally = &nodes == ctx.tally.nodes ? &ctx.tally : nullptr;
+  if (tally) tally->count(nodes[index], !children, ctx.o);
+  if (!children) return ctx.tally.leaf_depth(t.depth + 1);  // the root's depth is 1
   const auto& [left, right] = *children;
   const std::size_t right_size = right.end - right.begin;
   const bool may_fork = left.end - left.begin >= kParallelSubtree && right_size >= kParallelSubtree;
@@ -590,6 +626,7 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
       ctx.slots, may_fork, left, right, right_size + right_size / 4 + 1, index, nodes,
       [&](const Task& child, auto& out) { emit(ctx, child, out); }, &ctx.pending);
   nodes[index].axis = std::uint8_t(axis);
+  if (tally) tally->catch_up(nodes, ctx.o);  // a right subtree built apart and appended
 }
 
 }  // namespace
@@ -605,7 +642,8 @@ bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads) {
 }
 
 std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
-                                                const BvhBuildOptions& options) {
+                                                const BvhBuildOptions& options,
+                                                BvhStatistics* counts) {
   if (options.bins > kMaxBins)
     throw std::invalid_argument("BVH: at most " + std::to_string(kMaxBins) + " bins");
   if (options.leaf_packet > kMaxLeafPacket)
@@ -630,11 +668,23 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
   for (std::size_t c = 1; c < chunks; ++c) box[0].grow(box[c]), centroids[0].grow(centroids[c]);
   WorkerSlots slots(resolve_thread_count(options.threads));
   PendingRights pending;
-  const Context ctx{refs, options, slots, pending};
   std::vector<format::BvhNode> nodes;
+  NodeTally tally;
+  if (counts) {
+    tally.nodes = &nodes;
+    tally.root_area = bvh_node_half_area(leaf_node(box[0].box(), 0, refs.size()));  // nodes[0]'s
+  }
+  const Context ctx{refs, options, slots, pending, tally};
   // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
   reserve_huge(nodes, refs.size() + refs.size() / 4 + 1);
   emit(ctx, {0, refs.size(), box[0].box(), centroids[0].box(), 0}, nodes);
+  if (counts) {
+    if (tally.counted != nodes.size())
+      throw std::logic_error("BVH: the binned build's statistics missed a node");
+    *counts = tally.stats;
+    counts->node_count = nodes.size();
+    counts->max_depth = tally.max_depth.load();
+  }
   return nodes;
 }
 

@@ -2,6 +2,7 @@
 // the binned, sweep or SBVH builder, leaf triangles copied in leaf order, and the statistics
 // every builder reports.
 #include <algorithm>
+#include <optional>
 #include <stdexcept>
 
 #include "bvh_binned_build.hpp"
@@ -13,12 +14,6 @@
 namespace kiln {
 
 namespace {
-
-double half_area(const format::BvhNode& n) {
-  const double dx = double(n.max[0]) - n.min[0], dy = double(n.max[1]) - n.min[1],
-               dz = double(n.max[2]) - n.min[2];
-  return dx < 0 || dy < 0 || dz < 0 ? 0.0 : dx * dy + dy * dz + dz * dx;
-}
 
 // One reference per triangle (its box and id), in parallel: each index writes its own slot.
 std::vector<PrimRef> triangle_refs(const Scene& scene, unsigned threads) {
@@ -67,18 +62,21 @@ void dedupe_leaf_references(std::vector<format::BvhNode>& nodes,
 
 // The binned builder on its own 32-byte references, made straight from the triangles (or from
 // the presplit's pieces, whose PrimRef array goes before the build).
+// Without a presplit, `counts` gets the nodes' statistics as the build counts them.
 std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
-                                    FlatBvh& out) {
+                                    FlatBvh& out, std::optional<BvhStatistics>& counts) {
   bvh_simd::BuildRefs refs;
   if (options.presplit == BvhPresplit::kNone) {
     refs = triangle_build_refs(scene, options.threads);
+    counts.emplace();
   } else {
     const std::vector<PrimRef> pieces = build_refs(scene, options);
     refs.resize(pieces.size());
     for (std::size_t i = 0; i < pieces.size(); ++i)
       refs[i] = bvh_simd::BuildRef::make(pieces[i].box, pieces[i].prim);
   }
-  out.nodes = build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options);
+  out.nodes =
+      build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options, counts ? &*counts : nullptr);
   reserve_huge(out.prim_ids, refs.size());
   out.prim_ids.resize(refs.size());
   parallel_for_batched(refs.size(), 65536, options.threads,
@@ -87,8 +85,9 @@ std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& o
 }
 
 // The sweep or binned builder's nodes and primitive ids in leaf order; returns the number of
-// build references.
-std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options, FlatBvh& out) {
+// build references. `counts`: the nodes' statistics where the builder counted them.
+std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options, FlatBvh& out,
+                             std::optional<BvhStatistics>& counts) {
   if (options.builder == BvhBuilder::kSpatial) {
     out.nodes = build_sbvh_nodes(scene, options, out.prim_ids);
     return out.prim_ids.size();
@@ -99,7 +98,53 @@ std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
     for (std::uint32_t& id : out.prim_ids) id = refs[id].prim;
     return refs.size();  // the references (28 B each) go before the triangles are copied
   }
-  return build_binned_flat_nodes(scene, options, out);
+  return build_binned_flat_nodes(scene, options, out, counts);
+}
+
+}  // namespace
+
+namespace {
+
+// The counts and depths of the nodes, and (with `sah`) the SAH cost: the nodes lie in pre-order
+// (first child adjacent), so one pass in index order visits them as a depth-first walk would
+// (and sums the cost in that order); a node passes its depth on.
+void count_nodes(std::span<const format::BvhNode> nodes, const BvhBuildOptions& options, bool sah,
+                 BvhStatistics& s) {
+  const double root_area = nodes.empty() ? 0.0 : bvh_node_half_area(nodes[0]);
+  std::vector<std::uint8_t> depth(nodes.size());
+  if (!nodes.empty()) depth[0] = 1;
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const format::BvhNode& n = nodes[i];
+    s.max_depth = std::max<std::uint32_t>(s.max_depth, depth[i]);
+    if (sah) s.sah_cost += bvh_sah_term(n, n.count != 0, root_area, options);
+    if (n.count != 0) {
+      s.leaf_count += 1;
+      s.reference_count += n.count;
+      s.max_leaf_size = std::max<std::uint32_t>(s.max_leaf_size, n.count);
+    } else {
+      depth[i + 1] = depth[n.offset] = std::uint8_t(depth[i] + 1);
+    }
+  }
+}
+
+// The SAH cost alone, summed in index order (the same doubles in the same order as count_nodes).
+double sah_cost_of(std::span<const format::BvhNode> nodes, const BvhBuildOptions& options) {
+  const double root_area = nodes.empty() ? 0.0 : bvh_node_half_area(nodes[0]);
+  double sum = 0;
+  for (const format::BvhNode& n : nodes) sum += bvh_sah_term(n, n.count != 0, root_area, options);
+  return sum;
+}
+
+// The averages and sizes from the counts.
+void finish_statistics(BvhStatistics& s, std::size_t node_count, std::size_t triangles) {
+  s.average_leaf_size = s.leaf_count ? double(s.reference_count) / double(s.leaf_count) : 0;
+  s.duplication_factor = triangles ? double(s.reference_count) / double(triangles) : 0;
+  s.bytes_per_triangle =
+      triangles
+          ? double(node_count * sizeof(format::BvhNode) +
+                   s.reference_count * (sizeof(format::RayTriangle) + sizeof(std::uint32_t))) /
+                double(triangles)
+          : 0;
 }
 
 }  // namespace
@@ -108,33 +153,15 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
                                   const BvhBuildOptions& options) {
   BvhStatistics s;
   s.node_count = nodes.size();
-  const double root_area = nodes.empty() ? 0.0 : half_area(nodes[0]);
-  // The nodes lie in pre-order (first child adjacent), so one pass in index order visits them as
-  // a depth-first walk would (and sums the cost in that order); a node passes its depth on.
-  std::vector<std::uint8_t> depth(nodes.size());
-  if (!nodes.empty()) depth[0] = 1;
-  for (std::size_t i = 0; i < nodes.size(); ++i) {
-    const format::BvhNode& n = nodes[i];
-    s.max_depth = std::max<std::uint32_t>(s.max_depth, depth[i]);
-    const double area = root_area > 0 ? half_area(n) / root_area : 0.0;
-    if (n.count != 0) {
-      s.leaf_count += 1;
-      s.reference_count += n.count;
-      s.max_leaf_size = std::max<std::uint32_t>(s.max_leaf_size, n.count);
-      s.sah_cost += area * options.intersection_cost * double(n.count);
-    } else {
-      s.sah_cost += area * options.traversal_cost;
-      depth[i + 1] = depth[n.offset] = std::uint8_t(depth[i] + 1);
-    }
-  }
-  s.average_leaf_size = s.leaf_count ? double(s.reference_count) / double(s.leaf_count) : 0;
-  s.duplication_factor = triangles ? double(s.reference_count) / double(triangles) : 0;
-  s.bytes_per_triangle =
-      triangles
-          ? double(nodes.size() * sizeof(format::BvhNode) +
-                   s.reference_count * (sizeof(format::RayTriangle) + sizeof(std::uint32_t))) /
-                double(triangles)
-          : 0;
+  // On two threads or more, the ordered SAH sum (a chain of additions) runs beside the pass
+  // over the depths and counts.
+  if (resolve_thread_count(options.threads) > 1 && nodes.size() >= 65536)
+    fork_join(
+        true, [&] { count_nodes(nodes, options, false, s); },
+        [&] { s.sah_cost = sah_cost_of(nodes, options); });
+  else
+    count_nodes(nodes, options, true, s);
+  finish_statistics(s, nodes.size(), triangles);
   return s;
 }
 
@@ -143,10 +170,16 @@ FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
   if (options.builder == BvhBuilder::kSpatial && options.presplit != BvhPresplit::kNone)
     throw std::invalid_argument("BVH: a presplit needs the binned or sweep builder");
   FlatBvh out;
-  const std::size_t references = build_flat_nodes(scene, options, out);
+  std::optional<BvhStatistics> counts;
+  const std::size_t references = build_flat_nodes(scene, options, out, counts);
   if (options.presplit != BvhPresplit::kNone) dedupe_leaf_references(out.nodes, out.prim_ids);
   if (options.leaf_triangles) copy_leaf_triangles(scene, out, options.threads);
-  out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
+  if (counts) {
+    out.stats = *counts;
+    finish_statistics(out.stats, out.nodes.size(), scene.triangles.size());
+  } else {
+    out.stats = flat_bvh_statistics(out.nodes, scene.triangles.size(), options);
+  }
   if (options.presplit != BvhPresplit::kNone) out.stats.presplit_references = references;
   return out;
 }

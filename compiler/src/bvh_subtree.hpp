@@ -73,19 +73,33 @@ class PendingRights {
     bool done = false;
   };
   void add(Entry* e) {
-    const std::lock_guard lock(mutex_);
-    list_.push_back(e);
+    {
+      const std::lock_guard lock(mutex_);
+      list_.push_back(e);
+    }
+    done_.notify_all();  // an owner waiting in reclaim may build it
   }
-  /// The owner takes `e` back: true if no thread took it, else false once it is built.
+  /// The owner takes `e` back: true if no thread took it, else false once it is built. While
+  /// another thread builds it, the owner builds listed entries (the largest first) rather than
+  /// wait idle: at the end of a build, the thread that took the last large subtree lists its
+  /// right children as it goes, and the owner takes them.
   bool reclaim(Entry* e, WorkerSlots& slots) {
     std::unique_lock lock(mutex_);
     if (const auto it = std::find(list_.begin(), list_.end(), e); it != list_.end()) {
       list_.erase(it);
       return true;
     }
-    slots.block();
-    done_.wait(lock, [&] { return e->done; });
-    slots.resume();
+    while (!e->done) {
+      if (!list_.empty()) {
+        lock.unlock();
+        build_one();
+        lock.lock();
+        continue;
+      }
+      slots.block();
+      done_.wait(lock, [&] { return e->done || !list_.empty(); });
+      slots.resume();
+    }
     return false;
   }
   /// Builds the largest listed entry on this thread; false when none is listed.
