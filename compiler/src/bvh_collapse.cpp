@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -786,11 +787,83 @@ struct IndexTreeReader {
   }
 };
 
-// Writes the arena: serially, or (threads > 1) the top levels here and the subtrees below them
-// on their own threads, each into its place. The same bytes either way.
 void size_arena(UninitializedVector<std::byte>& arena, std::size_t bytes) {
   reserve_huge(arena, bytes);
   arena.resize(bytes);
+}
+
+// The subtrees below the top levels (at 2+ threads), each written apart into its place. One
+// worker writes them in arena order from the first, each at the end of the one before plus the
+// top-level bytes between them, without sizing them first (it alone grows the arena meanwhile);
+// the others size them from the last back, until the two meet. `ends` holds the next one to
+// write (low word) and the first one sized (high word). Returns how many were written.
+template <class Node, int W>
+std::size_t write_or_size(const Collapser<W>& c, TopLevels& top, std::vector<WriteTally>& tallies,
+                          unsigned threads) {
+  const std::size_t n = top.subtrees.size();
+  std::vector<std::size_t> gap(n);  // the top-level bytes before each one (places with all empty)
+  for (std::size_t j = 0; j < n; ++j)
+    gap[j] = top.subtrees[j].at - (j > 0 ? top.subtrees[j - 1].at : 0);
+  std::atomic<std::uint64_t> ends{std::uint64_t(n) << 32};
+  std::atomic<std::size_t> written{0};
+  parallel_for(threads, threads, [&](std::size_t w) {
+    std::size_t end = 0;
+    for (std::uint64_t v = ends.load();;) {
+      const auto next = std::uint32_t(v), sized = std::uint32_t(v >> 32);
+      if (next >= sized) break;
+      if (!ends.compare_exchange_weak(v, w == 0 ? v + 1 : v - (std::uint64_t(1) << 32))) continue;
+      TopLevels::Subtree& sub = top.subtrees[w == 0 ? next : sized - 1];
+      if (w == 0) {
+        sub.at = end + gap[next];
+        end = c.template write<Node>(sub.node, sub.first, sub.past, sub.depth, sub.at,
+                                     sub.leaf_lines, tallies[next]);
+        sub.bytes = end - sub.at;
+        written.store(next + 1, std::memory_order_relaxed);
+      } else {
+        std::tie(sub.bytes, sub.leaf_lines) =
+            c.subtree_size(sub.node, sub.first, sub.past, sizeof(Node), tallies[sized - 1].scratch);
+      }
+      v = ends.load();
+    }
+  });
+  return written.load();
+}
+
+// Writes the arena at 2+ threads: the subtrees below the top levels are written apart (first by
+// write_or_size, then the rest, once placed, beside the top levels). The same bytes as one writer.
+template <class Node, int W>
+void write_apart(const Collapser<W>& c, std::uint32_t first, std::uint32_t past, unsigned threads,
+                 FlatWideBvh& out, WriteTally& tally, std::size_t& root_lines) {
+  TopLevels top;
+  c.find_top_subtrees(0, first, past, std::max<std::uint32_t>(c.info[0].refs / (16 * threads), 64),
+                      top);
+  c.place_top(0, first, past, 0, 1, sizeof(Node), top, tally.scratch);  // depths, gaps
+  std::vector<WriteTally> tallies(top.subtrees.size());
+  reserve_huge(out.arena, std::size_t(c.info[0].refs) * 80 + sizeof(Node));
+  const std::size_t written = write_or_size<Node>(c, top, tallies, threads);
+  std::vector<std::size_t> at(written);
+  for (std::size_t j = 0; j < written; ++j) at[j] = top.subtrees[j].at;
+  top.next = 0;
+  size_arena(out.arena, c.place_top(0, first, past, 0, 1, sizeof(Node), top, tally.scratch));
+  if (top.next != top.subtrees.size())  // every place reserved, in the order found
+    throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
+  for (std::size_t j = 0; j < written; ++j)
+    if (top.subtrees[j].at != at[j])
+      throw std::logic_error("collapse_bvh: a subtree written out of its place");
+  top.next = 0;
+  // The top levels are one more task beside the subtrees: their few nodes lie between the
+  // subtrees, each on a page of the arena to fault in.
+  parallel_for(top.subtrees.size() - written + 1, threads, [&](std::size_t t) {
+    if (t == 0) {
+      c.template write<Node>(0, first, past, 1, 0, root_lines, tally, &top);
+      return;
+    }
+    const auto& sub = top.subtrees[written + t - 1];
+    std::size_t lines = 0;
+    c.template write<Node>(sub.node, sub.first, sub.past, sub.depth, sub.at, lines,
+                           tallies[written + t - 1]);
+  });
+  for (const WriteTally& t : tallies) tally.add(t);
 }
 
 template <int W, class Node>
@@ -809,34 +882,7 @@ std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
                                 sizeof(Node));
     out.arena.resize(collapser.template write<Node>(0, first, past, 1, 0, root_lines, tally));
   } else {
-    TopLevels top;
-    const std::uint32_t limit =
-        std::max<std::uint32_t>(collapser.info[0].refs / (16 * threads), 64);
-    collapser.find_top_subtrees(0, first, past, limit, top);
-    std::vector<WriteTally> tallies(top.subtrees.size());
-    parallel_for(top.subtrees.size(), threads, [&](std::size_t t) {
-      auto& sub = top.subtrees[t];
-      std::tie(sub.bytes, sub.leaf_lines) =
-          collapser.subtree_size(sub.node, sub.first, sub.past, sizeof(Node), tallies[t].scratch);
-    });
-    size_arena(out.arena,
-               collapser.place_top(0, first, past, 0, 1, sizeof(Node), top, tally.scratch));
-    if (top.next != top.subtrees.size())  // every place reserved, in the order found
-      throw std::logic_error("collapse_bvh: the top levels met their subtrees out of order");
-    top.next = 0;
-    // The top levels are one more task beside the subtrees: their few nodes lie between the
-    // subtrees, each on a page of the arena to fault in.
-    parallel_for(top.subtrees.size() + 1, threads, [&](std::size_t t) {
-      std::size_t lines = 0;
-      if (t == 0) {
-        collapser.template write<Node>(0, first, past, 1, 0, root_lines, tally, &top);
-        return;
-      }
-      const auto& sub = top.subtrees[t - 1];
-      collapser.template write<Node>(sub.node, sub.first, sub.past, sub.depth, sub.at, lines,
-                                     tallies[t - 1]);
-    });
-    for (const WriteTally& t : tallies) tally.add(t);
+    write_apart<Node>(collapser, first, past, threads, out, tally, root_lines);
   }
   out.stats.node_count = tally.node_count, out.stats.leaf_count = tally.leaf_count;
   out.stats.packet_count = tally.packet_count, out.stats.max_depth = tally.max_depth;
