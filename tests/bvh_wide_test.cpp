@@ -247,6 +247,35 @@ double wide_sah(const FlatWideBvh& w, const WideCollapseOptions& c) {
 
 // The dynamic programme is optimal over the cuts of the binary tree, and the greedy expansion's
 // tree is one of them: its cost can only be lower or equal, on every mesh and cost setting.
+TEST(WideBvh, DistinctReferencesAreMarkedAndCollapseAsWhenLookedFor) {
+  const Scene scene = test::icosphere(5);
+  for (const auto& [builder, presplit] : {std::pair{BvhBuilder::kBinned, BvhPresplit::kNone},
+                                          std::pair{BvhBuilder::kSweep, BvhPresplit::kNone},
+                                          std::pair{BvhBuilder::kBinned, BvhPresplit::kEvh},
+                                          std::pair{BvhBuilder::kSpatial, BvhPresplit::kNone}}) {
+    BvhBuildOptions o;
+    o.builder = builder, o.presplit = presplit, o.leaf_triangles = false;
+    FlatBvh binary = build_bvh(scene, o);
+    std::vector<std::uint32_t> ids = binary.prim_ids;
+    std::sort(ids.begin(), ids.end());
+    const bool distinct = std::adjacent_find(ids.begin(), ids.end()) == ids.end();
+    // Marked only where the builder guarantees it, and then true.
+    EXPECT_EQ(binary.distinct_refs,
+              builder != BvhBuilder::kSpatial && presplit == BvhPresplit::kNone);
+    if (binary.distinct_refs) EXPECT_TRUE(distinct);
+    for (const unsigned threads : {1u, 2u}) {
+      WideCollapseOptions c;
+      c.threads = threads;
+      const FlatWideBvh marked = collapse_bvh(binary, 16, scene.triangles.size(), false, &scene, c);
+      FlatBvh unmarked = binary;
+      unmarked.distinct_refs = false;  // every leaf's repeats looked for
+      EXPECT_EQ(collapse_bvh(unmarked, 16, scene.triangles.size(), false, &scene, c).arena,
+                marked.arena)
+          << int(builder) << " " << int(presplit) << " " << threads;
+    }
+  }
+}
+
 TEST(WideBvh, SahCollapseCostsNoMoreThanTheGreedyCollapse) {
   std::map<std::string, Scene> scenes = test::worst_cases();
   scenes.emplace("icosphere", test::icosphere(4));

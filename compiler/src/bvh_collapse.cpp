@@ -413,6 +413,10 @@ struct Collapser {
     // A reference repeats one in the list iff its triangle is among the subtree's references
     // before it (each one's first is in the list): those ids are compared, in sequence and
     // without branches, instead of the listed references' ids.
+    if (bin.distinct_refs) {  // no repeats to look for
+      for (std::uint32_t r = first, end = r + refs(i); r < end; ++r) list.push_back(r);
+      return;
+    }
     const std::uint32_t* ids = bin.prim_ids.data();
     for (std::uint32_t r = first, end = r + refs(i); r < end; ++r) {
       bool seen = false;
@@ -540,6 +544,7 @@ struct Collapser {
   // `scratch`.
   std::uint32_t leaf_packets(std::uint32_t i, std::uint32_t first,
                              std::vector<std::uint32_t>& scratch) const {
+    if (bin.distinct_refs) return check_leaf(refs(i));
     scratch.clear();
     append_distinct_refs(i, first, scratch);
     return check_leaf(std::uint32_t(scratch.size()));

@@ -173,6 +173,9 @@ FlatBvh build_bvh(const Scene& scene, const BvhBuildOptions& options) {
   std::optional<BvhStatistics> counts;
   const std::size_t references = build_flat_nodes(scene, options, out, counts);
   if (options.presplit != BvhPresplit::kNone) dedupe_leaf_references(out.nodes, out.prim_ids);
+  // The binned and sweep builders partition one reference per triangle.
+  out.distinct_refs =
+      options.builder != BvhBuilder::kSpatial && options.presplit == BvhPresplit::kNone;
   if (options.leaf_triangles) copy_leaf_triangles(scene, out, options.threads);
   if (counts) {
     out.stats = *counts;

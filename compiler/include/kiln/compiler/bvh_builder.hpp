@@ -79,6 +79,10 @@ struct FlatBvh {
   std::vector<format::RayTriangle> triangles;
   std::vector<std::uint32_t> prim_ids;
   BvhStatistics stats;
+  /// Every entry of `prim_ids` a different triangle (no spatial splits, no presplit): the
+  /// collapse then takes a leaf's references as they are, without looking for repeats. False
+  /// (the safe default) where that is not known.
+  bool distinct_refs = false;
 };
 
 // The SBVH builder (bvh_build.cpp) over every triangle of the scene: the nodes in the flat
