@@ -262,7 +262,9 @@ TEST(WideBvh, DistinctReferencesAreMarkedAndCollapseAsWhenLookedFor) {
     // Marked only where the builder guarantees it, and then true.
     EXPECT_EQ(binary.distinct_refs,
               builder != BvhBuilder::kSpatial && presplit == BvhPresplit::kNone);
-    if (binary.distinct_refs) EXPECT_TRUE(distinct);
+    if (binary.distinct_refs) {
+      EXPECT_TRUE(distinct);
+    }
     for (const unsigned threads : {1u, 2u}) {
       WideCollapseOptions c;
       c.threads = threads;
