@@ -147,11 +147,19 @@ struct CollapseProgramme {
   struct PendingRow {
     std::uint32_t node, slots;
     Row cost;
+    // With `sizes`: over 1..W slots (as `collect` takes them), the leaf packets of the slots
+    // (low 16 bits: at most W * slot_packets) plus the arena bytes of the interior slots'
+    // subtrees << 16, so that one addition sums both; constant from `slots` on.
+    std::array<std::uint64_t, W> size;
     PendingRow() {}  // filled where made (no zeroing first)
   };
   using Rows = std::vector<PendingRow>;  // pending rows, children before their parent
   CollapseNode<W>* info;                 // the collapser's, per node
   const WideCollapseOptions& o;
+  // Unless null, each interior node's subtree as `write` lays it out from there (nodes of
+  // `node_size` bytes, leaves' references distinct): its bytes << 16 | its own leaf lines.
+  std::uint64_t* sizes = nullptr;
+  std::size_t node_size = 0;
 
   CollapseProgramme(CollapseNode<W>* nodes, const WideCollapseOptions& opt) : info(nodes), o(opt) {}
 
@@ -165,6 +173,7 @@ struct CollapseProgramme {
       PendingRow& row = rows.emplace_back();
       row.node = i, row.slots = 1;
       row.cost.fill(leaf);
+      if (sizes) row.size.fill(slot_packets(refs));
       p[0] = 1;
       std::memset(p + 1, 0, W - 1);
       info[i].cost1 = leaf;
@@ -199,6 +208,7 @@ struct CollapseProgramme {
     }
     std::fill(rr.cost.begin() + slots, rr.cost.end(), c);
     std::memset(p + slots, 0, std::size_t(W - slots));
+    if (sizes) carry_sizes(i, refs, slots, lr, rr);
     rr.node = i, rr.slots = std::uint32_t(slots);
     rows.pop_back();
   }
@@ -224,6 +234,38 @@ struct CollapseProgramme {
   }
 
   bool is_leaf(std::uint32_t i) const { return info[i].pick[0] == 1; }
+
+  // Interior node i's size (into `sizes`) and its row's sizes over 1..W slots, from its
+  // children's rows `lr` (left) and `rr` (right, overwritten), its picks final: the sums
+  // `subtree_size` would count, by the same picks.
+  void carry_sizes(std::uint32_t i, std::uint32_t refs, int slots, const PendingRow& lr,
+                   PendingRow& rr) {
+    const std::uint8_t* p = info[i].pick;
+    const int split = info[i].split;
+    const std::uint64_t wide = lr.size[split - 1] + rr.size[W - split - 1];
+    const std::uint64_t block =
+        to_line(node_size + (wide & 0xffff) * sizeof(format::BvhTrianglePacket));
+    const std::uint64_t bytes = block + (wide >> 16);
+    sizes[i] = bytes << 16 | (block - node_size) / format::kBvhArenaLine;
+    std::array<std::uint64_t, W> size;
+    size[0] = p[0] == 1 ? slot_packets(refs) : bytes << 16;
+    for (int k = 2; k <= slots; ++k) {
+      const int left = p[k - 1];
+      size[k - 1] = left == 0 ? size[k - 2] : lr.size[left - 1] + rr.size[k - left - 1];
+    }
+    // The same from `slots` on (picks 0 there); selects over all W, not a copy of `slots`.
+    for (int k = 0; k < W; ++k) rr.size[k] = k < slots ? size[k] : size[slots - 1];
+  }
+
+  static std::size_t to_line(std::size_t bytes) {
+    return (bytes + format::kBvhArenaLine - 1) / format::kBvhArenaLine * format::kBvhArenaLine;
+  }
+
+  // A leaf slot's packets, capped one past the format's limit (such a leaf is refused when
+  // written, before its node's bytes): W of them fit the 16 bits they are summed in.
+  static std::uint64_t slot_packets(std::uint32_t refs) {
+    return std::min(packets_of(refs), format::kBvhMaxLeafPackets + 1);
+  }
 
   // The slots subtree i (whose first reference is `first`) takes when given at most k.
   void collect(const FlatBvh& bin, std::uint32_t i, std::uint32_t first, std::uint32_t past, int k,
@@ -252,8 +294,12 @@ struct Collapser {
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
   const bool occlusion;                           // kOcclusion: triangle areas wanted
   UninitializedVector<double> ref_area;  // each reference's triangle's (kOcclusion, no copies)
+  // Per interior node, its subtree's arena bytes << 16 | its own leaf lines, counted by the
+  // programme in the sweep (2+ threads, distinct references); empty otherwise.
+  UninitializedVector<std::uint64_t> sizes;
 
-  Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt)
+  Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt,
+            std::size_t node_size)
       : bin(b),
         scene(s),
         out(o),
@@ -263,6 +309,10 @@ struct Collapser {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
     if (!options.greedy) programme.emplace(info.data(), options);
+    if (programme && bin.distinct_refs && resolve_thread_count(options.threads) > 1) {
+      sizes = UninitializedVector<std::uint64_t>(bin.nodes.size());
+      programme->sizes = sizes.data(), programme->node_size = node_size;
+    }
     if (occlusion && bin.triangles.empty())
       ref_area = reference_areas(bin, *scene, options.threads);
     sweep(options.threads);
@@ -842,10 +892,16 @@ void write_apart(const Collapser<W>& c, std::uint32_t first, std::uint32_t past,
   TopLevels top;
   c.find_top_subtrees(0, first, past, std::max<std::uint32_t>(c.info[0].refs / (16 * threads), 64),
                       top);
-  c.place_top(0, first, past, 0, 1, sizeof(Node), top, tally.scratch);  // depths, gaps
   std::vector<WriteTally> tallies(top.subtrees.size());
-  reserve_huge(out.arena, std::size_t(c.info[0].refs) * 80 + sizeof(Node));
-  const std::size_t written = write_or_size<Node>(c, top, tallies, threads);
+  std::size_t written = 0;
+  if (!c.sizes.empty()) {  // counted in the sweep
+    for (TopLevels::Subtree& sub : top.subtrees)
+      sub.bytes = c.sizes[sub.node] >> 16, sub.leaf_lines = c.sizes[sub.node] & 0xffff;
+  } else {
+    c.place_top(0, first, past, 0, 1, sizeof(Node), top, tally.scratch);  // depths, gaps
+    reserve_huge(out.arena, std::size_t(c.info[0].refs) * 80 + sizeof(Node));
+    written = write_or_size<Node>(c, top, tallies, threads);
+  }
   std::vector<std::size_t> at(written);
   for (std::size_t j = 0; j < written; ++j) at[j] = top.subtrees[j].at;
   top.next = 0;
@@ -865,8 +921,10 @@ void write_apart(const Collapser<W>& c, std::uint32_t first, std::uint32_t past,
     }
     const auto& sub = top.subtrees[written + t - 1];
     std::size_t lines = 0;
-    c.template write<Node>(sub.node, sub.first, sub.past, sub.depth, sub.at, lines,
-                           tallies[written + t - 1]);
+    const std::size_t end = c.template write<Node>(sub.node, sub.first, sub.past, sub.depth, sub.at,
+                                                   lines, tallies[written + t - 1]);
+    if (end != sub.at + sub.bytes || lines != sub.leaf_lines)  // sizes counted in the sweep
+      throw std::logic_error("collapse_bvh: a subtree written apart is not the size counted");
   });
   for (const WriteTally& t : tallies) tally.add(t);
 }
@@ -874,7 +932,7 @@ void write_apart(const Collapser<W>& c, std::uint32_t first, std::uint32_t past,
 template <int W, class Node>
 std::uint64_t collapse_into(const FlatBvh& binary, const Scene* scene,
                             const WideCollapseOptions& options, FlatWideBvh& out) {
-  const Collapser<W> collapser(binary, scene, out, options);
+  const Collapser<W> collapser(binary, scene, out, options, sizeof(Node));
   const unsigned threads = resolve_thread_count(options.threads);
   WriteTally tally;
   std::size_t root_lines = 0;
