@@ -105,18 +105,14 @@ std::size_t build_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
 
 namespace {
 
-// The counts and depths of the nodes, and (with `sah`) the SAH cost: the nodes lie in pre-order
-// (first child adjacent), so one pass in index order visits them as a depth-first walk would
-// (and sums the cost in that order); a node passes its depth on.
-void count_nodes(std::span<const format::BvhNode> nodes, const BvhBuildOptions& options, bool sah,
-                 BvhStatistics& s) {
-  const double root_area = nodes.empty() ? 0.0 : bvh_node_half_area(nodes[0]);
+// The counts and depths of the nodes: they lie in pre-order (first child adjacent), so one pass
+// in index order visits them as a depth-first walk would; a node passes its depth on.
+void count_nodes(std::span<const format::BvhNode> nodes, BvhStatistics& s) {
   std::vector<std::uint8_t> depth(nodes.size());
   if (!nodes.empty()) depth[0] = 1;
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const format::BvhNode& n = nodes[i];
     s.max_depth = std::max<std::uint32_t>(s.max_depth, depth[i]);
-    if (sah) s.sah_cost += bvh_sah_term(n, n.count != 0, root_area, options);
     if (n.count != 0) {
       s.leaf_count += 1;
       s.reference_count += n.count;
@@ -127,7 +123,7 @@ void count_nodes(std::span<const format::BvhNode> nodes, const BvhBuildOptions& 
   }
 }
 
-// The SAH cost alone, summed in index order (the same doubles in the same order as count_nodes).
+// The SAH cost, summed in index order (a depth-first walk's order, as the binned build counts it).
 double sah_cost_of(std::span<const format::BvhNode> nodes, const BvhBuildOptions& options) {
   const double root_area = nodes.empty() ? 0.0 : bvh_node_half_area(nodes[0]);
   double sum = 0;
@@ -153,14 +149,11 @@ BvhStatistics flat_bvh_statistics(std::span<const format::BvhNode> nodes, std::s
                                   const BvhBuildOptions& options) {
   BvhStatistics s;
   s.node_count = nodes.size();
-  // On two threads or more, the ordered SAH sum (a chain of additions) runs beside the pass
-  // over the depths and counts.
-  if (resolve_thread_count(options.threads) > 1 && nodes.size() >= 65536)
-    fork_join(
-        true, [&] { count_nodes(nodes, options, false, s); },
-        [&] { s.sah_cost = sah_cost_of(nodes, options); });
-  else
-    count_nodes(nodes, options, true, s);
+  // The ordered SAH sum (a chain of additions) runs beside the pass over the depths and counts
+  // on two threads or more.
+  const bool apart = resolve_thread_count(options.threads) > 1 && nodes.size() >= 65536;
+  fork_join(
+      apart, [&] { count_nodes(nodes, s); }, [&] { s.sah_cost = sah_cost_of(nodes, options); });
   finish_statistics(s, nodes.size(), triangles);
   return s;
 }

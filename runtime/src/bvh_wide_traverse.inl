@@ -459,9 +459,6 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
       if constexpr (kCount) cost->nodes += 1;
       const unsigned mask = test_children<Node, V>(n, box, tmin, V::set1(hit.t), dist);
       if (mask == 0) goto pop;
-        // Any hit: only the child visited next. The others wait on the stack until its whole
-        // subtree is done, and are not visited at all when the ray is blocked in it.
-        // (16-wide with ranks: three or more children are prefetched as they are placed.)
 #ifdef KILN_WIDE_RANKS_AVX512
       const bool prefetch = W != 16 || e.depth >= kPrefetchDepth;
       const std::uint32_t below = e.depth + 1;
@@ -469,6 +466,9 @@ KILN_SIMD Hit traverse_wide(const BvhWideView& view, const Ray& ray, Cost* cost)
       constexpr bool prefetch = true;
       constexpr std::uint32_t below = 0;
 #endif
+      // Any hit: only the child visited next. The others wait on the stack until its whole
+      // subtree is done, and are not visited at all when the ray is blocked in it.
+      // (16-wide with ranks: three or more children are prefetched as they are placed.)
       if constexpr (!kAny)
         if ((!(kRanks16 && W == 16) || __builtin_popcount(mask) < 3) && prefetch)
           prefetch_children(n, mask, arena);
