@@ -102,6 +102,24 @@ TEST(BvhBinnedBuild, RootSplitIsTheNaiveBinnedSahOptimum) {
   }
 }
 
+TEST(BvhBinnedBuild, SmallNodesBinIntoFewerBins) {
+  EXPECT_EQ(object_bin_count(5, 32), 4u);
+  EXPECT_EQ(object_bin_count(300, 32), 19u);
+  EXPECT_EQ(object_bin_count(560, 32), 32u);
+  EXPECT_EQ(object_bin_count(300, 7), 7u);
+  EXPECT_EQ(object_bin_count(10, 2), 2u);
+  // 300 references: the root bins into 4 + 300 / 20 = 19 bins, not 32 (or fewer if asked).
+  const Scene scene = random_scene(300, 5);
+  ASSERT_NE(naive_root_left(scene, 19), naive_root_left(scene, 32));  // the count shows
+  for (const std::uint32_t bins : {32u, 7u}) {
+    BvhBuildOptions options;
+    options.bins = bins;
+    const FlatBvh bvh = build_bvh(scene, options);
+    ASSERT_EQ(bvh.nodes[0].count, 0) << bins;
+    EXPECT_EQ(built_root_left(bvh), naive_root_left(scene, std::min(bins, 19u))) << bins;
+  }
+}
+
 TEST(BvhBinnedBuild, SameTreeOnAnyThreadCountWithParallelChunkBinning) {
   // Above 2^18 references the top nodes bin in parallel chunks merged in order.
   const Scene scene = random_scene(270000, 11);

@@ -3,7 +3,9 @@
 // near the root bin in parallel chunks (horizontal); below, subtrees run as tasks (vertical).
 // References are 32-byte records of two aligned vectors (bvh_build_simd.hpp): one SSE2
 // computation gives a reference's centroid and its bin on all three axes, and a bin's box grows
-// by two vector min/max, as in Embree's binning. The SAH evaluation visits only the occupied
+// by two vector min/max, as in Embree's binning. A node of n references bins into
+// min(bins, 4 + n/20) bins (object_bin_count, Embree's count), so the small nodes that make up
+// most of the tree bin and sweep a few. The SAH evaluation visits only the occupied
 // bins. Every float operation is the one the scalar builder did, so the trees (splits, boxes,
 // SAH costs) are the scalar builder's; only the order of references inside a leaf follows the
 // branchless partition (and with it which of -0 and +0 a bound keeps where both occur). Peak
@@ -573,7 +575,7 @@ std::optional<std::pair<Task, Task>> split_task(const Context& ctx, const Task& 
   const float area = t.box.half_area();
   if (n == 2 && area > 0.0f)
     if (const int a = first_spread_axis(centroids); a >= 0) return split_pair(ctx, t, a, axis);
-  const BinMap map(centroids, std::max<std::uint32_t>(o.bins, 2));
+  const BinMap map(centroids, object_bin_count(n, o.bins));
   Split s;
   if (area > 0.0f) {
     const unsigned extra = n >= kParallelBinning ? ctx.slots.take_all() : 0u;

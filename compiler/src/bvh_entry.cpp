@@ -26,8 +26,8 @@ std::string printf_like(const char* format, unsigned width, unsigned long long n
 // The options both kinds share, under the same global flags.
 std::vector<StructureOption> common_options() {
   return {
-      {"bins", "--bvh-bins", "32", "SAH bins (binned builder, SBVH spatial splits)", false,
-       parse_uint_in(2, 1024)},
+      {"bins", "--bvh-bins", "32", "SAH bins (binned: at most, 4 + n/20 for n refs; SBVH spatial)",
+       false, parse_uint_in(2, 1024)},
       {"max-leaf", "--bvh-max-leaf", "8", "Leaves larger than this are always split", false,
        parse_uint_in(1, 255)},
       {"traversal-cost", "--bvh-traversal-cost", "1", "SAH node cost", false,

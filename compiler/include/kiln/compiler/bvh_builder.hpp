@@ -2,6 +2,8 @@
 // mapped flat layout (formats/bvh.hpp), and the statistics they report.
 #pragma once
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -35,7 +37,7 @@ inline constexpr double kEvhDefaultThreshold = 1.0 / 16384;
 
 struct BvhBuildOptions {
   BvhBuilder builder = BvhBuilder::kBinned;
-  std::uint32_t bins = 32;          // binned SAH and SBVH spatial bins (2-1024)
+  std::uint32_t bins = 32;          // SAH bins (2-1024): binned, at most (object_bin_count); SBVH
   float traversal_cost = 1.0f;      // SAH cost of visiting a node
   float intersection_cost = 1.0f;   // SAH cost of one triangle test
   std::uint32_t max_leaf_size = 8;  // larger leaves are split even when the SAH disagrees
@@ -59,6 +61,14 @@ struct BvhBuildOptions {
   double evh_threshold = kEvhDefaultThreshold;  // fraction of the scene box's volume
   std::uint32_t evh_max_refs = 8;               // references per triangle at most (>= 1)
 };
+
+/// The object bins the binned builder gives a node of `refs` references: min(bins, 4 + refs / 20),
+/// at least 2, the count Embree's binned builders use. Small nodes, most of the tree, bin and
+/// sweep a few bins instead of `bins` (the SAH cost of the trees within 1 %, docs/BENCHMARKS.md).
+inline std::uint32_t object_bin_count(std::size_t refs, std::uint32_t bins) {
+  const std::size_t k = std::min<std::size_t>(bins, 4 + refs / 20);
+  return std::uint32_t(std::max<std::size_t>(k, 2));
+}
 
 // A reference to a triangle: its (possibly clipped) box and original triangle id.
 struct PrimRef {
