@@ -4,7 +4,7 @@
 // so that load from other processes on a shared machine hits both sides alike.
 //
 // Usage: kiln_bench_bvh_build [--rounds=N] [--only=binned|sbvh] [--sbvh-alpha=X]
-//                             [--leaf-packet=N] [--width=4|8|16] MESH...
+//                             [--leaf-packet=N] [--width=4|8|16] [--each] MESH...
 //   MESH  a file import_scene reads, or [LABEL=]@DIR[/PATTERN] (bench_args.hpp)
 //
 // One thread is timed by the process's CPU time (CLOCK_PROCESS_CPUTIME_ID: Embree may build on a
@@ -221,7 +221,8 @@ struct Mesh {
   std::map<std::string, Row> rows[2];  // [0: one thread, 1: all threads]
 };
 
-std::string g_only;  // --only=binned|sbvh: one builder and its Embree counterpart
+std::string g_only;   // --only=binned|sbvh: one builder and its Embree counterpart
+bool g_each = false;  // --each: every round's times on stderr, as they come
 
 void run_rounds(Mesh& m, int rounds, unsigned threads, int t) {
 #ifdef KILN_BENCH_EMBREE
@@ -249,6 +250,10 @@ void run_rounds(Mesh& m, int rounds, unsigned threads, int t) {
       e.peak.push_back(es.peak_bytes);
       rows[name].ratio.push_back(s.seconds / es.seconds);
       rows[name].ratio_total.push_back((s.seconds + rows[name].kiln.collapse_seconds) / es.seconds);
+      if (g_each)
+        std::fprintf(stderr, "%s %uT round %d: %s %.4f + collapse %.4f s, %s %.4f s\n",
+                     m.label.c_str(), threads, r + 1, name, s.seconds,
+                     rows[name].kiln.collapse_seconds, ename, es.seconds);
 #endif
     }
   }
@@ -311,6 +316,10 @@ int main(int argc, char** argv) {
       }
       continue;
     }
+    if (arg == "--each") {
+      g_each = true;
+      continue;
+    }
     if (arg.starts_with("--only=")) {
       g_only = arg.substr(7);
       continue;
@@ -328,7 +337,7 @@ int main(int argc, char** argv) {
     meshes.push_back(std::move(m));
   }
   if (meshes.empty() || rounds < 1) {
-    std::fprintf(stderr, "usage: kiln_bench_bvh_build [--rounds=N] MESH...\n");
+    std::fprintf(stderr, "usage: kiln_bench_bvh_build [--rounds=N] [--each] MESH...\n");
     return 1;
   }
   const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
