@@ -4,7 +4,8 @@
 // so that load from other processes on a shared machine hits both sides alike.
 //
 // Usage: kiln_bench_bvh_build [--rounds=N] [--only=binned|sbvh] [--sbvh-alpha=X]
-//                             [--leaf-packet=N] [--width=4|8|16] [--each] MESH...
+//                             [--leaf-packet=N] [--width=4|8|16] [--each] [--keep-memory]
+//                             MESH...
 //   MESH  a file import_scene reads, or [LABEL=]@DIR[/PATTERN] (bench_args.hpp)
 //
 // One thread is timed by the process's CPU time (CLOCK_PROCESS_CPUTIME_ID: Embree may build on a
@@ -18,6 +19,7 @@
 // rounds (1T CPU, all threads wall). Peak memory: the largest net heap growth during the build
 // (Kiln: operator new, counted here; Embree: its memory monitor), per input triangle.
 #include <malloc.h>
+#include <sys/resource.h>
 #include <time.h>
 
 #include <algorithm>
@@ -25,6 +27,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <map>
 #include <new>
 #include <string>
@@ -103,15 +106,23 @@ double median(std::vector<double> v) {
 
 struct Sample {
   double seconds = 0, peak_bytes = 0;
+  double system_seconds = 0;  // the kernel's share (page faults on fresh memory), for --each
 };
+
+// The process's system CPU time (the kernel's, on its behalf: mostly page faults here).
+double system_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_stime.tv_sec) + 1e-6 * double(u.ru_stime.tv_usec);
+}
 
 // One timed build; `threads` 1 -> process CPU time, otherwise wall time.
 template <class Build>
 Sample timed(unsigned threads, Build&& build) {
-  const double c0 = cpu_seconds(), w0 = wall_seconds();
+  const double c0 = cpu_seconds(), w0 = wall_seconds(), k0 = system_seconds();
   const double peak = build();
   const double s = threads == 1 ? cpu_seconds() - c0 : wall_seconds() - w0;
-  return {s, peak};
+  return {s, peak, system_seconds() - k0};
 }
 
 float g_sbvh_alpha = kiln::BvhBuildOptions{}.sbvh_alpha;  // --sbvh-alpha=X
@@ -124,6 +135,7 @@ std::uint32_t g_width = 16;
 struct KilnResult {
   kiln::BvhStatistics stats;
   double collapse_seconds = 0;
+  double collapse_system_seconds = 0;
   double wide_sah = 0;  // the wide tree's SAH cost (the collapse's model)
 };
 
@@ -144,13 +156,14 @@ KilnResult kiln_build(const kiln::Scene& scene, kiln::BvhBuilder builder, unsign
     return double(g_heap_peak.load() - base);
   });
   out.stats = flat.stats;
-  const double c0 = threads == 1 ? cpu_seconds() : wall_seconds();
+  const double c0 = threads == 1 ? cpu_seconds() : wall_seconds(), k0 = system_seconds();
   kiln::WideCollapseOptions c;
   c.threads = threads;
   c.index_tree = false;  // as kiln build: the arena alone
   const kiln::FlatWideBvh wide =
       kiln::collapse_bvh(flat, g_width, scene.triangles.size(), false, &scene, c);
   out.collapse_seconds = (threads == 1 ? cpu_seconds() : wall_seconds()) - c0;
+  out.collapse_system_seconds = system_seconds() - k0;
   out.wide_sah = wide.stats.sah_cost;
   return out;
 }
@@ -251,9 +264,12 @@ void run_rounds(Mesh& m, int rounds, unsigned threads, int t) {
       rows[name].ratio.push_back(s.seconds / es.seconds);
       rows[name].ratio_total.push_back((s.seconds + rows[name].kiln.collapse_seconds) / es.seconds);
       if (g_each)
-        std::fprintf(stderr, "%s %uT round %d: %s %.4f + collapse %.4f s, %s %.4f s\n",
-                     m.label.c_str(), threads, r + 1, name, s.seconds,
-                     rows[name].kiln.collapse_seconds, ename, es.seconds);
+        std::fprintf(stderr,
+                     "%s %uT round %d: %s %.4f (system %.4f) + collapse %.4f (system %.4f) s, "
+                     "%s %.4f (system %.4f) s\n",
+                     m.label.c_str(), threads, r + 1, name, s.seconds, s.system_seconds,
+                     rows[name].kiln.collapse_seconds, rows[name].kiln.collapse_system_seconds,
+                     ename, es.seconds, es.system_seconds);
 #endif
     }
   }
@@ -296,6 +312,7 @@ void report(const Mesh& m, unsigned hw) {
 
 int main(int argc, char** argv) {
   int rounds = 5;
+  bool keep_memory = false;
   std::vector<Mesh> meshes;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -314,6 +331,10 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "--width: 4, 8 or 16\n");
         return 1;
       }
+      continue;
+    }
+    if (arg == "--keep-memory") {
+      keep_memory = true;
       continue;
     }
     if (arg == "--each") {
@@ -337,8 +358,17 @@ int main(int argc, char** argv) {
     meshes.push_back(std::move(m));
   }
   if (meshes.empty() || rounds < 1) {
-    std::fprintf(stderr, "usage: kiln_bench_bvh_build [--rounds=N] [--each] MESH...\n");
+    std::fprintf(stderr,
+                 "usage: kiln_bench_bvh_build [--rounds=N] [--each] [--keep-memory] MESH...\n");
     return 1;
+  }
+  if (keep_memory) {
+    // Opt-in, for diagnosis only: freed blocks stay in the process between rounds (by default
+    // glibc maps blocks over its dynamic threshold anew and trims the heap's top, so a round
+    // touches fresh pages again). It favours Kiln: Embree maps its large blocks itself, fresh
+    // every build either way.
+    mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest
+    mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
   }
   const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
   std::printf("## kiln_bench_bvh_build: %d rounds, medians; 1T = process CPU time, %uT = wall\n",
