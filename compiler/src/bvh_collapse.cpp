@@ -200,11 +200,13 @@ struct CollapseProgramme {
     p[0] = as_leaf ? 1 : 0;
     info[i].cost1 = c;
     rr.cost[0] = c;
+    // Arithmetic selects (std::min: spread[k] < c, the same as !fewer), so that the compiler does
+    // not branch on this data-dependent choice around the stores.
     for (int k = 2; k <= slots; ++k) {
       const bool fewer = c <= spread[k];  // as good with fewer slots
-      c = fewer ? c : spread[k];
+      c = std::min(c, spread[k]);
       rr.cost[k - 1] = c;
-      p[k - 1] = fewer ? std::uint8_t(0) : p[k - 1];
+      p[k - 1] = std::uint8_t(p[k - 1] & (int(fewer) - 1));
     }
     std::fill(rr.cost.begin() + slots, rr.cost.end(), c);
     std::memset(p + slots, 0, std::size_t(W - slots));
@@ -222,14 +224,15 @@ struct CollapseProgramme {
   static double spread_over(const Row& l, const Row& r, int k, int left_slots,
                             std::uint8_t& best_left) {
     double best = std::numeric_limits<double>::infinity();
-    best_left = 0;
+    int pick = 0;  // in a register, not `best_left` (a store the compiler would branch around)
     const int last = std::min(k - 1, left_slots);
     for (int left = 1; left <= last; ++left) {
       const double s = l[left - 1] + r[k - left - 1];
       const bool better = s < best;
       best = better ? s : best;
-      best_left = better ? std::uint8_t(left) : best_left;
+      pick = better ? left : pick;
     }
+    best_left = std::uint8_t(pick);
     return best;
   }
 
