@@ -620,7 +620,10 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
   const auto children = split_task(ctx, t, axis);
   NodeTally* const tally = &nodes == ctx.tally.nodes ? &ctx.tally : nullptr;
   if (tally) tally->count(nodes[index], !children, ctx.o);
-  if (!children) return ctx.tally.leaf_depth(t.depth + 1);  // the root's depth is 1
+  if (!children) {
+    if (ctx.tally.nodes) ctx.tally.leaf_depth(t.depth + 1);  // counting (the root's depth is 1)
+    return;
+  }
   const auto& [left, right] = *children;
   const std::size_t right_size = right.end - right.begin;
   const bool may_fork = left.end - left.begin >= kParallelSubtree && right_size >= kParallelSubtree;

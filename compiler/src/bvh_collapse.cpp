@@ -760,15 +760,23 @@ struct Collapser {
                                                    std::uint32_t past, std::size_t node_size,
                                                    std::vector<std::uint32_t>& scratch) const {
     const Slots<W> kids = gather(i, first, past);
-    std::size_t block = node_size, below = 0;
-    for (int k = 0; k < kids.size; ++k) {
+    const std::size_t block = to_line(leaf_block(kids, node_size, scratch));
+    std::size_t below = 0;
+    for (int k = 0; k < kids.size; ++k)
+      if (!is_leaf(kids.node[k]))
+        below += subtree_size(kids.node[k], kids.first[k], kids.past[k], node_size, scratch).first;
+    return {block + below, (block - node_size) / format::kBvhArenaLine};
+  }
+
+  // A node's bytes with its leaf slots' packets (before the line padding).
+  std::size_t leaf_block(const Slots<W>& kids, std::size_t node_size,
+                         std::vector<std::uint32_t>& scratch) const {
+    std::size_t block = node_size;
+    for (int k = 0; k < kids.size; ++k)
       if (is_leaf(kids.node[k]))
         block +=
             leaf_packets(kids.node[k], kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
-      else
-        below += subtree_size(kids.node[k], kids.first[k], kids.past[k], node_size, scratch).first;
-    }
-    return {to_line(block) + below, (to_line(block) - node_size) / format::kBvhArenaLine};
+    return block;
   }
 
   // The places (and depths) of the subtrees in `top` (sizes counted), in the order `write` meets
@@ -778,12 +786,7 @@ struct Collapser {
                         std::vector<std::uint32_t>& scratch) const {
     Slots<W> kids = gather(i, first, past);
     order_slots(kids);
-    std::size_t block = node_size;
-    for (int k = 0; k < kids.size; ++k)
-      if (is_leaf(kids.node[k]))
-        block +=
-            leaf_packets(kids.node[k], kids.first[k], scratch) * sizeof(format::BvhTrianglePacket);
-    std::size_t end = at + to_line(block);
+    std::size_t end = at + to_line(leaf_block(kids, node_size, scratch));
     for (int k = 0; k < kids.size; ++k) {
       const std::uint32_t kid = kids.node[k];
       if (is_leaf(kid)) continue;
