@@ -197,22 +197,22 @@ void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, 
     // The right subtree apart on a new thread, the left one in place (as in turn), then the
     // right one appended: the same nodes either way.
     FlatOut r;
-    std::exception_ptr error;
-    {
-      std::jthread worker([&] {
-        try {
-          right_tree(r);
-        } catch (...) {
-          error = std::current_exception();
-        }
+    auto build_right = [&] {
+      try {
+        right_tree(r);
+      } catch (...) {
         ctx.slots.give();
-      });
-      left_tree(out);  // if it throws, the jthread joins on unwinding
+        throw;
+      }
+      ctx.slots.give();
+    };
+    {
+      ForkedTask worker(build_right);
+      left_tree(out);  // if it throws, the task joins on unwinding
       ctx.slots.block();
-      worker.join();
+      worker.join();  // rethrows the right subtree's exception
       ctx.slots.resume();
     }
-    if (error) std::rethrow_exception(error);
     second = std::uint32_t(out.nodes.size());
     append_subtree(out, r);
   } else {

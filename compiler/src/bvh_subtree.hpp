@@ -8,7 +8,6 @@
 #include <exception>
 #include <functional>
 #include <mutex>
-#include <thread>
 #include <vector>
 
 #include "kiln/formats/bvh.hpp"
@@ -157,24 +156,24 @@ void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child&
   if (may_fork && slots.try_take()) {
     std::vector<format::BvhNode> r;
     r.reserve(reserve);
-    std::exception_ptr error;
-    {
-      std::jthread worker([&] {
-        try {
-          emit(right, r);
-          while (pending && pending->build_one()) {
-          }
-        } catch (...) {
-          error = std::current_exception();
+    auto build_right = [&] {
+      try {
+        emit(right, r);
+        while (pending && pending->build_one()) {
         }
+      } catch (...) {
         slots.give();
-      });
-      emit(left, nodes);  // if it throws, the jthread joins on unwinding
+        throw;
+      }
+      slots.give();
+    };
+    {
+      ForkedTask worker(build_right);
+      emit(left, nodes);  // if it throws, the task joins on unwinding
       slots.block();
-      worker.join();
+      worker.join();  // rethrows the right subtree's exception
       slots.resume();
     }
-    if (error) std::rethrow_exception(error);
     second = std::uint32_t(nodes.size());
     append_bvh_subtree(nodes, r);
   } else if (may_fork && pending) {
