@@ -9,6 +9,9 @@
 #include <thread>
 #include <vector>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include "kiln/runtime/parallel.hpp"
 
 namespace kiln {
@@ -117,6 +120,24 @@ TEST(Parallel, SeveralSubmittingThreadsAtOnce) {
     });
   for (auto& t : callers) t.join();
   EXPECT_EQ(total.load(), 4u * 20u * (999u * 1000u / 2u + 64u * 63u / 2u));
+}
+
+TEST(Parallel, AForkedChildProcessGetsWorkingThreads) {
+  // As Python's multiprocessing does: fork after the workers started. The child has none of them
+  // (and maybe a mutex one held): it must still run loops and forks, on threads of its own.
+  parallel_for(100, 2, [](std::size_t) {});
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    std::atomic<std::uint64_t> sum{0};
+    parallel_for(1000, 2, [&](std::size_t i) { sum += i; });
+    const bool ok = sum.load() == 999u * 1000u / 2u && tree_sum(0, 8) == 256u * 255u / 2u;
+    _exit(ok ? 0 : 1);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
 }
 
 }  // namespace

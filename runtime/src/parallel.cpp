@@ -10,6 +10,10 @@
 #include <thread>
 #include <vector>
 
+#if defined(__unix__)
+#include <pthread.h>
+#endif
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 #endif
@@ -36,10 +40,7 @@ constexpr auto kSpin = std::chrono::microseconds(200);
 /// and runs it itself, and no thread ever holds a pointer to a task that has finished.
 class TaskPool {
  public:
-  static TaskPool& get() {
-    static TaskPool pool;
-    return pool;
-  }
+  static TaskPool& get();
 
   void push(ForkedTask* t) {
     {
@@ -101,25 +102,14 @@ class TaskPool {
     }
   }
 
-  ~TaskPool() {
-    {
-      const std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    wake_.notify_all();
-    workers_.clear();  // joins
-  }
-
  private:
-  TaskPool() = default;
-
   // Under the mutex, on the first task: one worker per hardware thread but the submitter's.
   void start_workers() {
     if (started_) return;
     started_ = true;
     const unsigned n = resolve_thread_count(0);
     for (unsigned i = 1; i < n; ++i)
-      workers_.emplace_back([this] { work_until([this] { return stop_.load(); }); });
+      workers_.emplace_back([this] { work_until([] { return false; }); });
   }
 
   std::mutex mutex_;
@@ -127,10 +117,29 @@ class TaskPool {
   std::deque<ForkedTask*> queue_;
   std::atomic<std::size_t> queued_{0};
   std::atomic<int> sleepers_{0};
-  std::atomic<bool> stop_{false};
   bool started_ = false;
   std::vector<std::jthread> workers_;
 };
+
+// The pool lives as long as the process (its workers are never joined: they sleep when idle, and
+// no task can be running at exit, since every task is joined before its caller returns). A child
+// made by fork() has none of the parent's threads and maybe a mutex locked by one of them: it
+// gets a fresh pool, and the parent's is left as it is.
+namespace {
+std::atomic<TaskPool*> g_pool{nullptr};
+}  // namespace
+
+TaskPool& TaskPool::get() {
+  if (TaskPool* pool = g_pool.load(std::memory_order_acquire)) return *pool;
+  static std::once_flag once;
+  std::call_once(once, [] {
+#if defined(__unix__)
+    pthread_atfork(nullptr, nullptr, [] { g_pool.store(new TaskPool); });
+#endif
+    g_pool.store(new TaskPool);
+  });
+  return *g_pool.load(std::memory_order_acquire);
+}
 
 void ForkedTask::submit() {
   TaskPool::get().push(this);
