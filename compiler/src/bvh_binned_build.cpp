@@ -185,6 +185,7 @@ struct Context {
   WorkerSlots& slots;      // threads free for a subtree or a parallel binning
   PendingRights& pending;  // right children a thread with nothing to do may build
   NodeTally& tally;
+  std::span<std::uint32_t> prim_ids;  // empty, or filled leaf by leaf
 };
 
 void bin_range(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
@@ -622,6 +623,8 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
   if (tally) tally->count(nodes[index], !children, ctx.o);
   if (!children) {
     if (ctx.tally.nodes) ctx.tally.leaf_depth(t.depth + 1);  // counting (the root's depth is 1)
+    if (!ctx.prim_ids.empty())
+      for (std::size_t i = t.begin; i < t.end; ++i) ctx.prim_ids[i] = ctx.refs[i].prim();
     return;
   }
   const auto& [left, right] = *children;
@@ -648,7 +651,10 @@ bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads) {
 
 std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
                                                 const BvhBuildOptions& options,
-                                                BvhStatistics* counts) {
+                                                BvhStatistics* counts,
+                                                std::span<std::uint32_t> prim_ids) {
+  if (!prim_ids.empty() && prim_ids.size() != refs.size())
+    throw std::invalid_argument("BVH: one primitive id per reference");
   if (options.bins > kMaxBins)
     throw std::invalid_argument("BVH: at most " + std::to_string(kMaxBins) + " bins");
   if (options.leaf_packet > kMaxLeafPacket)
@@ -679,7 +685,7 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
     tally.nodes = &nodes;
     tally.root_area = bvh_node_half_area(leaf_node(box[0].box(), 0, refs.size()));  // nodes[0]'s
   }
-  const Context ctx{refs, options, slots, pending, tally};
+  const Context ctx{refs, options, slots, pending, tally, prim_ids};
   // SAH trees here have 1.0-1.15 nodes per reference: no regrowth (and copy) of the array.
   reserve_huge(nodes, refs.size() + refs.size() / 4 + 1);
   emit(ctx, {0, refs.size(), box[0].box(), centroids[0].box(), 0}, nodes);

@@ -17,10 +17,13 @@ bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads);
 /// thread count, and the same tree as build_binned_nodes over the same references as PrimRef.
 /// With `counts`, also the nodes' counts, depth and SAH cost as flat_bvh_statistics gives them
 /// (node_count, leaf_count, reference_count, max_depth, max_leaf_size, sah_cost), counted while
-/// the nodes are emitted instead of in a pass after.
+/// the nodes are emitted instead of in a pass after. With `prim_ids` (as long as `refs`), also
+/// each reference's primitive in leaf order, written as its leaf is made (while its references
+/// are in cache) instead of in a pass over them all after.
 std::vector<format::BvhNode> build_binned_nodes(std::span<bvh_simd::BuildRef> refs,
                                                 const BvhBuildOptions& options,
-                                                BvhStatistics* counts = nullptr);
+                                                BvhStatistics* counts = nullptr,
+                                                std::span<std::uint32_t> prim_ids = {});
 
 /// Half the surface area of a flat node's box, in double (0 for an empty box): the statistics'.
 inline double bvh_node_half_area(const format::BvhNode& n) {

@@ -75,12 +75,10 @@ std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& o
     for (std::size_t i = 0; i < pieces.size(); ++i)
       refs[i] = bvh_simd::BuildRef::make(pieces[i].box, pieces[i].prim);
   }
-  out.nodes =
-      build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options, counts ? &*counts : nullptr);
   reserve_huge(out.prim_ids, refs.size());
   out.prim_ids.resize(refs.size());
-  parallel_for_batched(refs.size(), 65536, options.threads,
-                       [&](std::size_t i) { out.prim_ids[i] = refs[i].prim(); });
+  out.nodes = build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options,
+                                 counts ? &*counts : nullptr, out.prim_ids);
   return refs.size();
 }
 
