@@ -253,6 +253,41 @@ std::vector<std::uint32_t> references_under(const FlatBvh& bvh) {
   return refs;
 }
 
+// Nodes whose references all share one centroid have no binned split on any axis (every axis
+// masked in the sweep): the list is halved while longer than a leaf allows. Each triangle once,
+// no empty leaf, and the same tree on any thread count.
+TEST(BvhBinnedBuild, CoincidentCentroidsHalveTheList) {
+  Scene scene = random_scene(300, 3);
+  const auto base = std::uint32_t(scene.positions.size());
+  scene.positions.push_back({1.0f, 2.0f, 3.0f});
+  scene.positions.push_back({2.0f, 2.0f, 3.0f});
+  scene.positions.push_back({1.0f, 3.0f, 3.0f});
+  for (int i = 0; i < 100; ++i) scene.triangles.push_back({{base, base + 1, base + 2}});
+  for (const std::uint32_t packet : {0u, 4u}) {
+    std::vector<std::uint32_t> first_ids;
+    for (const unsigned threads : {1u, 2u}) {
+      BvhBuildOptions options;
+      options.threads = threads;
+      options.leaf_packet = packet;
+      const FlatBvh bvh = build_bvh(scene, options);
+      std::vector<std::uint32_t> ids = bvh.prim_ids;
+      if (first_ids.empty()) first_ids = ids;
+      EXPECT_EQ(ids, first_ids) << threads << " threads";
+      std::sort(ids.begin(), ids.end());
+      ASSERT_EQ(ids.size(), scene.triangles.size());
+      for (std::uint32_t i = 0; i < ids.size(); ++i) ASSERT_EQ(ids[i], i);
+      const std::vector<std::uint32_t> under = references_under(bvh);
+      EXPECT_EQ(under[0], scene.triangles.size());
+      std::size_t leaf_refs = 0;
+      for (const format::BvhNode& n : bvh.nodes) {
+        leaf_refs += n.count;
+        if (n.count > 0) EXPECT_LE(n.count, options.max_leaf_size);
+      }
+      EXPECT_EQ(leaf_refs, scene.triangles.size());  // no leaf lost or counted twice
+    }
+  }
+}
+
 float half_area(const format::BvhNode& n) {
   const float x = n.max[0] - n.min[0], y = n.max[1] - n.min[1], z = n.max[2] - n.min[2];
   return x * y + y * z + z * x;

@@ -324,9 +324,11 @@ Split best_split_lanes(Bins& bins, const BinMap& map, std::size_t n, float node_
   alignas(16) float c[4], s[4], w[4];
   store(c, best_cost), store(s, best_sum), store(w, best_bin);
   Split best;
-  for (int a = 0; a < 3; ++a)
-    if (c[a] < best.cost)
-      best.cost = c[a], best.sum = s[a], best.axis = a, best.bin = std::uint32_t(w[a]);
+  // The first axis of the least cost, without branches (which one wins is data-dependent).
+  const float least = std::min(std::min(c[0], c[1]), c[2]);
+  const int a = std::countr_zero(unsigned(mask_bits(le(best_cost, splat(least)))));
+  if (least < best.cost)  // else no candidate (every axis masked)
+    best.cost = c[a], best.sum = s[a], best.axis = a, best.bin = std::uint32_t(w[a]);
   if (best.axis >= 0) {  // the winner's boxes, grown as sweep_axis_64 grows them
     const std::size_t base = std::size_t(best.axis) * k;
     for (std::size_t b = 0; b <= best.bin; ++b)
