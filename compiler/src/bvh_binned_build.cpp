@@ -288,7 +288,7 @@ void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const B
 // axis order, then bin order, as sweep_axis's; candidates with an empty side are masked. Loops
 // of k - 1 steps (k is 4 below 20 references) instead of loops over each axis's occupied bins,
 // whose data-dependent exits mispredicted: binary build -2 to -3 % (dragon_871k, Sponza).
-Split best_split_lanes(Bins& bins, const BinMap& map, std::size_t n, float node_area,
+Split best_split_lanes(const Bins& bins, const BinMap& map, std::size_t n, float node_area,
                        const BvhBuildOptions& o) {
   using namespace bvh_simd;
   const std::size_t k = bins.k;
@@ -329,7 +329,7 @@ Split best_split_lanes(Bins& bins, const BinMap& map, std::size_t n, float node_
   const int a = std::countr_zero(unsigned(mask_bits(le(best_cost, splat(least)))));
   if (least < best.cost)  // else no candidate (every axis masked)
     best.cost = c[a], best.sum = s[a], best.axis = a, best.bin = std::uint32_t(w[a]);
-  if (best.axis >= 0) {  // the winner's boxes, grown as sweep_axis_64 grows them
+  if (best.axis >= 0) {  // the winner's boxes: the left side upwards, the right side downwards
     const std::size_t base = std::size_t(best.axis) * k;
     for (std::size_t b = 0; b <= best.bin; ++b)
       best.left_box.grow(box[base + b]), best.left_count += count[base + b];
