@@ -621,9 +621,17 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
   const auto& [left, right] = *children;
   const std::size_t right_size = right.end - right.begin;
   const bool may_fork = left.end - left.begin >= kParallelSubtree && right_size >= kParallelSubtree;
+  // A subtree built apart is counted beside its append, from its own nodes: the nodes before it
+  // are all counted here, so the order (and the SAH sum) is the one catch_up would give.
+  const CountApart count_apart = tally && may_fork
+                                     ? CountApart([&](const std::vector<format::BvhNode>& sub) {
+                                         for (const format::BvhNode& n : sub)
+                                           tally->count(n, n.count != 0, ctx.o);
+                                       })
+                                     : CountApart();
   emit_bvh_children_on_demand(
       ctx.slots, may_fork, left, right, right_size + right_size / 4 + 1, index, nodes,
-      [&](const Task& child, auto& out) { emit(ctx, child, out); }, &ctx.pending);
+      [&](const Task& child, auto& out) { emit(ctx, child, out); }, &ctx.pending, count_apart);
   nodes[index].axis = std::uint8_t(axis);
   if (tally) tally->catch_up(nodes, ctx.o);  // a right subtree built apart and appended
 }

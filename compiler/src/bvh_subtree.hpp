@@ -26,6 +26,21 @@ inline void append_bvh_subtree(std::vector<format::BvhNode>& nodes,
   }
 }
 
+/// What a builder counts over a subtree built apart (its nodes in order), or empty.
+using CountApart = std::function<void(const std::vector<format::BvhNode>&)>;
+
+/// Appends `sub` as append_bvh_subtree does and, beside it (on another thread when one is free:
+/// at the root's join the other one has nothing left to do), `count(sub)`.
+inline void append_bvh_subtree_counting(std::vector<format::BvhNode>& nodes,
+                                        const std::vector<format::BvhNode>& sub,
+                                        const CountApart& count) {
+  fork_join(
+      count && sub.size() >= 16384, [&] { append_bvh_subtree(nodes, sub); },
+      [&] {
+        if (count) count(sub);
+      });
+}
+
 /// Worker slots for recursive builders that fork on demand: a subtree goes to a new thread when
 /// a slot is free, whatever its depth, so an uneven split near the root does not leave a core
 /// idle (the fixed fork depth did). A thread waiting on its forked half gives its slot back
@@ -145,13 +160,15 @@ std::uint32_t emit_bvh_children_in_turn(const Child& left, const Child& right,
 /// Emits a node's two children after it with `emit(child, nodes)`; the right one on a new
 /// thread when `may_fork` (the caller's size rule) and `slots` has a free one. The left
 /// one is emitted in place, the right one apart (`reserve` nodes reserved) and appended, so the
-/// nodes are the same either way. Links the node at `index` to its second child and makes it
+/// nodes are the same either way; `count_apart`, if any, counts a subtree built apart beside
+/// its append. Links the node at `index` to its second child and makes it
 /// interior.
 template <class Child, class Emit>
 void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child& left,
                                  const Child& right, std::size_t reserve, std::size_t index,
                                  std::vector<format::BvhNode>& nodes, const Emit& emit,
-                                 PendingRights* pending = nullptr) {
+                                 PendingRights* pending = nullptr,
+                                 const CountApart& count_apart = {}) {
   std::uint32_t second;
   if (may_fork && slots.try_take()) {
     std::vector<format::BvhNode> r;
@@ -175,7 +192,7 @@ void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child&
       slots.resume();
     }
     second = std::uint32_t(nodes.size());
-    append_bvh_subtree(nodes, r);
+    append_bvh_subtree_counting(nodes, r, count_apart);
   } else if (may_fork && pending) {
     PendingRights::Entry entry;
     entry.size = reserve;
@@ -195,7 +212,7 @@ void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child&
       emit(right, nodes);
     } else {
       if (entry.error) std::rethrow_exception(entry.error);
-      append_bvh_subtree(nodes, entry.nodes);
+      append_bvh_subtree_counting(nodes, entry.nodes, count_apart);
     }
   } else {
     second = emit_bvh_children_in_turn(left, right, nodes, emit);
