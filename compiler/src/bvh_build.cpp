@@ -2,10 +2,8 @@
 // reference arrays: sorted once at the root, kept sorted through every object and spatial split,
 // so the exact SAH sweep never sorts per node.
 #include <cmath>
-#include <exception>
 #include <optional>
 #include <stdexcept>
-#include <thread>
 
 #include "bvh_splits.hpp"
 #include "bvh_subtree.hpp"
@@ -197,22 +195,8 @@ void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, 
     // The right subtree apart on a new thread, the left one in place (as in turn), then the
     // right one appended: the same nodes either way.
     FlatOut r;
-    auto build_right = [&] {
-      try {
-        right_tree(r);
-      } catch (...) {
-        ctx.slots.give();
-        throw;
-      }
-      ctx.slots.give();
-    };
-    {
-      ForkedTask worker(build_right);
-      left_tree(out);  // if it throws, the task joins on unwinding
-      ctx.slots.block();
-      worker.join();  // rethrows the right subtree's exception
-      ctx.slots.resume();
-    }
+    fork_on_slot(
+        ctx.slots, [&] { left_tree(out); }, [&] { right_tree(r); });
     second = std::uint32_t(out.nodes.size());
     append_subtree(out, r);
   } else {

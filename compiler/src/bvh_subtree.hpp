@@ -72,6 +72,30 @@ class WorkerSlots {
   std::atomic<int> free_;
 };
 
+/// The fork of the builders that take a slot first (`slots.try_take()` succeeded): `forked` runs
+/// as a task that gives the slot back when it ends, `here` on this thread, which then waits for
+/// it with its own slot given back meanwhile. Rethrows `here`'s exception, else `forked`'s; the
+/// slots balance either way.
+template <class Here, class Forked>
+void fork_on_slot(WorkerSlots& slots, const Here& here, const Forked& forked) {
+  struct Give {
+    WorkerSlots& slots;
+    ~Give() { slots.give(); }
+  };
+  auto body = [&] {
+    const Give give{slots};
+    forked();
+  };
+  ForkedTask task(body);
+  here();  // if it throws, the task joins on unwinding
+  slots.block();
+  struct Resume {
+    WorkerSlots& slots;
+    ~Resume() { slots.resume(); }
+  } const resume{slots};
+  task.join();
+}
+
 /// Right children that their thread will emit after the left one, listed while it does so: a
 /// forked thread that has finished its own subtree takes the largest (and builds it apart)
 /// before it ends, so a free core need not wait for the next split that may fork. The owner
@@ -173,24 +197,13 @@ void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child&
   if (may_fork && slots.try_take()) {
     std::vector<format::BvhNode> r;
     r.reserve(reserve);
-    auto build_right = [&] {
-      try {
-        emit(right, r);
-        while (pending && pending->build_one()) {
-        }
-      } catch (...) {
-        slots.give();
-        throw;
-      }
-      slots.give();
-    };
-    {
-      ForkedTask worker(build_right);
-      emit(left, nodes);  // if it throws, the task joins on unwinding
-      slots.block();
-      worker.join();  // rethrows the right subtree's exception
-      slots.resume();
-    }
+    fork_on_slot(
+        slots, [&] { emit(left, nodes); },
+        [&] {
+          emit(right, r);
+          while (pending && pending->build_one()) {
+          }
+        });
     second = std::uint32_t(nodes.size());
     append_bvh_subtree_counting(nodes, r, count_apart);
   } else if (may_fork && pending) {
