@@ -44,50 +44,52 @@ using bvh_simd::VBox;
 using format::Box3f;
 
 /// k bins on each axis, axis-major. Sized per use (--bvh-bins may be up to 1024) and reused per
-/// thread: between uses every bin is empty (an empty box, a zero count), so no reference
-/// branches on whether its bin is new (growing an empty box gives the reference's box exactly).
+/// thread: between uses every bin is empty, so no reference branches on whether its bin is new
+/// (growing an empty box gives the reference's box exactly). A bin's count is the fourth lane
+/// of its upper corner, as an integer: a reference's upper corner has +0 there, which vmax
+/// leaves to the count below 2^31 (as a float the count is +0, a positive denormal or a
+/// positive normal, never less than +0), so one vector max and one integer add update box and
+/// count (three loads and stores per axis fewer than a count array of its own; the binning is
+/// bound by loads and stores). Readers take boxes with that lane cleared (`box_at`).
 /// Up to 64 bins (a node's k is min(bins, 4 + n / 20)), the sweep reads and empties all 3k. Above
 /// that, a bit per bin says it is occupied: `clear` empties and the sweep visits only those.
 struct Bins {
   std::uint32_t k = 0, words = 0;  // words: 64-bit mask words per axis
-  std::vector<VBox> box;
-  std::vector<std::uint32_t> count;
+  std::vector<VBox> box;           // upper corners' fourth lane: the count
   std::vector<std::uint64_t> used;
+  static VBox empty() {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    return {bvh_simd::splat(inf), bvh_simd::set(-inf, -inf, -inf, 0.0f)};
+  }
   void reset(std::uint32_t bins) {
     if (k == bins) return;  // already empty
     k = bins, words = (k + 63) / 64;
-    box.assign(3 * std::size_t(k), VBox{});
-    count.assign(3 * std::size_t(k), 0);
+    box.assign(3 * std::size_t(k), empty());
     used.assign(3 * std::size_t(words), 0);
   }
   void clear() {
     if (k <= 64) {  // no occupancy bits (bin_range_64): all of them
-      std::fill_n(box.begin(), 3 * std::size_t(k), VBox{});
-      std::fill_n(count.begin(), 3 * std::size_t(k), 0u);
+      std::fill_n(box.begin(), 3 * std::size_t(k), empty());
       return;
     }
     for (int a = 0; a < 3; ++a)
-      for_each(a, [&](std::uint32_t b) {
-        box[std::size_t(a) * k + b] = VBox{};
-        count[std::size_t(a) * k + b] = 0;
-      });
+      for_each(a, [&](std::uint32_t b) { box[std::size_t(a) * k + b] = empty(); });
     std::fill(used.begin(), used.end(), 0);
+  }
+  // Bin i's box (fourth lanes as a reference's) and its count.
+  VBox box_at(std::size_t i) const { return {box[i].lo, bvh_simd::xyz(box[i].hi)}; }
+  std::uint32_t count_at(std::size_t i) const { return bvh_simd::lane3_bits(box[i].hi); }
+  // One reference (corners `lo`, `hi` with fourth lanes 0) into bin i.
+  void grow(std::size_t i, V4 lo, V4 hi) {
+    box[i].lo = bvh_simd::vmin(lo, box[i].lo);
+    box[i].hi = bvh_simd::add_lane3(bvh_simd::vmax(hi, box[i].hi), 1);
   }
   bool occupied(int a, std::uint32_t b) const {
     return (used[std::size_t(a) * words + b / 64] >> (b % 64)) & 1u;
   }
   void add(int a, std::uint32_t b, V4 lo, V4 hi) {
-    std::uint64_t& word = used[std::size_t(a) * words + b / 64];
-    const std::uint64_t bit = std::uint64_t(1) << (b % 64);
-    const std::size_t i = std::size_t(a) * k + b;
-    if (word & bit) {
-      box[i].grow(lo, hi);
-      count[i] += 1;
-    } else {
-      word |= bit;
-      box[i] = {lo, hi};
-      count[i] = 1;
-    }
+    used[std::size_t(a) * words + b / 64] |= std::uint64_t(1) << (b % 64);
+    grow(std::size_t(a) * k + b, lo, hi);
   }
   // Calls f(b) for each occupied bin of axis a, in increasing order.
   template <class F>
@@ -98,23 +100,11 @@ struct Bins {
   }
   // In chunk order: the same boxes as binning the chunks' references one after another.
   void merge(const Bins& o) {
-    if (k <= 64) {  // no occupancy bits (bin_range_64): every bin, empty ones adding nothing
-      for (std::size_t i = 0; i < 3 * std::size_t(k); ++i)
-        box[i].grow(o.box[i]), count[i] += o.count[i];
-      return;
-    }
-    for (int a = 0; a < 3; ++a)
-      o.for_each(a, [&](std::uint32_t b) {
-        const std::size_t i = std::size_t(a) * k + b;
-        if (occupied(a, b)) {
-          box[i].grow(o.box[i]);
-          count[i] += o.count[i];
-        } else {
-          used[std::size_t(a) * words + b / 64] |= std::uint64_t(1) << (b % 64);
-          box[i] = o.box[i];
-          count[i] = o.count[i];
-        }
-      });
+    for (std::size_t i = 0; i < 3 * std::size_t(k); ++i)
+      box[i].lo = bvh_simd::vmin(o.box[i].lo, box[i].lo),
+      box[i].hi = bvh_simd::vmax_add_lane3(o.box[i].hi, box[i].hi);
+    if (k > 64)
+      for (std::size_t w = 0; w < used.size(); ++w) used[w] |= o.used[w];
   }
 };
 
@@ -213,11 +203,7 @@ void bin_range_64(std::span<const BuildRef> refs, const BinMap& map, Bins& bins)
     alignas(16) std::int32_t b[4];
     map.bins(bvh_simd::centroid(r), b);
     const V4 lo = bvh_simd::lower(r), hi = bvh_simd::upper(r);
-    for (int a = 0; a < 3; ++a) {
-      const std::size_t i = std::size_t(a) * k + std::size_t(b[a]);
-      bins.box[i].grow(lo, hi);
-      bins.count[i] += 1;
-    }
+    for (int a = 0; a < 3; ++a) bins.grow(std::size_t(a) * k + std::size_t(b[a]), lo, hi);
   }
 }
 
@@ -261,14 +247,14 @@ void sweep_axis(const Bins& bins, int a, std::size_t n, float node_area, const B
   if (m < 2) return;
   VBox acc;
   for (std::size_t j = m; j-- > 1;) {
-    acc.grow(bins.box[base + used[j]]);
+    acc.grow(bins.box_at(base + used[j]));
     right_area[j] = bvh_simd::half_area(acc);
   }
   VBox left;
   std::size_t left_count = 0;
   for (std::size_t j = 0; j + 1 < m; ++j) {
-    left.grow(bins.box[base + used[j]]);
-    left_count += bins.count[base + used[j]];
+    left.grow(bins.box_at(base + used[j]));
+    left_count += bins.count_at(base + used[j]);
     const float sum =
         bvh_simd::half_area(left) * float(left_count) + right_area[j + 1] * float(n - left_count);
     if (!(sum < best.sum)) continue;
@@ -292,12 +278,10 @@ Split best_split_lanes(const Bins& bins, const BinMap& map, std::size_t n, float
                        const BvhBuildOptions& o) {
   using namespace bvh_simd;
   const std::size_t k = bins.k;
-  const VBox* box = bins.box.data();
-  const std::uint32_t* count = bins.count.data();
   alignas(16) float above[64][4];  // above[b][a]: axis a's bins above b, half area
   VBox acc[3];
   for (std::size_t b = k; b-- > 1;) {
-    for (int a = 0; a < 3; ++a) acc[a].grow(box[std::size_t(a) * k + b]);
+    for (int a = 0; a < 3; ++a) acc[a].grow(bins.box_at(std::size_t(a) * k + b));
     store(above[b - 1], half_areas(acc[0], acc[1], acc[2]));
   }
   const V4 enabled =
@@ -310,8 +294,8 @@ Split best_split_lanes(const Bins& bins, const BinMap& map, std::size_t n, float
   std::size_t lc[3] = {0, 0, 0};
   for (std::size_t b = 0; b + 1 < k; ++b) {
     for (int a = 0; a < 3; ++a) {
-      left[a].grow(box[std::size_t(a) * k + b]);
-      lc[a] += count[std::size_t(a) * k + b];
+      left[a].grow(bins.box_at(std::size_t(a) * k + b));
+      lc[a] += bins.count_at(std::size_t(a) * k + b);
     }
     const V4 lcount = set(float(lc[0]), float(lc[1]), float(lc[2]), 0.0f);
     const V4 rcount = set(float(n - lc[0]), float(n - lc[1]), float(n - lc[2]), 0.0f);
@@ -332,8 +316,8 @@ Split best_split_lanes(const Bins& bins, const BinMap& map, std::size_t n, float
   if (best.axis >= 0) {  // the winner's boxes: the left side upwards, the right side downwards
     const std::size_t base = std::size_t(best.axis) * k;
     for (std::size_t b = 0; b <= best.bin; ++b)
-      best.left_box.grow(box[base + b]), best.left_count += count[base + b];
-    for (std::size_t b = k; b-- > best.bin + 1;) best.right_box.grow(box[base + b]);
+      best.left_box.grow(bins.box_at(base + b)), best.left_count += bins.count_at(base + b);
+    for (std::size_t b = k; b-- > best.bin + 1;) best.right_box.grow(bins.box_at(base + b));
   }
   return best;
 }
@@ -352,11 +336,11 @@ Split best_split(Bins& bins, const BinMap& map, std::size_t n, float node_area,
   std::size_t m = 0;
   bins.for_each(best.axis, [&](std::uint32_t b) {
     if (b <= best.bin)
-      best.left_box.grow(bins.box[base + b]);
+      best.left_box.grow(bins.box_at(base + b));
     else
       right[m++] = std::uint16_t(b);
   });
-  while (m-- > 0) best.right_box.grow(bins.box[base + right[m]]);
+  while (m-- > 0) best.right_box.grow(bins.box_at(base + right[m]));
   return best;
 }
 
@@ -654,6 +638,8 @@ std::vector<format::BvhNode> build_binned_nodes(std::span<BuildRef> refs,
                                                 std::span<std::uint32_t> prim_ids) {
   if (!prim_ids.empty() && prim_ids.size() != refs.size())
     throw std::invalid_argument("BVH: one primitive id per reference");
+  if (refs.size() >= std::size_t(1) << 31)  // a bin's count is 31 bits (Bins)
+    throw std::invalid_argument("BVH: at most 2^31 - 1 references for the binned build");
   if (options.bins > kMaxBins)
     throw std::invalid_argument("BVH: at most " + std::to_string(kMaxBins) + " bins");
   if (options.leaf_packet > kMaxLeafPacket)

@@ -92,6 +92,20 @@ inline V4 blend(V4 m, V4 a, V4 b) {
 inline int mask_bits(V4 m) {
   return _mm_movemask_ps(m.v);
 }
+// Lane 3 as an unsigned integer (its bits), and lane 3 plus `n` as integers (lanes 0-2 kept).
+inline std::uint32_t lane3_bits(V4 a) {
+  return std::uint32_t(_mm_cvtsi128_si32(_mm_castps_si128(_mm_shuffle_ps(a.v, a.v, 0xff))));
+}
+inline V4 add_lane3(V4 a, std::uint32_t n) {
+  return {_mm_castsi128_ps(_mm_add_epi32(_mm_castps_si128(a.v), _mm_setr_epi32(0, 0, 0, int(n))))};
+}
+// Lanes 0-2 vmax(x, acc), lane 3 the sum of x's and acc's as integers.
+inline V4 vmax_add_lane3(V4 x, V4 acc) {
+  const __m128i sum = _mm_add_epi32(_mm_castps_si128(x.v), _mm_castps_si128(acc.v));
+  const __m128i max = _mm_castps_si128(_mm_max_ps(x.v, acc.v));
+  return {_mm_castsi128_ps(_mm_or_si128(_mm_and_si128(max, _mm_setr_epi32(-1, -1, -1, 0)),
+                                        _mm_and_si128(sum, _mm_setr_epi32(0, 0, 0, -1))))};
+}
 // {prev[3], cur[0], cur[1], cur[2]}: the lanes moved up by one, the first from `prev`.
 inline V4 shift_in(V4 prev, V4 cur) {
   const __m128 t = _mm_shuffle_ps(prev.v, cur.v, _MM_SHUFFLE(0, 0, 3, 3));  // p3 p3 c0 c0
@@ -185,6 +199,18 @@ inline V4 blend(V4 m, V4 a, V4 b) {
 }
 inline V4 shift_in(V4 prev, V4 cur) {
   return {{prev.f[3], cur.f[0], cur.f[1], cur.f[2]}};
+}
+inline std::uint32_t lane3_bits(V4 a) {
+  return std::bit_cast<std::uint32_t>(a.f[3]);
+}
+inline V4 add_lane3(V4 a, std::uint32_t n) {
+  a.f[3] = std::bit_cast<float>(lane3_bits(a) + n);
+  return a;
+}
+inline V4 vmax_add_lane3(V4 x, V4 acc) {
+  V4 r = vmax(x, acc);
+  r.f[3] = std::bit_cast<float>(lane3_bits(x) + lane3_bits(acc));
+  return r;
 }
 inline V4 loadu(const float* p) {
   return load(p);
