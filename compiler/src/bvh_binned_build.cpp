@@ -196,15 +196,22 @@ void bin_range(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
 }
 
 // k <= 64: no occupancy bits (the sweep reads all bins); the bins start empty, so each
-// reference grows its three bins without a branch.
+// reference grows its three bins without a branch. The two halves of the list interleaved:
+// neighbours in the list mostly share bins, and each update of a bin waits for the one before
+// (its load for that store), so the halves' updates overlap where one list's would queue
+// (binary build -6 %, dragon_871k). Exact in any order (min, max and integer counts; only which
+// of -0 and +0 a bound keeps where both occur follows the order), and the order is fixed.
 void bin_range_64(std::span<const BuildRef> refs, const BinMap& map, Bins& bins) {
   const std::size_t k = map.k;
-  for (const BuildRef& r : refs) {
+  const auto one = [&](const BuildRef& r) {
     alignas(16) std::int32_t b[4];
     map.bins(bvh_simd::centroid(r), b);
     const V4 lo = bvh_simd::lower(r), hi = bvh_simd::upper(r);
     for (int a = 0; a < 3; ++a) bins.grow(std::size_t(a) * k + std::size_t(b[a]), lo, hi);
-  }
+  };
+  const std::size_t half = refs.size() / 2, rest = refs.size() - half;
+  for (std::size_t i = 0; i < half; ++i) one(refs[i]), one(refs[rest + i]);
+  if (rest > half) one(refs[half]);
 }
 
 // Bins `refs` into `bins` (empty, or sized now).
