@@ -5,7 +5,7 @@
 //
 // Usage: kiln_bench_bvh_build [--rounds=N] [--only=binned|sbvh] [--sbvh-alpha=X]
 //                             [--leaf-packet=N] [--width=4|8|16] [--each] [--keep-memory]
-//                             MESH...
+//                             [--warm-free=MB] MESH...
 //   MESH  a file import_scene reads, or [LABEL=]@DIR[/PATTERN] (bench_args.hpp)
 //
 // One thread is timed by the process's CPU time (CLOCK_PROCESS_CPUTIME_ID: Embree may build on a
@@ -19,6 +19,7 @@
 // rounds (1T CPU, all threads wall). Peak memory: the largest net heap growth during the build
 // (Kiln: operator new, counted here; Embree: its memory monitor), per input triangle.
 #include <malloc.h>
+#include <sys/mman.h>
 #include <sys/resource.h>
 #include <time.h>
 
@@ -116,9 +117,26 @@ double system_seconds() {
   return double(u.ru_stime.tv_sec) + 1e-6 * double(u.ru_stime.tv_usec);
 }
 
+// --warm-free=MB: before every timed build, Kiln's and Embree's alike, map MB, write every page
+// and unmap it again (untimed), so that the kernel's free lists start with that much memory just
+// used. Diagnosis of the free page reporting of VMs like this one (docs/BENCHMARKS.md): a block
+// free for about 2 s goes back to the host, and its next user pays the host's faults, so a
+// builder's time would otherwise depend on how much memory the builder before it freed.
+std::size_t g_warm_free = 0;
+
+void warm_free_memory() {
+  if (g_warm_free == 0) return;
+  void* p = mmap(nullptr, g_warm_free, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  if (p == MAP_FAILED) return;
+  madvise(p, g_warm_free, MADV_HUGEPAGE);  // as both builders' large blocks
+  for (std::size_t i = 0; i < g_warm_free; i += 4096) static_cast<volatile char*>(p)[i] = 1;
+  munmap(p, g_warm_free);
+}
+
 // One timed build; `threads` 1 -> process CPU time, otherwise wall time.
 template <class Build>
 Sample timed(unsigned threads, Build&& build) {
+  warm_free_memory();
   const double c0 = cpu_seconds(), w0 = wall_seconds(), k0 = system_seconds();
   const double peak = build();
   const double s = threads == 1 ? cpu_seconds() - c0 : wall_seconds() - w0;
@@ -333,6 +351,10 @@ int main(int argc, char** argv) {
       }
       continue;
     }
+    if (arg.starts_with("--warm-free=")) {
+      g_warm_free = std::size_t(std::stoul(arg.substr(12))) << 20;
+      continue;
+    }
     if (arg == "--keep-memory") {
       keep_memory = true;
       continue;
@@ -359,7 +381,8 @@ int main(int argc, char** argv) {
   }
   if (meshes.empty() || rounds < 1) {
     std::fprintf(stderr,
-                 "usage: kiln_bench_bvh_build [--rounds=N] [--each] [--keep-memory] MESH...\n");
+                 "usage: kiln_bench_bvh_build [--rounds=N] [--each] [--keep-memory] "
+                 "[--warm-free=MB] MESH...\n");
     return 1;
   }
   if (keep_memory) {
