@@ -298,14 +298,19 @@ Split best_split_lanes(const Bins& bins, const BinMap& map, std::size_t n, float
   V4 best_cost = splat(std::numeric_limits<float>::infinity()), best_sum = best_cost;
   V4 best_bin = zero;
   VBox left[3];
-  std::size_t lc[3] = {0, 0, 0};
+  // The three axes' counts on the left, a lane each, as integers gathered from the bins' fourth
+  // lanes (n < 2^31: float(n - lc[a]) is the conversion of an int32). The bins' boxes are grown
+  // with their count lanes cleared: as floats most counts are denormals, which some CPUs subtract
+  // (half_areas) only through a slow assist.
+  V4 lc = splat_bits(0);
+  const V4 all = splat_bits(std::uint32_t(n));
   for (std::size_t b = 0; b + 1 < k; ++b) {
-    for (int a = 0; a < 3; ++a) {
-      left[a].grow(bins.box_at(std::size_t(a) * k + b));
-      lc[a] += bins.count_at(std::size_t(a) * k + b);
-    }
-    const V4 lcount = set(float(lc[0]), float(lc[1]), float(lc[2]), 0.0f);
-    const V4 rcount = set(float(n - lc[0]), float(n - lc[1]), float(n - lc[2]), 0.0f);
+    const VBox& x = bins.box[b];
+    const VBox& y = bins.box[std::size_t(k) + b];
+    const VBox& z = bins.box[2 * std::size_t(k) + b];
+    lc = add_bits(lc, lanes3(x.hi, y.hi, z.hi));
+    left[0].grow(x.lo, xyz(x.hi)), left[1].grow(y.lo, xyz(y.hi)), left[2].grow(z.lo, xyz(z.hi));
+    const V4 lcount = bits_to_float(lc), rcount = bits_to_float(sub_bits(all, lc));
     const V4 sum = half_areas(left[0], left[1], left[2]) * lcount + load(above[b]) * rcount;
     const V4 cost = traversal + intersection * sum / area;
     const V4 take = enabled & lt(zero, lcount) & lt(zero, rcount) & lt(cost, best_cost);

@@ -106,6 +106,23 @@ inline V4 vmax_add_lane3(V4 x, V4 acc) {
   return {_mm_castsi128_ps(_mm_or_si128(_mm_and_si128(max, _mm_setr_epi32(-1, -1, -1, 0)),
                                         _mm_and_si128(sum, _mm_setr_epi32(0, 0, 0, -1))))};
 }
+// Lanes as 32-bit integers: splat, add, subtract, convert to float (exact below 2^24, rounded
+// to nearest above, as a conversion from any integer type), and {a[3], b[3], c[3], 0}.
+inline V4 splat_bits(std::uint32_t x) {
+  return {_mm_castsi128_ps(_mm_set1_epi32(int(x)))};
+}
+inline V4 add_bits(V4 a, V4 b) {
+  return {_mm_castsi128_ps(_mm_add_epi32(_mm_castps_si128(a.v), _mm_castps_si128(b.v)))};
+}
+inline V4 sub_bits(V4 a, V4 b) {
+  return {_mm_castsi128_ps(_mm_sub_epi32(_mm_castps_si128(a.v), _mm_castps_si128(b.v)))};
+}
+inline V4 bits_to_float(V4 a) {
+  return {_mm_cvtepi32_ps(_mm_castps_si128(a.v))};
+}
+inline V4 lanes3(V4 a, V4 b, V4 c) {
+  return {_mm_movehl_ps(_mm_unpackhi_ps(c.v, _mm_setzero_ps()), _mm_unpackhi_ps(a.v, b.v))};
+}
 // {prev[3], cur[0], cur[1], cur[2]}: the lanes moved up by one, the first from `prev`.
 inline V4 shift_in(V4 prev, V4 cur) {
   const __m128 t = _mm_shuffle_ps(prev.v, cur.v, _MM_SHUFFLE(0, 0, 3, 3));  // p3 p3 c0 c0
@@ -206,6 +223,32 @@ inline std::uint32_t lane3_bits(V4 a) {
 inline V4 add_lane3(V4 a, std::uint32_t n) {
   a.f[3] = std::bit_cast<float>(lane3_bits(a) + n);
   return a;
+}
+inline V4 splat_bits(std::uint32_t x) {
+  const float f = std::bit_cast<float>(x);
+  return {{f, f, f, f}};
+}
+inline V4 add_bits(V4 a, V4 b) {
+  V4 r;
+  for (int i = 0; i < 4; ++i)
+    r.f[i] = std::bit_cast<float>(std::bit_cast<std::uint32_t>(a.f[i]) +
+                                  std::bit_cast<std::uint32_t>(b.f[i]));
+  return r;
+}
+inline V4 sub_bits(V4 a, V4 b) {
+  V4 r;
+  for (int i = 0; i < 4; ++i)
+    r.f[i] = std::bit_cast<float>(std::bit_cast<std::uint32_t>(a.f[i]) -
+                                  std::bit_cast<std::uint32_t>(b.f[i]));
+  return r;
+}
+inline V4 bits_to_float(V4 a) {
+  V4 r;
+  for (int i = 0; i < 4; ++i) r.f[i] = float(std::bit_cast<std::int32_t>(a.f[i]));
+  return r;
+}
+inline V4 lanes3(V4 a, V4 b, V4 c) {
+  return {{a.f[3], b.f[3], c.f[3], 0.0f}};
 }
 inline V4 vmax_add_lane3(V4 x, V4 acc) {
   V4 r = vmax(x, acc);
