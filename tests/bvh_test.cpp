@@ -352,8 +352,8 @@ TEST(SbvhPresorted, SpatialSplitChildrenStaySortedAndHoldEachTrianglesSides) {
   const SortedRefs all = presorted(refs);
   for (int axis = 0; axis < 3; ++axis) {
     const SpatialSplit split{0.0f, axis, 3.5f};
-    SortedRefs l, r;
-    const std::size_t added = apply_spatial_split(split, all, axis, scene, l, r);
+    SortedRefs l, r, parent = all;  // the left child takes the parent's arrays
+    const std::size_t added = apply_spatial_split(split, parent, axis, scene, l, r);
     expect_presorted(l);
     expect_presorted(r);
     EXPECT_EQ(l.size() + r.size(), refs.size() + added);

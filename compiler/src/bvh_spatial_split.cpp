@@ -472,7 +472,11 @@ void merge_on_axis(std::span<const PrimRef> sorted, std::span<const PrimRef> pie
 // The children's arrays on `axis`: the references that stay whole on a side, in the parent's
 // order (still sorted), merged with the straddlers' pieces (or whole references) given to that
 // side, sorted apart: a straddler's clipped box moves its centroid.
-void children_on_axis(const std::vector<PrimRef>& parent, int axis, int split_axis, float pos,
+// The children's array on `axis` from the parent's. The left child's is written into the parent's
+// block: it holds at most as many references (a straddler goes to a side whole or as one piece
+// each), and its pages are touched already, where a new block's would be faulted in (most of
+// the page faults of the SBVH's spatial splits).
+void children_on_axis(std::vector<PrimRef>& parent, int axis, int split_axis, float pos,
                       std::span<const PrimRef> left_straddlers,
                       std::span<const PrimRef> right_straddlers, std::vector<PrimRef>& left,
                       std::vector<PrimRef>& right) {
@@ -485,7 +489,8 @@ void children_on_axis(const std::vector<PrimRef>& parent, int axis, int split_ax
     if (side == Side::kRight) whole_right.push_back(r);
   }
   sort_by_centroid(left_straddlers, axis, pieces);
-  merge_on_axis(whole_left, pieces, axis, left);
+  merge_on_axis(whole_left, pieces, axis, parent);
+  left = std::move(parent);
   sort_by_centroid(right_straddlers, axis, pieces);
   merge_on_axis(whole_right, pieces, axis, right);
 }
@@ -543,7 +548,7 @@ Sides classify_all(std::span<const PrimRef> refs, int axis, float pos, const Sce
 
 }  // namespace
 
-std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
+std::size_t apply_spatial_split(const SpatialSplit& split, SortedRefs& refs, int order_axis,
                                 const Scene& scene, SortedRefs& left_out, SortedRefs& right_out,
                                 unsigned threads) {
   const int axis = split.axis;
@@ -601,6 +606,8 @@ std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& ref
       added += 1;
     }
   }
+  // Unsplitting moved every reference to one side: no children (`refs` kept for the caller).
+  if (left_whole + left.size() == 0 || right_whole + right.size() == 0) return added;
   parallel_for(3, threads, [&](std::size_t a) {
     children_on_axis(refs.axis[a], int(a), axis, pos, left, right, left_out.axis[a],
                      right_out.axis[a]);

@@ -109,7 +109,9 @@ SpatialSplit find_spatial_split(std::span<const PrimRef> refs, const format::Box
                                 float to_beat = std::numeric_limits<float>::infinity());
 /// Distributes references (visited in their order on `order_axis`), unsplitting straddlers
 /// where cheaper, into children whose axis arrays stay sorted; returns the added references.
-std::size_t apply_spatial_split(const SpatialSplit& split, const SortedRefs& refs, int order_axis,
+/// The left child takes `refs`' arrays (rewritten); where unsplitting leaves a side empty, both
+/// children are empty and `refs` is left as it was.
+std::size_t apply_spatial_split(const SpatialSplit& split, SortedRefs& refs, int order_axis,
                                 const Scene& scene, SortedRefs& left, SortedRefs& right,
                                 unsigned threads = 1);
 
