@@ -84,9 +84,6 @@ struct Bins {
     box[i].lo = bvh_simd::vmin(lo, box[i].lo);
     box[i].hi = bvh_simd::add_lane3(bvh_simd::vmax(hi, box[i].hi), 1);
   }
-  bool occupied(int a, std::uint32_t b) const {
-    return (used[std::size_t(a) * words + b / 64] >> (b % 64)) & 1u;
-  }
   void add(int a, std::uint32_t b, V4 lo, V4 hi) {
     used[std::size_t(a) * words + b / 64] |= std::uint64_t(1) << (b % 64);
     grow(std::size_t(a) * k + b, lo, hi);
