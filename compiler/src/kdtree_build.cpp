@@ -172,8 +172,14 @@ void build_node(const Context& ctx, const format::Box3f& cell, EventLists events
   format::Box3f left_cell = cell, right_cell = cell;
   format::at(left_cell.max, axis) = p;
   format::at(right_cell.min, axis) = p;
+  // Each list sized before it is filled: one allocation per list, not one per doubling (the
+  // deep nodes' lists are short and many; under the sanitizers allocation dominated the build).
   EventLists left, right;
   for (int k = 0; k < 3; ++k) {
+    std::size_t sides[3] = {0, 0, 0};
+    for (const Event& e : events[k]) ++sides[side[e.prim]];
+    left[k].reserve(sides[kLeftOnly] + 2 * straddling.size());
+    right[k].reserve(sides[kRightOnly] + 2 * straddling.size());
     for (const Event& e : events[k]) {
       if (side[e.prim] == kLeftOnly)
         left[k].push_back(e);
@@ -187,6 +193,8 @@ void build_node(const Context& ctx, const format::Box3f& cell, EventLists events
   // Straddling triangles get fresh events from their part inside each child; a triangle whose
   // box straddles but whose surface misses a child is left out of it.
   EventLists left_new, right_new;
+  for (int k = 0; k < 3; ++k)
+    left_new[k].reserve(2 * straddling.size()), right_new[k].reserve(2 * straddling.size());
   for (const std::uint32_t prim : straddling) {
     const format::Triangle& t = ctx.scene.triangles[prim];
     const auto& v = ctx.scene.positions;
@@ -198,9 +206,10 @@ void build_node(const Context& ctx, const format::Box3f& cell, EventLists events
   auto merge_into = [](std::vector<Event>& list, std::vector<Event>& extra) {
     if (extra.empty()) return;
     std::sort(extra.begin(), extra.end());
-    const auto middle = list.size();
-    list.insert(list.end(), extra.begin(), extra.end());
-    std::inplace_merge(list.begin(), list.begin() + std::ptrdiff_t(middle), list.end());
+    // Merged from the back into the list's reserved room (inplace_merge would allocate).
+    std::size_t i = list.size(), j = extra.size(), w = i + j;
+    list.resize(w);
+    while (j > 0) list[--w] = i > 0 && extra[j - 1] < list[i - 1] ? list[--i] : extra[--j];
     extra = {};
   };
   for (int k = 0; k < 3; ++k) {
