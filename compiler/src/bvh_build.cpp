@@ -20,11 +20,19 @@ namespace {
 // its references, so the tree is the same whatever runs where.
 constexpr std::size_t kParallelSubtree = 4096;
 
+// The nodes and primitive ids of a subtree, emitted depth-first (first child adjacent); leaf
+// offsets index `prims`, interior offsets `nodes`, both from 0 for a subtree built apart.
+struct FlatOut {
+  std::vector<format::BvhNode> nodes;
+  std::vector<std::uint32_t> prims;
+};
+
 struct BuildContext {
   const Scene& scene;
   const BvhBuildOptions& options;
   float root_area;
   WorkerSlots& slots;  // threads not yet working: large nodes' axes and forks take them
+  PendingRightsOf<FlatOut>& pending;  // right subtrees a thread with nothing to do may build
 };
 
 // The free worker slots a large node takes for its sweeps, spatial binning and partitions, given
@@ -42,13 +50,6 @@ format::Box3f bounds_of(std::span<const PrimRef> refs) {
   for (const auto& r : refs) box.grow(r.box);
   return box;
 }
-
-// The nodes and primitive ids of a subtree, emitted depth-first (first child adjacent); leaf
-// offsets index `prims`, interior offsets `nodes`, both from 0 for a subtree built apart.
-struct FlatOut {
-  std::vector<format::BvhNode> nodes;
-  std::vector<std::uint32_t> prims;
-};
 
 format::BvhNode node_of(const format::Box3f& box) {
   format::BvhNode node{};
@@ -190,15 +191,42 @@ void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, 
   const auto right_tree = [&](FlatOut& o) {
     build_node(ctx, std::move(right), depth + 1, budget - left_budget, o);
   };
+  const bool large = left.size() >= kParallelSubtree && right.size() >= kParallelSubtree;
   std::uint32_t second;
-  if (left.size() >= kParallelSubtree && right.size() >= kParallelSubtree && ctx.slots.try_take()) {
+  if (large && ctx.slots.try_take()) {
     // The right subtree apart on a new thread, the left one in place (as in turn), then the
-    // right one appended: the same nodes either way.
+    // right one appended: the same nodes either way. The new thread, done, takes listed ones.
     FlatOut r;
     fork_on_slot(
-        ctx.slots, [&] { left_tree(out); }, [&] { right_tree(r); });
+        ctx.slots, [&] { left_tree(out); },
+        [&] {
+          right_tree(r);
+          while (ctx.pending.build_one()) {
+          }
+        });
     second = std::uint32_t(out.nodes.size());
     append_subtree(out, r);
+  } else if (large) {
+    // No thread free now: the right subtree is listed while the left one is built, so that a
+    // thread done with its own part builds it apart rather than wait (an uneven split left one
+    // core idle at the end of the build until the other reached a split that could fork).
+    PendingRightsOf<FlatOut>::Entry entry;
+    entry.size = right.size();
+    entry.build = right_tree;
+    ctx.pending.add(&entry);
+    try {
+      left_tree(out);
+    } catch (...) {
+      ctx.pending.reclaim(&entry, ctx.slots);  // a thread building it refers to this frame
+      throw;
+    }
+    second = std::uint32_t(out.nodes.size());
+    if (ctx.pending.reclaim(&entry, ctx.slots)) {
+      right_tree(out);
+    } else {
+      if (entry.error) std::rethrow_exception(entry.error);
+      append_subtree(out, entry.nodes);
+    }
   } else {
     left_tree(out);
     second = std::uint32_t(out.nodes.size());
@@ -238,7 +266,8 @@ std::vector<format::BvhNode> build_sbvh_nodes(const Scene& scene, const BvhBuild
   format::Box3f root;
   for (const format::Box3f& b : chunk_box) root.grow(b);
   WorkerSlots slots(resolve_thread_count(options.threads));
-  const BuildContext ctx{scene, options, root.half_area(), slots};
+  PendingRightsOf<FlatOut> pending;
+  const BuildContext ctx{scene, options, root.half_area(), slots, pending};
   SortedRefs sorted;  // sorted once here, kept sorted through every split
   // Three axes on two threads would leave one idle for a third of the time: on several
   // threads each axis is sorted in turn by all of them.

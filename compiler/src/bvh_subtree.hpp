@@ -100,13 +100,14 @@ void fork_on_slot(WorkerSlots& slots, const Here& here, const Forked& forked) {
 /// forked thread that has finished its own subtree takes the largest (and builds it apart)
 /// before it ends, so a free core need not wait for the next split that may fork. The owner
 /// appends a taken one (waiting for it if need be) where it would have emitted it: the nodes
-/// are the same wherever a subtree is built.
-class PendingRights {
+/// are the same wherever a subtree is built. `Out`: what a subtree is emitted into.
+template <class Out>
+class PendingRightsOf {
  public:
   struct Entry {
     std::size_t size = 0;
-    std::function<void(std::vector<format::BvhNode>&)> build;
-    std::vector<format::BvhNode> nodes;
+    std::function<void(Out&)> build;
+    Out nodes;
     std::exception_ptr error;
     bool done = false;
   };
@@ -169,6 +170,9 @@ class PendingRights {
   std::condition_variable done_;
   std::vector<Entry*> list_;
 };
+
+/// The binned builder's: subtrees as nodes alone (leaf offsets index the shared references).
+using PendingRights = PendingRightsOf<std::vector<format::BvhNode>>;
 
 /// Emits a node's two children after it, in turn, with `emit(child, nodes)`; returns where the
 /// second one starts.
