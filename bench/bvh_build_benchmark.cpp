@@ -177,7 +177,8 @@ KilnResult kiln_build(const kiln::Scene& scene, kiln::BvhBuilder builder, unsign
   const double c0 = threads == 1 ? cpu_seconds() : wall_seconds(), k0 = system_seconds();
   kiln::WideCollapseOptions c;
   c.threads = threads;
-  c.index_tree = false;  // as kiln build: the arena alone
+  c.index_tree = false;     // as kiln build: the arena alone
+  c.scratch = &flat.spare;  // as kiln build: the build's finished references as scratch
   const kiln::FlatWideBvh wide =
       kiln::collapse_bvh(flat, g_width, scene.triangles.size(), false, &scene, c);
   out.collapse_seconds = (threads == 1 ? cpu_seconds() : wall_seconds()) - c0;

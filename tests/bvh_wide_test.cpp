@@ -278,6 +278,43 @@ TEST(WideBvh, DistinctReferencesAreMarkedAndCollapseAsWhenLookedFor) {
   }
 }
 
+// The binned build hands its finished reference array on (FlatBvh::spare), and a collapse given it
+// as scratch keeps its per-node records there: the same arena as with blocks of its own, whatever
+// the block held before (filled with a pattern here) and also when it is too small for them.
+TEST(WideBvh, ScratchBlockGivesTheSameArena) {
+  std::map<std::string, Scene> scenes = test::worst_cases();
+  scenes.emplace("icosphere", test::icosphere(5));
+  for (const auto& [name, scene] : scenes) {
+    SCOPED_TRACE(name);
+    BvhBuildOptions o;
+    o.leaf_triangles = false;
+    o.leaf_packet = format::kBvhPacketSize;  // as `kiln build` builds for the wide layouts
+    FlatBvh binary = build_bvh(scene, o);
+    // Reserved for 40-byte records of 1.25 nodes per reference (bvh_builder.hpp); trees of
+    // one-reference leaves (no leaf_packet) have up to 2 per reference and outgrow it.
+    EXPECT_GE(binary.spare.capacity(), 40 * (scene.triangles.size() * 5 / 4));
+    for (const std::uint32_t width : {4u, 8u, 16u}) {
+      for (const unsigned threads : {1u, 2u}) {
+        WideCollapseOptions c;
+        c.threads = threads;
+        const FlatWideBvh own =
+            collapse_bvh(binary, width, scene.triangles.size(), false, &scene, c);
+        binary.spare.resize(binary.spare.capacity());
+        std::memset(binary.spare.data(), 0xA5, binary.spare.size());
+        c.scratch = &binary.spare;
+        EXPECT_EQ(collapse_bvh(binary, width, scene.triangles.size(), false, &scene, c).arena,
+                  own.arena)
+            << width << " " << threads;
+        UninitializedVector<std::byte> small(64);
+        c.scratch = &small;
+        EXPECT_EQ(collapse_bvh(binary, width, scene.triangles.size(), false, &scene, c).arena,
+                  own.arena)
+            << width << " " << threads << " (scratch too small)";
+      }
+    }
+  }
+}
+
 TEST(WideBvh, SahCollapseCostsNoMoreThanTheGreedyCollapse) {
   std::map<std::string, Scene> scenes = test::worst_cases();
   scenes.emplace("icosphere", test::icosphere(4));

@@ -631,8 +631,16 @@ void emit(const Context& ctx, const Task& t, std::vector<format::BvhNode>& nodes
 
 }  // namespace
 
-bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads) {
-  bvh_simd::BuildRefs refs(scene.triangles.size());
+std::span<BuildRef> triangle_build_refs(const Scene& scene, unsigned threads,
+                                        UninitializedVector<std::byte>& block,
+                                        std::size_t reserve_bytes) {
+  const std::size_t bytes = scene.triangles.size() * sizeof(BuildRef);
+  block = {};
+  reserve_huge(block, std::max(bytes, reserve_bytes));
+  block.resize(bytes);
+  // operator new's blocks are aligned for BuildRef's vectors (16 bytes).
+  static_assert(__STDCPP_DEFAULT_NEW_ALIGNMENT__ >= alignof(BuildRef));
+  const std::span<BuildRef> refs(reinterpret_cast<BuildRef*>(block.data()), scene.triangles.size());
   parallel_for_batched(refs.size(), 65536, threads, [&](std::size_t i) {
     Box3f box;
     for (const auto v : scene.triangles[i].v) box.grow(scene.positions[v]);

@@ -9,8 +9,11 @@
 
 namespace kiln {
 
-/// One reference per triangle of the scene (its box, its index), built in parallel.
-bvh_simd::BuildRefs triangle_build_refs(const Scene& scene, unsigned threads);
+/// One reference per triangle of the scene (its box, its index), built in parallel into `block`,
+/// which is sized for them and reserved for `reserve_bytes` (for a later use of its memory).
+std::span<bvh_simd::BuildRef> triangle_build_refs(const Scene& scene, unsigned threads,
+                                                  UninitializedVector<std::byte>& block,
+                                                  std::size_t reserve_bytes);
 
 /// The binned SAH builder over `refs`, which it partitions in place into leaf order; returns
 /// the nodes in the flat layout, each leaf's offset indexing `refs`. Byte-identical for any

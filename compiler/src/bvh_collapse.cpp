@@ -287,37 +287,65 @@ struct CollapseProgramme {
 // Subtrees of at most this many references prefetch their triangles, and their positions.
 constexpr std::uint32_t kPrefetchTriangles = 256, kPrefetchPositions = 64;
 
+// Arrays carved one after another out of a caller's block (WideCollapseOptions::scratch: pages
+// already touched, where a new block's would each fault) while it has room; an array that does
+// not fit gets a block of its own.
+class ScratchArrays {
+ public:
+  explicit ScratchArrays(UninitializedVector<std::byte>* block) : block_(block) {
+    if (block_) block_->clear();
+  }
+  template <class T>
+  std::span<T> take(std::size_t n, UninitializedVector<T>& own) {
+    static_assert(std::is_trivially_copyable_v<T> &&
+                  alignof(T) <= __STDCPP_DEFAULT_NEW_ALIGNMENT__);
+    const std::size_t at = block_ ? (block_->size() + alignof(T) - 1) / alignof(T) * alignof(T) : 0;
+    if (!block_ || at + n * sizeof(T) > block_->capacity()) {
+      own.resize(n);
+      return own;
+    }
+    block_->resize(at + n * sizeof(T));  // within its capacity: no new block, nothing zeroed
+    return {reinterpret_cast<T*>(block_->data() + at), n};
+  }
+
+ private:
+  UninitializedVector<std::byte>* block_;
+};
+
 template <int W>
 struct Collapser {
   const FlatBvh& bin;
   const Scene* scene;  // corners from here when bin.triangles is empty
   FlatWideBvh& out;
   const WideCollapseOptions& options;
-  UninitializedVector<CollapseNode<W>> info;      // per binary node
+  // The arrays below lie in options.scratch while it has room, else in blocks of their own.
+  UninitializedVector<CollapseNode<W>> own_info;
+  UninitializedVector<double> own_ref_area;
+  UninitializedVector<std::uint64_t> own_sizes;
+  std::span<CollapseNode<W>> info;                // per binary node
   std::optional<CollapseProgramme<W>> programme;  // unless greedy
   const bool occlusion;                           // kOcclusion: triangle areas wanted
-  UninitializedVector<double> ref_area;  // each reference's triangle's (kOcclusion, no copies)
+  std::span<double> ref_area;  // each reference's triangle's (kOcclusion, no copies)
   // Per interior node, its subtree's arena bytes << 16 | its own leaf lines, counted by the
   // programme in the sweep (2+ threads, distinct references); empty otherwise.
-  UninitializedVector<std::uint64_t> sizes;
+  std::span<std::uint64_t> sizes;
 
   Collapser(const FlatBvh& b, const Scene* s, FlatWideBvh& o, const WideCollapseOptions& opt,
             std::size_t node_size)
-      : bin(b),
-        scene(s),
-        out(o),
-        options(opt),
-        info(b.nodes.size()),
-        occlusion(opt.order == WideSlotOrder::kOcclusion) {
+      : bin(b), scene(s), out(o), options(opt), occlusion(opt.order == WideSlotOrder::kOcclusion) {
     if (bin.triangles.empty() && scene == nullptr)
       throw std::invalid_argument("collapse_bvh: no leaf triangles and no scene");
+    ScratchArrays scratch(opt.scratch);
+    info = scratch.take(b.nodes.size(), own_info);
     if (!options.greedy) programme.emplace(info.data(), options);
     if (programme && bin.distinct_refs && resolve_thread_count(options.threads) > 1) {
-      sizes = UninitializedVector<std::uint64_t>(bin.nodes.size());
+      sizes = scratch.take(bin.nodes.size(), own_sizes);
       programme->sizes = sizes.data(), programme->node_size = node_size;
     }
-    if (occlusion && bin.triangles.empty())
-      ref_area = reference_areas(bin, *scene, options.threads);
+    if (occlusion && bin.triangles.empty()) {
+      ref_area = scratch.take(bin.prim_ids.size(), own_ref_area);
+      reference_areas(bin, *scene, options.threads, ref_area);
+    }
     sweep(options.threads);
   }
 
@@ -402,11 +430,10 @@ struct Collapser {
   // The scene's triangles and positions are read in the leaves' scattered order, so each is
   // prefetched ahead (the triangle further ahead than its positions, which it locates), in
   // fixed chunks on the threads.
-  static UninitializedVector<double> reference_areas(const FlatBvh& bin, const Scene& scene,
-                                                     unsigned threads) {
+  static void reference_areas(const FlatBvh& bin, const Scene& scene, unsigned threads,
+                              std::span<double> area) {
     constexpr std::size_t kChunk = 65536, kAheadTriangle = 256, kAheadPositions = 96;
     const std::size_t n = bin.prim_ids.size();
-    UninitializedVector<double> area(n);
     parallel_for((n + kChunk - 1) / kChunk, threads, [&](std::size_t c) {
       const std::size_t end = std::min(n, (c + 1) * kChunk);
       for (std::size_t r = c * kChunk; r < end; ++r) {
@@ -420,7 +447,6 @@ struct Collapser {
             area_of({scene.positions[t.v[0]], scene.positions[t.v[1]], scene.positions[t.v[2]]});
       }
     });
-    return area;
   }
 
   static double area_of(const format::RayTriangle& t) {

@@ -160,10 +160,11 @@ BuiltStructure binary_structure(std::shared_ptr<FlatBvh> flat, const BvhBuildOpt
 }
 
 // The wide layout: one BVWA section, the arena (the tree by index is dropped here).
-BuiltStructure wide_structure(const FlatBvh& flat, const BvhBuildOptions& o, const Scene& scene) {
+BuiltStructure wide_structure(FlatBvh& flat, const BvhBuildOptions& o, const Scene& scene) {
   WideCollapseOptions c;
   c.threads = o.threads;
-  c.index_tree = false;  // the blob stores the arena alone
+  c.index_tree = false;     // the blob stores the arena alone
+  c.scratch = &flat.spare;  // the build's finished references: pages already touched
   FlatWideBvh collapsed =
       collapse_bvh(flat, o.width, scene.triangles.size(), o.quantized, &scene, c);
   const WideBvhStatistics w = collapsed.stats;
@@ -194,7 +195,10 @@ BuiltStructure build_structure(const Scene& scene, BvhBuildOptions options) {
   // The wide layouts pack leaves in 4-triangle packets: the binary tree stops there.
   options.leaf_packet = options.width == 2 ? 0 : format::kBvhPacketSize;
   auto flat = std::make_shared<FlatBvh>(build_bvh(scene, options));
-  if (options.width == 2) return binary_structure(std::move(flat), options);
+  if (options.width == 2) {
+    flat->spare = {};  // no collapse: the binary layout is kept, not its build's scratch
+    return binary_structure(std::move(flat), options);
+  }
   return wide_structure(*flat, options, scene);
 }
 

@@ -69,6 +69,11 @@ struct WideCollapseOptions {
   /// Also fill FlatWideBvh::nodes and packets (the tree by index, for tests and tools); off,
   /// only the arena is made (what a blob stores), without a second copy of the tree.
   bool index_tree = true;
+  /// Where the collapse keeps its per-node records (and per-reference areas) while there is
+  /// room: FlatBvh::spare, the binned build's reference array, whose pages are already touched
+  /// (a new block's pages each fault on first write). Null: blocks of its own. Its contents
+  /// are overwritten; one collapse at a time per block.
+  UninitializedVector<std::byte>* scratch = nullptr;
 };
 
 /// Collapses `binary` into `width` (4, 8 or 16; 16 with float boxes only) children per node.
