@@ -335,6 +335,16 @@ int main(int argc, char** argv) {
   std::vector<Mesh> meshes;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::printf(
+          "usage: %s [--rounds=N] [--only=binned|sbvh] [--sbvh-alpha=X] [--leaf-packet=N]\n"
+          "       [--width=4|8|16] [--each] [--keep-memory] [--warm-free=MB] MESH...\n"
+          "Build time of Kiln's BVH builders (binary build, then the collapse to --width) against\n"
+          "Embree 3's, alternating in one process, 1 thread and all threads; medians over rounds\n"
+          "and the median of per-round ratios. MESH: a file, or [LABEL=]@DIR[/PATTERN].\n",
+          argv[0]);
+      return 0;
+    }
     if (kiln::bench::parse_number_option(arg, "rounds", rounds)) continue;
     if (arg.starts_with("--leaf-packet=")) {
       g_leaf_packet = std::uint32_t(std::stoul(arg.substr(14)));
