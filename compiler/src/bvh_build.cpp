@@ -26,6 +26,9 @@ struct FlatOut {
   std::vector<format::BvhNode> nodes;
   std::vector<std::uint32_t> prims;
 };
+std::size_t emitted_nodes(const FlatOut& out) {
+  return out.nodes.size();
+}
 
 struct BuildContext {
   const Scene& scene;
@@ -191,47 +194,13 @@ void build_children(const BuildContext& ctx, SortedRefs left, SortedRefs right, 
   const auto right_tree = [&](FlatOut& o) {
     build_node(ctx, std::move(right), depth + 1, budget - left_budget, o);
   };
+  // Both halves large: the right one may go to a free thread, or be listed for one that
+  // finishes its own part early (an uneven split left a core idle until the other thread
+  // reached a split that could fork).
   const bool large = left.size() >= kParallelSubtree && right.size() >= kParallelSubtree;
-  std::uint32_t second;
-  if (large && ctx.slots.try_take()) {
-    // The right subtree apart on a new thread, the left one in place (as in turn), then the
-    // right one appended: the same nodes either way. The new thread, done, takes listed ones.
-    FlatOut r;
-    fork_on_slot(
-        ctx.slots, [&] { left_tree(out); },
-        [&] {
-          right_tree(r);
-          while (ctx.pending.build_one()) {
-          }
-        });
-    second = std::uint32_t(out.nodes.size());
-    append_subtree(out, r);
-  } else if (large) {
-    // No thread free now: the right subtree is listed while the left one is built, so that a
-    // thread done with its own part builds it apart rather than wait (an uneven split left one
-    // core idle at the end of the build until the other reached a split that could fork).
-    PendingRightsOf<FlatOut>::Entry entry;
-    entry.size = right.size();
-    entry.build = right_tree;
-    ctx.pending.add(&entry);
-    try {
-      left_tree(out);
-    } catch (...) {
-      ctx.pending.reclaim(&entry, ctx.slots);  // a thread building it refers to this frame
-      throw;
-    }
-    second = std::uint32_t(out.nodes.size());
-    if (ctx.pending.reclaim(&entry, ctx.slots)) {
-      right_tree(out);
-    } else {
-      if (entry.error) std::rethrow_exception(entry.error);
-      append_subtree(out, entry.nodes);
-    }
-  } else {
-    left_tree(out);
-    second = std::uint32_t(out.nodes.size());
-    right_tree(out);
-  }
+  const std::uint32_t second = emit_children_scheduled(
+      ctx.slots, large, &ctx.pending, right.size(), out, left_tree, right_tree,
+      [](FlatOut& o, const FlatOut& sub) { append_subtree(o, sub); });
   out.nodes[index].offset = second;
 }
 

@@ -65,26 +65,25 @@ void dedupe_leaf_references(std::vector<format::BvhNode>& nodes,
 // Without a presplit, `counts` gets the nodes' statistics as the build counts them.
 std::size_t build_binned_flat_nodes(const Scene& scene, const BvhBuildOptions& options,
                                     FlatBvh& out, std::optional<BvhStatistics>& counts) {
-  if (options.presplit != BvhPresplit::kNone) {
+  bvh_simd::BuildRefs pieces_refs;  // with a presplit: made from its pieces
+  std::span<bvh_simd::BuildRef> refs;
+  if (options.presplit == BvhPresplit::kNone) {
+    // The references' block is reserved (not touched) for the collapse's per-node records, up
+    // to 40 bytes for each of 1.25 nodes per reference (as build_binned_nodes reserves its
+    // nodes), and handed on in `spare` after the build.
+    const std::size_t n = scene.triangles.size();
+    refs = triangle_build_refs(scene, options.threads, out.spare, 40 * (n + n / 4 + 1));
+    counts.emplace();
+  } else {
     const std::vector<PrimRef> pieces = build_refs(scene, options);
-    bvh_simd::BuildRefs refs(pieces.size());
+    pieces_refs.resize(pieces.size());
     for (std::size_t i = 0; i < pieces.size(); ++i)
-      refs[i] = bvh_simd::BuildRef::make(pieces[i].box, pieces[i].prim);
-    reserve_huge(out.prim_ids, refs.size());
-    out.prim_ids.resize(refs.size());
-    out.nodes =
-        build_binned_nodes(std::span<bvh_simd::BuildRef>(refs), options, nullptr, out.prim_ids);
-    return refs.size();
+      pieces_refs[i] = bvh_simd::BuildRef::make(pieces[i].box, pieces[i].prim);
+    refs = pieces_refs;
   }
-  // The references' block is reserved (not touched) for the collapse's per-node records, up to
-  // 40 bytes for each of 1.25 nodes per reference (as build_binned_nodes reserves its nodes),
-  // and handed on in `spare` after the build.
-  const std::size_t n = scene.triangles.size();
-  const auto refs = triangle_build_refs(scene, options.threads, out.spare, 40 * (n + n / 4 + 1));
-  counts.emplace();
   reserve_huge(out.prim_ids, refs.size());
   out.prim_ids.resize(refs.size());
-  out.nodes = build_binned_nodes(refs, options, &*counts, out.prim_ids);
+  out.nodes = build_binned_nodes(refs, options, counts ? &*counts : nullptr, out.prim_ids);
   return refs.size();
 }
 

@@ -185,55 +185,80 @@ std::uint32_t emit_bvh_children_in_turn(const Child& left, const Child& right,
   return second;
 }
 
-/// Emits a node's two children after it with `emit(child, nodes)`; the right one on a new
-/// thread when `may_fork` (the caller's size rule) and `slots` has a free one. The left
-/// one is emitted in place, the right one apart (`reserve` nodes reserved) and appended, so the
-/// nodes are the same either way; `count_apart`, if any, counts a subtree built apart beside
-/// its append. Links the node at `index` to its second child and makes it
-/// interior.
+/// How many nodes `nodes` holds (emit_children_scheduled's position of a right child).
+inline std::size_t emitted_nodes(const std::vector<format::BvhNode>& nodes) {
+  return nodes.size();
+}
+
+/// The schedule of the recursive builders (binned, SBVH) for a node's two children: the right one
+/// on a new thread when `may_fork` and `slots` has one free (that thread, done with it, builds
+/// listed ones); else, with `pending` (and `may_fork`), listed while the left one is emitted, for
+/// a thread with nothing to do, and emitted here if none took it; else in turn. `emit_left(o)`
+/// and `emit_right(o)` emit into `o`: `out`, or for a right subtree built apart a fresh Out
+/// (reserved for `right_size` nodes where Out can reserve) that `append(out, sub)` then appends.
+/// Every way gives the same `out`. Returns where the right child starts (emitted_nodes(out)).
+template <class Out, class EmitLeft, class EmitRight, class Append>
+std::uint32_t emit_children_scheduled(WorkerSlots& slots, bool may_fork,
+                                      PendingRightsOf<Out>* pending, std::size_t right_size,
+                                      Out& out, const EmitLeft& emit_left,
+                                      const EmitRight& emit_right, const Append& append) {
+  const auto emit_apart = [&](Out& sub) {
+    if constexpr (requires { sub.reserve(right_size); }) sub.reserve(right_size);
+    emit_right(sub);
+  };
+  if (may_fork && slots.try_take()) {
+    Out sub;
+    fork_on_slot(
+        slots, [&] { emit_left(out); },
+        [&] {
+          emit_apart(sub);
+          while (pending && pending->build_one()) {
+          }
+        });
+    const auto second = std::uint32_t(emitted_nodes(out));
+    append(out, sub);
+    return second;
+  }
+  if (may_fork && pending) {
+    typename PendingRightsOf<Out>::Entry entry;
+    entry.size = right_size;
+    entry.build = emit_apart;
+    pending->add(&entry);
+    try {
+      emit_left(out);
+    } catch (...) {
+      pending->reclaim(&entry, slots);  // a thread building it refers to this frame: wait
+      throw;
+    }
+    const auto second = std::uint32_t(emitted_nodes(out));
+    if (pending->reclaim(&entry, slots)) {
+      emit_right(out);
+    } else {
+      if (entry.error) std::rethrow_exception(entry.error);
+      append(out, entry.nodes);
+    }
+    return second;
+  }
+  emit_left(out);
+  const auto second = std::uint32_t(emitted_nodes(out));
+  emit_right(out);
+  return second;
+}
+
+/// Emits a node's two children after it with `emit(child, nodes)` by emit_children_scheduled
+/// (`may_fork`: the caller's size rule; `reserve` nodes reserved for a right subtree built apart);
+/// `count_apart`, if any, counts a subtree built apart beside its append. Links the node at
+/// `index` to its second child and makes it interior.
 template <class Child, class Emit>
 void emit_bvh_children_on_demand(WorkerSlots& slots, bool may_fork, const Child& left,
                                  const Child& right, std::size_t reserve, std::size_t index,
                                  std::vector<format::BvhNode>& nodes, const Emit& emit,
                                  PendingRights* pending = nullptr,
                                  const CountApart& count_apart = {}) {
-  std::uint32_t second;
-  if (may_fork && slots.try_take()) {
-    std::vector<format::BvhNode> r;
-    r.reserve(reserve);
-    fork_on_slot(
-        slots, [&] { emit(left, nodes); },
-        [&] {
-          emit(right, r);
-          while (pending && pending->build_one()) {
-          }
-        });
-    second = std::uint32_t(nodes.size());
-    append_bvh_subtree_counting(nodes, r, count_apart);
-  } else if (may_fork && pending) {
-    PendingRights::Entry entry;
-    entry.size = reserve;
-    entry.build = [&](std::vector<format::BvhNode>& out) {
-      out.reserve(reserve);
-      emit(right, out);
-    };
-    pending->add(&entry);
-    try {
-      emit(left, nodes);
-    } catch (...) {
-      pending->reclaim(&entry, slots);  // a thread building it refers to this frame: wait
-      throw;
-    }
-    second = std::uint32_t(nodes.size());
-    if (pending->reclaim(&entry, slots)) {
-      emit(right, nodes);
-    } else {
-      if (entry.error) std::rethrow_exception(entry.error);
-      append_bvh_subtree_counting(nodes, entry.nodes, count_apart);
-    }
-  } else {
-    second = emit_bvh_children_in_turn(left, right, nodes, emit);
-  }
+  const std::uint32_t second = emit_children_scheduled(
+      slots, may_fork, pending, reserve, nodes, [&](auto& o) { emit(left, o); },
+      [&](auto& o) { emit(right, o); },
+      [&](auto& o, const auto& sub) { append_bvh_subtree_counting(o, sub, count_apart); });
   nodes[index].offset = second;
   nodes[index].count = 0;
 }
